@@ -1,0 +1,327 @@
+//! Properties of the dual graph and of partitions on generated meshes.
+
+mod common;
+
+use common::{irregular, rectangle, two_bodies};
+use partition::{dual_graph, partition_mesh, Partition, PartitionError, NO_PART};
+use std::collections::BTreeSet;
+
+type Mesh = (usize, Vec<[usize; 3]>, Vec<usize>);
+
+fn check_dual_graph_symmetric(num_nodes: usize, tris: &[[usize; 3]]) {
+    let g = dual_graph(num_nodes, tris).unwrap();
+    assert_eq!(g.num_vertices(), tris.len());
+    for e in 0..g.num_vertices() {
+        let nb = g.neighbours(e);
+        assert!(
+            nb.windows(2).all(|w| w[0] < w[1]),
+            "row {e} sorted, no repeats"
+        );
+        for &f in nb {
+            assert_ne!(e, f);
+            assert!(g.neighbours(f).contains(&e), "{e} -> {f} but not back");
+            let common = tris[e].iter().filter(|n| tris[f].contains(n)).count();
+            assert_eq!(common, 2, "{e} and {f} share an edge");
+        }
+    }
+}
+
+#[test]
+fn dual_graph_of_rectangle() {
+    let (nx, ny) = (7, 5);
+    let (n, tris, _) = rectangle(nx, ny);
+    check_dual_graph_symmetric(n, &tris);
+    let g = dual_graph(n, &tris).unwrap();
+    // Diagonals, interior vertical edges, interior horizontal edges.
+    assert_eq!(g.num_edges(), nx * ny + (nx - 1) * ny + nx * (ny - 1));
+    // A triangle has 3 neighbours exactly when none of its edges is on the boundary.
+    let on_boundary = |a: usize, b: usize| {
+        let (ia, ja, ib, jb) = (a % (nx + 1), a / (nx + 1), b % (nx + 1), b / (nx + 1));
+        (ia == ib && (ia == 0 || ia == nx)) || (ja == jb && (ja == 0 || ja == ny))
+    };
+    for (e, t) in tris.iter().enumerate() {
+        let boundary_edges = (0..3)
+            .filter(|&k| on_boundary(t[k], t[(k + 1) % 3]))
+            .count();
+        assert_eq!(g.neighbours(e).len(), 3 - boundary_edges, "triangle {e}");
+    }
+}
+
+#[test]
+fn dual_graph_of_irregular_mesh() {
+    let (n, tris, _) = irregular();
+    check_dual_graph_symmetric(n, &tris);
+    let g = dual_graph(n, &tris).unwrap();
+    // Count mesh edges used by two triangles, independently of the implementation.
+    let mut count = std::collections::BTreeMap::new();
+    for t in &tris {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    assert_eq!(g.num_edges(), count.values().filter(|&&c| c == 2).count());
+    // The fan's triangles: the one on the rectangle side has 3, the others 2.
+    let fan = tris.len() - 6;
+    let degrees: Vec<usize> = (fan..tris.len()).map(|e| g.neighbours(e).len()).collect();
+    assert_eq!(degrees, vec![3, 2, 2, 2, 2, 2]);
+}
+
+/// Checks every invariant a partition promises, from scratch.
+fn check_partition(mesh: &Mesh, p: &Partition) {
+    let (num_nodes, tris, contact) = mesh;
+    let nparts = p.nparts;
+    assert_eq!(p.parts.len(), nparts);
+    assert_eq!(p.element_part.len(), tris.len());
+
+    // Elements: each in exactly one part, parts non-empty and sorted.
+    let mut seen = vec![0; tris.len()];
+    for (k, part) in p.parts.iter().enumerate() {
+        assert!(!part.elements.is_empty(), "part {k} empty");
+        assert!(part.elements.windows(2).all(|w| w[0] < w[1]));
+        for &e in &part.elements {
+            seen[e] += 1;
+            assert_eq!(p.element_part[e] as usize, k);
+        }
+    }
+    assert!(seen.iter().all(|&s| s == 1));
+
+    // Which parts touch each node, computed naively.
+    let mut touching = vec![BTreeSet::new(); *num_nodes];
+    for (e, t) in tris.iter().enumerate() {
+        for &n in t {
+            touching[n].insert(p.element_part[e]);
+        }
+    }
+    let mut owned_count = vec![0; *num_nodes];
+    for (k, part) in p.parts.iter().enumerate() {
+        let k = k as u32;
+        let expect: Vec<usize> = (0..*num_nodes)
+            .filter(|&n| touching[n].contains(&k))
+            .collect();
+        assert_eq!(part.nodes, expect, "nodes of part {k}");
+        assert_eq!(part.owned.len(), part.nodes.len());
+        for (&n, &o) in part.nodes.iter().zip(&part.owned) {
+            assert_eq!(o, p.node_owner[n] == k);
+            owned_count[n] += o as usize;
+        }
+        // Interface iff touched by another part.
+        let expect: Vec<usize> = expect
+            .into_iter()
+            .filter(|&n| touching[n].len() > 1)
+            .collect();
+        assert_eq!(part.interface, expect, "interface of part {k}");
+        // Neighbour lists: sorted by part, symmetric, exactly the shared nodes.
+        assert!(part.neighbours.windows(2).all(|w| w[0].0 < w[1].0));
+        for (q, list) in &part.neighbours {
+            assert_ne!(*q, k);
+            let expect: Vec<usize> = (0..*num_nodes)
+                .filter(|&n| touching[n].contains(&k) && touching[n].contains(q))
+                .collect();
+            assert!(!expect.is_empty());
+            assert_eq!(list, &expect);
+            let back = p.parts[*q as usize]
+                .neighbours
+                .iter()
+                .find(|(r, _)| *r == k)
+                .expect("neighbour relation is symmetric");
+            assert_eq!(&back.1, list);
+        }
+        let n_neighbours = (0..nparts as u32)
+            .filter(|&q| q != k && part.interface.iter().any(|&n| touching[n].contains(&q)))
+            .count();
+        assert_eq!(part.neighbours.len(), n_neighbours);
+        assert_eq!(p.quality.neighbours[k as usize], n_neighbours);
+    }
+    // Every used node owned exactly once, by the lowest touching part.
+    for n in 0..*num_nodes {
+        match touching[n].first() {
+            Some(&low) => {
+                assert_eq!(owned_count[n], 1, "node {n}");
+                assert_eq!(p.node_owner[n], low);
+            }
+            None => {
+                assert_eq!(owned_count[n], 0);
+                assert_eq!(p.node_owner[n], NO_PART);
+            }
+        }
+    }
+    // Contact nodes: each owned by exactly one part, its owner.
+    let unique: BTreeSet<usize> = contact.iter().copied().collect();
+    let mut all_contact: Vec<usize> = Vec::new();
+    for (k, part) in p.parts.iter().enumerate() {
+        assert!(part.contact_nodes.windows(2).all(|w| w[0] < w[1]));
+        for &n in &part.contact_nodes {
+            assert_eq!(p.node_owner[n] as usize, k);
+        }
+        all_contact.extend(&part.contact_nodes);
+    }
+    all_contact.sort();
+    assert_eq!(all_contact, unique.into_iter().collect::<Vec<_>>());
+
+    // Quality figures recomputed naively.
+    let g = dual_graph(*num_nodes, tris).unwrap();
+    let cut = (0..tris.len())
+        .flat_map(|e| g.neighbours(e).iter().map(move |&f| (e, f)))
+        .filter(|&(e, f)| p.element_part[e] != p.element_part[f])
+        .count()
+        / 2;
+    assert_eq!(p.quality.edge_cut, cut);
+    let max = p.parts.iter().map(|q| q.elements.len()).max().unwrap();
+    let imbalance = max as f64 * nparts as f64 / tris.len() as f64;
+    assert!((p.quality.imbalance - imbalance).abs() < 1e-12);
+    let n_interface = touching.iter().filter(|t| t.len() > 1).count();
+    assert_eq!(p.quality.interface_nodes, n_interface);
+    if nparts == 1 {
+        assert_eq!(cut, 0);
+        assert_eq!(n_interface, 0);
+    }
+}
+
+#[test]
+fn rectangle_40x40_into_1_to_8_parts() {
+    let mesh = rectangle(40, 40);
+    for nparts in 1..=8 {
+        let p = partition_mesh(mesh.0, &mesh.1, &mesh.2, nparts).unwrap();
+        check_partition(&mesh, &p);
+        assert!(
+            p.quality.imbalance <= 1.1,
+            "{nparts} parts: imbalance {}",
+            p.quality.imbalance
+        );
+        assert_eq!(
+            p.quality.disconnected_parts, 0,
+            "{nparts} parts: {}",
+            p.quality
+        );
+    }
+}
+
+#[test]
+fn irregular_mesh_into_1_to_8_parts() {
+    let mesh = irregular();
+    for nparts in 1..=8 {
+        let p = partition_mesh(mesh.0, &mesh.1, &mesh.2, nparts).unwrap();
+        check_partition(&mesh, &p);
+    }
+}
+
+#[test]
+fn two_separate_bodies_into_1_to_8_parts() {
+    // The dual graph is disconnected, so METIS runs without its contiguity option.
+    let mesh = two_bodies(12, 6);
+    for nparts in 1..=8 {
+        let p = partition_mesh(mesh.0, &mesh.1, &mesh.2, nparts).unwrap();
+        check_partition(&mesh, &p);
+    }
+}
+
+#[test]
+fn as_many_parts_as_triangles() {
+    let mesh = irregular();
+    let p = partition_mesh(mesh.0, &mesh.1, &mesh.2, mesh.1.len()).unwrap();
+    check_partition(&mesh, &p);
+    assert!(p.parts.iter().all(|q| q.elements.len() == 1));
+}
+
+#[test]
+fn partitions_are_deterministic() {
+    for mesh in [rectangle(40, 40), irregular(), two_bodies(10, 5)] {
+        for nparts in [2, 3, 5, 8] {
+            let a = partition_mesh(mesh.0, &mesh.1, &mesh.2, nparts).unwrap();
+            let b = partition_mesh(mesh.0, &mesh.1, &mesh.2, nparts).unwrap();
+            assert_eq!(a, b);
+        }
+    }
+}
+
+#[test]
+fn deterministic_across_threads() {
+    // METIS' random state is process-wide: concurrent calls must not disturb each other.
+    let mesh = rectangle(60, 30);
+    let reference = partition_mesh(mesh.0, &mesh.1, &mesh.2, 6).unwrap();
+    std::thread::scope(|s| {
+        let handles: Vec<_> = (0..4)
+            .map(|_| s.spawn(|| partition_mesh(mesh.0, &mesh.1, &mesh.2, 6).unwrap()))
+            .collect();
+        for h in handles {
+            assert_eq!(h.join().unwrap(), reference);
+        }
+    });
+}
+
+#[test]
+fn errors_are_reported() {
+    let (n, tris, contact) = rectangle(2, 1);
+    assert_eq!(
+        partition_mesh(n, &tris, &contact, 5),
+        Err(PartitionError::TooManyParts {
+            nparts: 5,
+            elements: 4
+        })
+    );
+    let msg = partition_mesh(n, &tris, &contact, 5)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("4 triangles") && msg.contains("5 parts"),
+        "{msg}"
+    );
+    assert_eq!(
+        partition_mesh(n, &tris, &contact, 0),
+        Err(PartitionError::NoParts)
+    );
+    assert_eq!(
+        partition_mesh(n, &tris, &[n], 2),
+        Err(PartitionError::ContactNodeOutOfRange {
+            node: n,
+            num_nodes: n
+        })
+    );
+    assert_eq!(
+        partition_mesh(n + 1, &tris, &[n], 2),
+        Err(PartitionError::ContactNodeUnused { node: n })
+    );
+    assert_eq!(
+        partition_mesh(0, &[], &[], 1),
+        Err(PartitionError::TooManyParts {
+            nparts: 1,
+            elements: 0
+        })
+    );
+}
+
+#[test]
+fn given_element_parts_are_checked_and_may_leave_parts_empty() {
+    let mesh = rectangle(4, 2);
+    let (n, tris, contact) = &mesh;
+    // Left and right halves as parts 0 and 2; part 1 stays empty.
+    let halves: Vec<u32> = (0..tris.len())
+        .map(|e| if e % 8 < 4 { 0 } else { 2 })
+        .collect();
+    let p = partition::partition_from_element_parts(*n, tris, contact, 3, halves.clone()).unwrap();
+    assert!(p.parts[1].elements.is_empty() && p.parts[1].nodes.is_empty());
+    assert_eq!(p.parts[0].neighbours.len(), 1);
+    assert_eq!(p.parts[0].neighbours[0], (2, vec![2, 7, 12]));
+    assert_eq!(p.parts[2].neighbours[0], (0, vec![2, 7, 12]));
+    assert_eq!(
+        partition::partition_from_element_parts(*n, tris, contact, 2, halves),
+        Err(PartitionError::PartOutOfRange {
+            element: 4,
+            part: 2,
+            nparts: 2
+        })
+    );
+}
+
+#[test]
+fn quality_summary_reads_well() {
+    let mesh = rectangle(20, 10);
+    let p = partition_mesh(mesh.0, &mesh.1, &mesh.2, 4).unwrap();
+    let s = p.quality.to_string();
+    assert!(s.contains("400 triangles in 4 parts"), "{s}");
+    assert!(
+        s.contains(&format!("edge cut {}", p.quality.edge_cut)),
+        "{s}"
+    );
+}

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# The test suite: formatting, lints, then every unit and integration test (release
+# build: the integration tests run the real solver, several under mpirun).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+# mpirun refuses root and more ranks than cores unless told; the tests need both.
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+export OMPI_MCA_rmaps_base_oversubscribe=1
+cargo fmt --all -- --check
+cargo clippy --release --workspace --all-targets -- -D warnings
+if cargo nextest --version >/dev/null 2>&1; then
+  cargo nextest run --release --workspace --no-fail-fast
+else
+  cargo test --release --workspace --no-fail-fast
+fi

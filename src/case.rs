@@ -1,0 +1,634 @@
+//! The case file: a TOML description of one contact problem, parsed, typed and validated
+//! here so that every later stage can trust it. Also the built-in cases.
+
+use crate::error::{input, Error, Result};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// Plane hypothesis of the 2D model (thickness 1 in both).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Hypothesis {
+    PlaneStrain,
+    PlaneStress,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Material {
+    pub young: f64,
+    pub poisson: f64,
+    pub hypothesis: Hypothesis,
+}
+
+/// Friction law on the contact boundary.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Friction {
+    None,
+    /// Tresca: a given slip threshold s (force per unit length).
+    Tresca {
+        threshold: f64,
+    },
+    /// Coulomb: s = coefficient * p_n.
+    Coulomb {
+        coefficient: f64,
+    },
+}
+
+/// How the Coulomb threshold s = nu_f * lambda is refreshed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CoulombMode {
+    /// Every sweep, from the current normal multiplier (one fixed-point loop).
+    Inner,
+    /// A sequence of Tresca solves, s frozen during each.
+    Outer,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dirichlet {
+    pub group: String,
+    pub ux: Option<f64>,
+    pub uy: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Traction {
+    pub group: String,
+    pub t: [f64; 2],
+}
+
+/// The rigid straight foundation and the friction law.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Contact {
+    pub group: String,
+    pub obstacle_point: [f64; 2],
+    /// Unit normal m pointing from the foundation into the body.
+    pub obstacle_normal: [f64; 2],
+    pub friction: Friction,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solver {
+    /// Augmentation parameter; `None` lets the solver choose from E and h.
+    pub r: Option<f64>,
+    pub tol: f64,
+    pub max_iter: usize,
+    pub coulomb: CoulombMode,
+}
+
+impl Default for Solver {
+    fn default() -> Self {
+        Solver {
+            r: None,
+            tol: 1e-8,
+            max_iter: 10000,
+            coulomb: CoulombMode::Inner,
+        }
+    }
+}
+
+/// Where the mesh comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MeshSource {
+    File(PathBuf),
+    Builtin { name: BuiltinMesh, level: u32 },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BuiltinMesh {
+    /// Quarter disc of radius `HERTZ_RADIUS` touching y = 0 at the origin.
+    QuarterDisc,
+    /// Rectangle `BLOCK_WIDTH` x `BLOCK_HEIGHT` on y = 0.
+    Block,
+}
+
+/// A validated case. Group names are checked against the mesh later, once it is read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Case {
+    pub title: String,
+    /// Where the case came from, for messages (a file path or "built-in case NAME").
+    pub origin: String,
+    pub mesh: MeshSource,
+    pub material: Material,
+    pub dirichlet: Vec<Dirichlet>,
+    pub traction: Vec<Traction>,
+    pub body_force: [f64; 2],
+    pub contact: Contact,
+    pub solver: Solver,
+}
+
+// ---- raw TOML schema (serde), kept private: only validated `Case`s leave this module ----
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCase {
+    title: Option<String>,
+    mesh: RawMesh,
+    material: RawMaterial,
+    #[serde(default)]
+    dirichlet: Vec<RawDirichlet>,
+    #[serde(default)]
+    traction: Vec<RawTraction>,
+    body_force: Option<RawBodyForce>,
+    contact: RawContact,
+    #[serde(default)]
+    solver: RawSolver,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMesh {
+    file: Option<String>,
+    builtin: Option<String>,
+    level: Option<u32>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMaterial {
+    young: f64,
+    poisson: f64,
+    hypothesis: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawDirichlet {
+    group: String,
+    ux: Option<f64>,
+    uy: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTraction {
+    group: String,
+    t: [f64; 2],
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBodyForce {
+    f: [f64; 2],
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawContact {
+    group: String,
+    obstacle_point: [f64; 2],
+    obstacle_normal: [f64; 2],
+    friction: Option<String>,
+    threshold: Option<f64>,
+    coefficient: Option<f64>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawSolver {
+    r: Option<f64>,
+    tol: Option<f64>,
+    max_iter: Option<usize>,
+    coulomb: Option<String>,
+}
+
+/// 1-based line and column of a byte offset, for messages that point into the file.
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    (line, col)
+}
+
+/// Reads and validates a case file. Relative mesh paths are taken from the file's folder.
+pub fn read_case(path: &Path) -> Result<Case> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        Error::Input(format!(
+            "{}: cannot read the case file: {e}; check the path",
+            path.display()
+        ))
+    })?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    parse_case(&text, &path.display().to_string(), dir)
+}
+
+/// Parses and validates case-file text; `origin` names it in messages, `dir` resolves the
+/// relative mesh path.
+pub fn parse_case(text: &str, origin: &str, dir: &Path) -> Result<Case> {
+    let raw: RawCase = toml::from_str(text).map_err(|e| {
+        let msg = e.message().trim().replace('\n', " ");
+        match e.span() {
+            Some(span) => {
+                let (line, col) = line_col(text, span.start);
+                Error::Input(format!(
+                    "{origin}: line {line}, column {col}: {msg} (see the case-file reference in README.md)"
+                ))
+            }
+            None => Error::Input(format!(
+                "{origin}: {msg} (see the case-file reference in README.md)"
+            )),
+        }
+    })?;
+    validate(raw, origin, dir)
+}
+
+fn finite(origin: &str, key: &str, v: f64) -> Result<f64> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        input(format!(
+            "{origin}: {key} = {v} is not a finite number; give a real value"
+        ))
+    }
+}
+
+fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
+    let mesh = match (raw.mesh.file, raw.mesh.builtin) {
+        (Some(file), None) => {
+            if raw.mesh.level.is_some() {
+                return input(format!(
+                    "{origin}: [mesh] level applies to built-in meshes only; remove it or use builtin = \"block\" | \"quarter_disc\""
+                ));
+            }
+            MeshSource::File(dir.join(file))
+        }
+        (None, Some(name)) => MeshSource::Builtin {
+            name: match name.as_str() {
+                "block" => BuiltinMesh::Block,
+                "quarter_disc" => BuiltinMesh::QuarterDisc,
+                other => {
+                    return input(format!(
+                        "{origin}: [mesh] builtin = \"{other}\" is unknown; use \"block\" or \"quarter_disc\""
+                    ))
+                }
+            },
+            level: raw.mesh.level.unwrap_or(0),
+        },
+        (Some(_), Some(_)) => {
+            return input(format!(
+                "{origin}: [mesh] has both file and builtin; keep one of them"
+            ))
+        }
+        (None, None) => {
+            return input(format!(
+                "{origin}: [mesh] needs file = \"mesh.msh\" (or builtin = \"block\" | \"quarter_disc\")"
+            ))
+        }
+    };
+
+    let m = &raw.material;
+    let young = finite(origin, "material.young", m.young)?;
+    let poisson = finite(origin, "material.poisson", m.poisson)?;
+    if young <= 0.0 {
+        return input(format!(
+            "{origin}: material.young = {young} must be positive (Young's modulus)"
+        ));
+    }
+    if !(poisson > -1.0 && poisson < 0.5) {
+        return input(format!(
+            "{origin}: material.poisson = {poisson} must lie in (-1, 0.5) (0.5 is incompressible, which P1 elements cannot represent)"
+        ));
+    }
+    let hypothesis = match m.hypothesis.as_deref().unwrap_or("plane_strain") {
+        "plane_strain" => Hypothesis::PlaneStrain,
+        "plane_stress" => Hypothesis::PlaneStress,
+        other => {
+            return input(format!(
+                "{origin}: material.hypothesis = \"{other}\" is unknown; use \"plane_strain\" or \"plane_stress\""
+            ))
+        }
+    };
+
+    let mut dirichlet = Vec::new();
+    for d in raw.dirichlet {
+        if d.ux.is_none() && d.uy.is_none() {
+            return input(format!(
+                "{origin}: [[dirichlet]] on group \"{}\" sets neither ux nor uy; give at least one",
+                d.group
+            ));
+        }
+        let ux =
+            d.ux.map(|v| finite(origin, "dirichlet.ux", v))
+                .transpose()?;
+        let uy =
+            d.uy.map(|v| finite(origin, "dirichlet.uy", v))
+                .transpose()?;
+        dirichlet.push(Dirichlet {
+            group: d.group,
+            ux,
+            uy,
+        });
+    }
+    let mut traction = Vec::new();
+    for t in raw.traction {
+        for v in t.t {
+            finite(origin, "traction.t", v)?;
+        }
+        traction.push(Traction {
+            group: t.group,
+            t: t.t,
+        });
+    }
+    let body_force = raw.body_force.map_or([0.0; 2], |b| b.f);
+    for v in body_force {
+        finite(origin, "body_force.f", v)?;
+    }
+
+    let c = raw.contact;
+    for v in c.obstacle_point.iter().chain(&c.obstacle_normal) {
+        finite(origin, "contact.obstacle_point/obstacle_normal", *v)?;
+    }
+    let [mx, my] = c.obstacle_normal;
+    let norm = mx.hypot(my);
+    if norm == 0.0 {
+        return input(format!(
+            "{origin}: contact.obstacle_normal is zero; give the unit normal pointing from the foundation into the body, e.g. [0.0, 1.0]"
+        ));
+    }
+    if (norm - 1.0).abs() > 1e-6 {
+        return input(format!(
+            "{origin}: contact.obstacle_normal has length {norm}, not 1; use [{}, {}]",
+            mx / norm,
+            my / norm
+        ));
+    }
+    let friction = match c.friction.as_deref().unwrap_or("none") {
+        "none" => Friction::None,
+        "tresca" => {
+            let threshold = c.threshold.ok_or_else(|| {
+                Error::Input(format!(
+                    "{origin}: contact.friction = \"tresca\" needs contact.threshold (slip threshold, force per unit length)"
+                ))
+            })?;
+            let threshold = finite(origin, "contact.threshold", threshold)?;
+            if threshold < 0.0 {
+                return input(format!(
+                    "{origin}: contact.threshold = {threshold} must be >= 0"
+                ));
+            }
+            Friction::Tresca { threshold }
+        }
+        "coulomb" => {
+            let coefficient = c.coefficient.ok_or_else(|| {
+                Error::Input(format!(
+                    "{origin}: contact.friction = \"coulomb\" needs contact.coefficient (friction coefficient)"
+                ))
+            })?;
+            let coefficient = finite(origin, "contact.coefficient", coefficient)?;
+            if coefficient < 0.0 {
+                return input(format!(
+                    "{origin}: contact.coefficient = {coefficient} must be >= 0"
+                ));
+            }
+            Friction::Coulomb { coefficient }
+        }
+        other => {
+            return input(format!(
+                "{origin}: contact.friction = \"{other}\" is unknown; use \"none\", \"tresca\" or \"coulomb\""
+            ))
+        }
+    };
+
+    let mut solver = Solver::default();
+    let s = raw.solver;
+    if let Some(r) = s.r {
+        if !(r.is_finite() && r > 0.0) {
+            return input(format!(
+                "{origin}: solver.r = {r} must be a positive number (or leave it out for the automatic choice)"
+            ));
+        }
+        solver.r = Some(r);
+    }
+    if let Some(tol) = s.tol {
+        if !(tol.is_finite() && tol > 0.0 && tol < 1.0) {
+            return input(format!(
+                "{origin}: solver.tol = {tol} must lie in (0, 1), e.g. 1e-8"
+            ));
+        }
+        solver.tol = tol;
+    }
+    if let Some(max_iter) = s.max_iter {
+        if max_iter == 0 {
+            return input(format!("{origin}: solver.max_iter must be at least 1"));
+        }
+        solver.max_iter = max_iter;
+    }
+    if let Some(mode) = s.coulomb {
+        solver.coulomb = parse_coulomb_mode(&mode).ok_or_else(|| {
+            Error::Input(format!(
+                "{origin}: solver.coulomb = \"{mode}\" is unknown; use \"inner\" or \"outer\""
+            ))
+        })?;
+    }
+
+    Ok(Case {
+        title: raw.title.unwrap_or_default(),
+        origin: origin.to_string(),
+        mesh,
+        material: Material {
+            young,
+            poisson,
+            hypothesis,
+        },
+        dirichlet,
+        traction,
+        body_force,
+        contact: Contact {
+            group: c.group,
+            obstacle_point: c.obstacle_point,
+            obstacle_normal: [mx, my],
+            friction,
+        },
+        solver,
+    })
+}
+
+pub fn parse_coulomb_mode(s: &str) -> Option<CoulombMode> {
+    match s {
+        "inner" => Some(CoulombMode::Inner),
+        "outer" => Some(CoulombMode::Outer),
+        _ => None,
+    }
+}
+
+// ---- built-in cases ----
+
+/// Radius of the built-in quarter disc (mm).
+pub const HERTZ_RADIUS: f64 = 50.0;
+/// Built-in block size (mm).
+pub const BLOCK_WIDTH: f64 = 40.0;
+pub const BLOCK_HEIGHT: f64 = 10.0;
+
+/// Names of the built-in cases, the first being the default.
+pub const BUILTIN_CASES: [&str; 3] = ["hertz", "block", "block_flat"];
+
+/// The TOML text of a built-in case, so users can print it and start from it.
+pub fn builtin_case_text(name: &str, level: u32) -> Option<String> {
+    let text = match name {
+        // Steel quarter cylinder (mm, N, MPa) pressed on a rigid plane by a rigid
+        // frictionless platen: a/R is about 0.1, where the Hertz formula holds.
+        "hertz" => format!(
+            r#"title = "Hertz line contact: quarter cylinder on a rigid plane (symmetry at x = 0)"
+[mesh]
+builtin = "quarter_disc"   # radius {HERTZ_RADIUS} mm, centre (0, {HERTZ_RADIUS})
+level = {level}
+[material]
+young = 210000.0           # MPa
+poisson = 0.3
+hypothesis = "plane_strain"
+[[dirichlet]]              # symmetry
+group = "axis"
+ux = 0.0
+[[dirichlet]]              # rigid frictionless platen pushed down
+group = "top"
+uy = -0.4
+[contact]
+group = "contact"
+obstacle_point = [0.0, 0.0]
+obstacle_normal = [0.0, 1.0]
+friction = "none"
+"#
+        ),
+        // Aluminium block squeezed and sheared by its clamped top: partial slip.
+        "block" => format!(
+            r#"title = "Block on a rigid plane, compressed and sheared by its top, Coulomb friction"
+[mesh]
+builtin = "block"          # {BLOCK_WIDTH} x {BLOCK_HEIGHT} mm
+level = {level}
+[material]
+young = 70000.0            # MPa
+poisson = 0.33
+hypothesis = "plane_strain"
+[[dirichlet]]
+group = "top"
+ux = 0.01
+uy = -0.02
+[contact]
+group = "bottom"
+obstacle_point = [0.0, 0.0]
+obstacle_normal = [0.0, 1.0]
+friction = "coulomb"
+coefficient = 0.3
+"#
+        ),
+        // nu = 0 and a uniform pressure on top: the exact solution is a uniform
+        // contact pressure equal to the applied one (a patch test for contact).
+        "block_flat" => format!(
+            r#"title = "Block pressed flat, nu = 0: uniform contact pressure equal to the applied pressure"
+[mesh]
+builtin = "block"
+level = {level}
+[material]
+young = 70000.0
+poisson = 0.0
+hypothesis = "plane_strain"
+[[traction]]
+group = "top"
+t = [0.0, -50.0]           # MPa
+[[dirichlet]]              # only to remove the horizontal rigid motion
+group = "bottom_left"
+ux = 0.0
+[contact]
+group = "bottom"
+obstacle_point = [0.0, -0.001]
+obstacle_normal = [0.0, 1.0]
+friction = "none"
+"#
+        ),
+        _ => return None,
+    };
+    Some(text)
+}
+
+/// A built-in case, validated like a file.
+pub fn builtin_case(name: &str, level: u32) -> Result<Case> {
+    let text = builtin_case_text(name, level).ok_or_else(|| {
+        Error::Input(format!(
+            "unknown built-in case \"{name}\"; choose one of {}",
+            BUILTIN_CASES.join(", ")
+        ))
+    })?;
+    parse_case(&text, &format!("built-in case {name}"), Path::new("."))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+title = "t"
+[mesh]
+file = "m.msh"
+[material]
+young = 200.0
+poisson = 0.3
+[[dirichlet]]
+group = "top"
+uy = -0.01
+[[traction]]
+group = "right"
+t = [-15.0, 0.0]
+[contact]
+group = "bottom"
+obstacle_point = [0.0, -0.001]
+obstacle_normal = [0.0, 1.0]
+friction = "coulomb"
+coefficient = 0.3
+[solver]
+r = 1.0e4
+tol = 1e-9
+max_iter = 50
+"#;
+
+    fn parse(text: &str) -> Result<Case> {
+        parse_case(text, "case.toml", Path::new("dir"))
+    }
+
+    fn err(text: &str) -> String {
+        parse(text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn good_case_is_typed() {
+        let c = parse(GOOD).unwrap();
+        assert_eq!(c.mesh, MeshSource::File(Path::new("dir").join("m.msh")));
+        assert_eq!(c.material.hypothesis, Hypothesis::PlaneStrain);
+        assert_eq!(c.dirichlet[0].ux, None);
+        assert_eq!(c.dirichlet[0].uy, Some(-0.01));
+        assert_eq!(c.contact.friction, Friction::Coulomb { coefficient: 0.3 });
+        assert_eq!(c.solver.r, Some(1.0e4));
+        assert_eq!(c.solver.max_iter, 50);
+        assert_eq!(c.solver.coulomb, CoulombMode::Inner);
+    }
+
+    #[test]
+    fn unknown_key_is_named_with_its_line() {
+        let e = err(&GOOD.replace("poisson = 0.3", "poison = 0.3"));
+        assert!(e.contains("poison"), "{e}");
+        assert!(e.contains("line 7"), "{e}");
+        assert!(!e.contains('\n'));
+    }
+
+    #[test]
+    fn missing_key_is_named() {
+        let e = err(&GOOD.replace("young = 200.0\n", ""));
+        assert!(e.contains("young"), "{e}");
+    }
+
+    #[test]
+    fn bad_values_are_rejected_with_a_fix() {
+        assert!(err(&GOOD.replace("young = 200.0", "young = -1.0")).contains("positive"));
+        assert!(err(&GOOD.replace("poisson = 0.3", "poisson = 0.5")).contains("(-1, 0.5)"));
+        assert!(err(&GOOD.replace("[0.0, 1.0]", "[1.0, 1.0]")).contains("0.7071067811865475"));
+        assert!(err(&GOOD.replace("[0.0, 1.0]", "[0.0, 0.0]")).contains("zero"));
+        assert!(err(&GOOD.replace("coefficient = 0.3\n", "")).contains("coefficient"));
+        assert!(err(&GOOD.replace("young = 200.0", "young = nan")).contains("finite"));
+        assert!(err(&GOOD.replace("\"coulomb\"", "\"colomb\"")).contains("\"none\""));
+    }
+
+    #[test]
+    fn builtin_cases_parse() {
+        for name in BUILTIN_CASES {
+            builtin_case(name, 0).unwrap();
+        }
+        assert!(builtin_case("nope", 0).is_err());
+    }
+}

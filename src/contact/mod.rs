@@ -1,0 +1,65 @@
+//! The contact method of ALGORITHM.md: node-wise kernels and the Uzawa loop, written
+//! once against two small traits so that one rank and many ranks run the same code.
+
+pub mod kernels;
+pub mod uzawa;
+
+pub use uzawa::{solve, Outcome, Params, Sweep};
+
+use crate::error::Result;
+
+/// Step 1 of ALG2, the linear elasticity solve with the constant matrix
+/// A = K + r N'WN (+ r T'WT), seen from the contact nodes a rank owns.
+///
+/// `force_n[i]`, `force_t[i]` are the contact forces w_i (r p_i - lambda_i) and
+/// w_i (r q_i - mu_i) at the i-th owned contact node; the implementation solves
+/// A u = F + N' force_n + T' force_t and returns (N u)_i and (T u)_i at the same nodes.
+/// A is factored once when the implementation is built; this call only solves.
+pub trait LinearStep {
+    fn solve(
+        &mut self,
+        force_n: &[f64],
+        force_t: &[f64],
+        un: &mut [f64],
+        ut: &mut [f64],
+    ) -> Result<()>;
+}
+
+/// Global sums over all ranks (an all-reduce). One rank: the identity.
+pub trait Reduce {
+    fn sum_in_place(&self, values: &mut [f64]);
+}
+
+/// The single-rank reduction.
+pub struct NoComm;
+
+impl Reduce for NoComm {
+    fn sum_in_place(&self, _values: &mut [f64]) {}
+}
+
+/// The contact nodes a rank owns, with their lumped weights and initial gaps.
+#[derive(Debug, Clone, Default)]
+pub struct ContactNodes {
+    /// Lumped boundary weight w_i (half the length of each contact edge at the node).
+    pub w: Vec<f64>,
+    /// Initial gap g_i = (x_i - p0) . m.
+    pub g: Vec<f64>,
+}
+
+impl ContactNodes {
+    pub fn len(&self) -> usize {
+        self.w.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.w.is_empty()
+    }
+}
+
+/// Node status after convergence.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    Free = 0,
+    Stick = 1,
+    Slip = 2,
+}

@@ -1,0 +1,54 @@
+//! The mesh: P1 triangles and named boundary groups, read from Gmsh or generated.
+
+pub mod builtin;
+pub mod gmsh;
+
+use std::collections::BTreeMap;
+
+/// A 2D triangle mesh with named groups.
+///
+/// Node indices are 0-based and contiguous. Triangles are counter-clockwise after
+/// [`Mesh::orient`]. Groups keep the names of the Gmsh physical groups: line groups hold
+/// 2-node edges (boundary conditions, contact), point groups hold single nodes (e.g. a
+/// pinned point).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Mesh {
+    pub nodes: Vec<[f64; 2]>,
+    pub triangles: Vec<[usize; 3]>,
+    pub line_groups: BTreeMap<String, Vec<[usize; 2]>>,
+    pub point_groups: BTreeMap<String, Vec<usize>>,
+}
+
+impl Mesh {
+    pub fn num_nodes(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Twice the signed area of triangle `t` (positive when counter-clockwise).
+    pub fn signed_area2(&self, t: usize) -> f64 {
+        let [a, b, c] = self.triangles[t];
+        let (pa, pb, pc) = (self.nodes[a], self.nodes[b], self.nodes[c]);
+        (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pc[0] - pa[0]) * (pb[1] - pa[1])
+    }
+
+    /// The nodes of a group (line or point group), sorted and without repeats.
+    pub fn group_nodes(&self, name: &str) -> Option<Vec<usize>> {
+        let mut v: Vec<usize> = if let Some(lines) = self.line_groups.get(name) {
+            lines.iter().flat_map(|e| e.iter().copied()).collect()
+        } else {
+            self.point_groups.get(name)?.clone()
+        };
+        v.sort_unstable();
+        v.dedup();
+        Some(v)
+    }
+
+    /// Every group name, lines first then points (for "did you mean" suggestions).
+    pub fn group_names(&self) -> Vec<&str> {
+        self.line_groups
+            .keys()
+            .chain(self.point_groups.keys())
+            .map(String::as_str)
+            .collect()
+    }
+}

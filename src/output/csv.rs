@@ -1,0 +1,247 @@
+//! Plain CSV tables. Every f64 is printed with `{}`, Rust's shortest text that parses back to
+//! the same bits: users join these tables with others on node coordinates, so a rounded
+//! coordinate would silently break the match.
+
+use std::fmt::Write;
+
+/// One node of the contact boundary in `contact.csv`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactRow {
+    pub x: f64,
+    pub y: f64,
+    /// Normal displacement.
+    pub u_n: f64,
+    /// Tangential displacement.
+    pub u_t: f64,
+    /// Normal contact pressure.
+    pub p_n: f64,
+    /// Tangential traction.
+    pub p_t: f64,
+    pub gap: f64,
+}
+
+/// One Uzawa sweep in `history.csv`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HistoryRow {
+    pub iter: usize,
+    pub primal: f64,
+    pub dual: f64,
+    pub active: usize,
+    pub slip: usize,
+}
+
+/// `contact.csv`: header `x,y,u_n,u_t,p_n,p_t,gap`, rows sorted by x then y.
+///
+/// The order is fixed by the coordinates, not by node numbering or rank, so the file is the
+/// same whatever the partition and two runs can be diffed line by line. `f64::total_cmp`
+/// gives a total order even for -0.0 (before 0.0) and NaN (last).
+pub fn contact_csv(rows: &[ContactRow]) -> String {
+    let mut sorted: Vec<&ContactRow> = rows.iter().collect();
+    sorted.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    let mut out = String::with_capacity(64 * (rows.len() + 1));
+    out.push_str("x,y,u_n,u_t,p_n,p_t,gap\n");
+    for r in sorted {
+        // Writing into a String cannot fail.
+        let _ = writeln!(
+            out,
+            "{},{},{},{},{},{},{}",
+            r.x, r.y, r.u_n, r.u_t, r.p_n, r.p_t, r.gap
+        );
+    }
+    out
+}
+
+/// Node coordinates and displacements: header `x,y,ux,uy`, one row per node in the given
+/// order (the caller's numbering is the row number).
+///
+/// # Panics
+/// If `nodes` and `u` differ in length: that is a bug in the caller, not a user error.
+pub fn nodes_csv(nodes: &[[f64; 2]], u: &[[f64; 2]]) -> String {
+    assert_eq!(
+        nodes.len(),
+        u.len(),
+        "nodes_csv: {} nodes but {} displacements",
+        nodes.len(),
+        u.len()
+    );
+    let mut out = String::with_capacity(48 * (nodes.len() + 1));
+    out.push_str("x,y,ux,uy\n");
+    for (p, d) in nodes.iter().zip(u) {
+        let _ = writeln!(out, "{},{},{},{}", p[0], p[1], d[0], d[1]);
+    }
+    out
+}
+
+/// `history.csv`: header `iteration,primal_residual,dual_residual,active_nodes,slip_nodes`,
+/// rows in the given order.
+pub fn history_csv(rows: &[HistoryRow]) -> String {
+    let mut out = String::with_capacity(48 * (rows.len() + 1));
+    out.push_str("iteration,primal_residual,dual_residual,active_nodes,slip_nodes\n");
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "{},{},{},{},{}",
+            r.iter, r.primal, r.dual, r.active, r.slip
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(x: f64, y: f64, v: f64) -> ContactRow {
+        ContactRow {
+            x,
+            y,
+            u_n: v,
+            u_t: v,
+            p_n: v,
+            p_t: v,
+            gap: v,
+        }
+    }
+
+    fn parse_table(csv: &str) -> (String, Vec<Vec<f64>>) {
+        let mut lines = csv.lines();
+        let header = lines.next().unwrap().to_string();
+        let rows = lines
+            .map(|l| l.split(',').map(|f| f.parse::<f64>().unwrap()).collect())
+            .collect();
+        (header, rows)
+    }
+
+    #[test]
+    fn contact_header_is_exact() {
+        assert_eq!(contact_csv(&[]), "x,y,u_n,u_t,p_n,p_t,gap\n");
+    }
+
+    #[test]
+    fn contact_rows_are_sorted_by_x_then_y() {
+        let rows = [
+            row(2.0, 0.0, 1.0),
+            row(1.0, 5.0, 2.0),
+            row(1.0, -3.0, 3.0),
+            row(0.0, 0.0, 4.0),
+            row(-0.0, 0.0, 5.0),
+            row(1.0, 0.5, 6.0),
+        ];
+        let (_, parsed) = parse_table(&contact_csv(&rows));
+        let keys: Vec<(f64, f64, f64)> = parsed.iter().map(|r| (r[0], r[1], r[2])).collect();
+        assert_eq!(
+            keys,
+            vec![
+                (-0.0, 0.0, 5.0),
+                (0.0, 0.0, 4.0),
+                (1.0, -3.0, 3.0),
+                (1.0, 0.5, 6.0),
+                (1.0, 5.0, 2.0),
+                (2.0, 0.0, 1.0),
+            ]
+        );
+        // The signed zero must survive: -0.0 sorts first and is printed as such.
+        assert!(parsed[0][0].is_sign_negative());
+        assert!(parsed[1][0].is_sign_positive());
+    }
+
+    #[test]
+    fn contact_values_round_trip_exactly() {
+        #[allow(clippy::excessive_precision)]
+        let awkward = [
+            0.1 + 0.2,
+            1e-300,
+            -0.0,
+            123456789.123456789,
+            5e-324,
+            -1.7e308,
+        ];
+        // Every column, coordinates included, carries the awkward values.
+        let mut rows: Vec<ContactRow> = awkward
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| ContactRow {
+                x: v,
+                y: -v,
+                u_n: awkward[(i + 1) % awkward.len()],
+                u_t: awkward[(i + 2) % awkward.len()],
+                p_n: awkward[(i + 3) % awkward.len()],
+                p_t: awkward[(i + 4) % awkward.len()],
+                gap: awkward[(i + 5) % awkward.len()],
+            })
+            .collect();
+        let (header, parsed) = parse_table(&contact_csv(&rows));
+        assert_eq!(header, "x,y,u_n,u_t,p_n,p_t,gap");
+        rows.sort_by(|a, b| a.x.total_cmp(&b.x));
+        assert_eq!(parsed.len(), rows.len());
+        for (r, p) in rows.iter().zip(&parsed) {
+            let want = [r.x, r.y, r.u_n, r.u_t, r.p_n, r.p_t, r.gap];
+            let want: Vec<u64> = want.iter().map(|v| v.to_bits()).collect();
+            let got: Vec<u64> = p.iter().map(|v| v.to_bits()).collect();
+            assert_eq!(got, want);
+        }
+    }
+
+    #[test]
+    fn nodes_keep_the_given_order() {
+        let nodes = [[1.0, 0.0], [0.0, 0.1 + 0.2]];
+        let u = [[-0.0, 1e-300], [2.5, -3.0]];
+        let csv = nodes_csv(&nodes, &u);
+        let (header, parsed) = parse_table(&csv);
+        assert_eq!(header, "x,y,ux,uy");
+        let got: Vec<Vec<u64>> = parsed
+            .iter()
+            .map(|r| r.iter().map(|v| v.to_bits()).collect())
+            .collect();
+        let want: Vec<Vec<u64>> = nodes
+            .iter()
+            .zip(&u)
+            .map(|(p, d)| {
+                [p[0], p[1], d[0], d[1]]
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .collect()
+            })
+            .collect();
+        assert_eq!(got, want);
+    }
+
+    #[test]
+    #[should_panic(expected = "2 nodes but 1 displacements")]
+    fn nodes_length_mismatch_panics() {
+        nodes_csv(&[[0.0, 0.0], [1.0, 0.0]], &[[0.0, 0.0]]);
+    }
+
+    #[test]
+    fn history_text_is_exact() {
+        let rows = [
+            HistoryRow {
+                iter: 1,
+                primal: 0.5,
+                dual: 1e-300,
+                active: 10,
+                slip: 0,
+            },
+            HistoryRow {
+                iter: 2,
+                primal: 0.1 + 0.2,
+                dual: 2.0,
+                active: 12,
+                slip: 3,
+            },
+        ];
+        let csv = history_csv(&rows);
+        let mut lines = csv.lines();
+        assert_eq!(
+            lines.next(),
+            Some("iteration,primal_residual,dual_residual,active_nodes,slip_nodes")
+        );
+        assert_eq!(
+            lines.next(),
+            Some(format!("1,0.5,{},10,0", 1e-300).as_str())
+        );
+        assert_eq!(lines.next(), Some("2,0.30000000000000004,2,12,3"));
+        assert_eq!(lines.next(), None);
+        assert!(csv.ends_with('\n'));
+    }
+}
