@@ -2,13 +2,17 @@
 //! iterate, write. `main.rs` only wires the command line and MPI to this.
 
 use crate::case::{self, BuiltinMesh, Case, CoulombMode, Friction, MeshSource};
-use crate::contact::{self, NoComm, Status, Sweep};
+use crate::contact::{self, LinearStep, Reduce, Status, Sweep};
+use crate::dd::comm::{decode, encode, Mpi};
+use crate::dd::condense::{add_piece, packed_layout, Condensed};
+use crate::dd::split::{split, GlobalMap, SubProblem};
 use crate::error::{Error, Result};
-use crate::fem;
-use crate::linear::{ContactDofs, DirectStep};
+use crate::fem::{self, assemble, DofMap};
+use crate::linear::{add_contact_forces, ContactDofs, DirectStep, LocalFactor};
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::{self, ContactRow, HistoryRow};
 use crate::problem::{self, Problem};
+use faer::Mat;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -28,6 +32,7 @@ pub struct Options {
     pub max_iter: Option<usize>,
     pub coulomb: Option<CoulombMode>,
     pub monitor_every: usize,
+    pub linear: LinearMode,
 }
 
 /// Prints on the first rank only, and not at all with --quiet.
@@ -51,46 +56,14 @@ pub struct RunReport {
 #[derive(Serialize, Default, Clone, Copy)]
 struct Timings {
     read: f64,
+    partition: f64,
     assemble: f64,
     factor: f64,
+    condense: f64,
     #[serde(rename = "loop")]
     uzawa: f64,
     output: f64,
     total: f64,
-}
-
-#[derive(Serialize)]
-struct Residuals {
-    primal: f64,
-    dual: f64,
-}
-
-#[derive(Serialize)]
-struct Summary<'a> {
-    title: &'a str,
-    case: &'a str,
-    converged: bool,
-    iterations: usize,
-    outer_iterations: usize,
-    ranks: usize,
-    threads: usize,
-    nodes: usize,
-    elements: usize,
-    dofs: usize,
-    free_dofs: usize,
-    contact_nodes: usize,
-    active_nodes: usize,
-    stick_nodes: usize,
-    slip_nodes: usize,
-    total_normal_force: f64,
-    total_tangential_force: f64,
-    friction: &'a str,
-    r: f64,
-    tol: f64,
-    final_residuals: Residuals,
-    factor_nnz: usize,
-    timings_s: Timings,
-    peak_memory_bytes: u64,
 }
 
 /// Resolves the case: a file, or a built-in case at a refinement level; then applies the
@@ -160,51 +133,357 @@ fn monitor_line(s: &Sweep) -> String {
     )
 }
 
-/// The whole single-rank run.
-pub fn run(opts: &Options, print: &Printer) -> Result<RunReport> {
-    let t_start = Instant::now();
-    let mut times = Timings::default();
+/// What the first rank tells every rank before the distribution.
+#[derive(Serialize, serde::Deserialize)]
+struct Setup {
+    case: Case,
+    r: f64,
+    /// Shift of the boundary block of every local matrix (see `LocalFactor`).
+    alpha: f64,
+    n_boundary: usize,
+    contact_counts: Vec<usize>,
+    normal: [f64; 2],
+    tangent: [f64; 2],
+    nodes: usize,
+    elements: usize,
+    free_dofs: usize,
+    contact_nodes: usize,
+    partition: String,
+    read_s: f64,
+    partition_s: f64,
+}
 
-    // 1. Read and validate the case and the mesh, build the discrete problem.
+/// Kept by the first rank only: the global numbering.
+struct RootData {
+    map: GlobalMap,
+}
+
+/// Per-rank figures, gathered for summary.json.
+#[derive(Serialize, serde::Deserialize, Clone, Default)]
+pub struct RankStats {
+    rank: usize,
+    elements: usize,
+    nodes: usize,
+    interface_nodes: usize,
+    boundary_dofs: usize,
+    contact_nodes: usize,
+    factor_nnz: usize,
+    peak_memory_bytes: u64,
+    assemble_s: f64,
+    factor_s: f64,
+    loop_s: f64,
+    output_s: f64,
+}
+
+/// How step 1 is solved inside the loop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LinearMode {
+    /// Condensed onto the contact dofs: one small dense product per sweep (default).
+    Condensed,
+    /// A full sparse forward and backward solve per sweep (one rank; for comparison).
+    Full,
+}
+
+fn prepare(opts: &Options, nparts: usize) -> Result<(Setup, Vec<SubProblem>, RootData)> {
+    let t0 = Instant::now();
     let case = load_case(opts)?;
     let (mesh, mesh_name) = load_mesh(&case)?;
     let prob = problem::build(&case, mesh, &mesh_name)?;
-    times.read = t_start.elapsed().as_secs_f64();
-    let r = case.solver.r.unwrap_or_else(|| prob.default_r(&case));
-    let frictional = Problem::is_frictional(&case);
-    print.line(format!(
-        "contact-par: {} | {} nodes, {} triangles, {} contact nodes | friction {} | r = {r:e}, tol = {:e}",
-        if case.title.is_empty() { &case.origin } else { &case.title },
+    let read_s = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    if nparts > prob.mesh.triangles.len() {
+        return Err(Error::Input(format!(
+            "{mesh_name}: {nparts} ranks for {} triangles; use at most as many ranks as triangles (better: thousands of triangles per rank)",
+            prob.mesh.triangles.len()
+        )));
+    }
+    let part = partition::partition_mesh(
         prob.mesh.num_nodes(),
-        prob.mesh.triangles.len(),
-        prob.contact_nodes.len(),
-        friction_name(&case.contact.friction),
-        case.solver.tol
-    ));
-
-    // 2. Assemble A = K + r N'WN (+ r T'WT) and factor it once.
-    let (mut step, setup) = DirectStep::new(
-        &prob.mesh.nodes,
         &prob.mesh.triangles,
-        &case.material,
-        &prob.fixed,
-        &prob.load,
-        &ContactDofs {
-            nodes: &prob.contact_nodes,
-            w: &prob.contact.w,
-            normal: prob.normal,
-            tangent: prob.tangent,
-            frictional,
-        },
+        &prob.contact_nodes,
+        nparts,
+    )
+    .map_err(|e| Error::Input(format!("{mesh_name}: cannot partition the mesh: {e}")))?;
+    let (subs, map) = split(&prob, &part)?;
+    let partition_s = t1.elapsed().as_secs_f64();
+    let r = case.solver.r.unwrap_or_else(|| prob.default_r(&case));
+    let m = &case.material;
+    let setup = Setup {
         r,
-    )?;
-    times.assemble = setup.assemble;
-    times.factor = setup.factor;
+        alpha: m.young / (1.0 - m.poisson * m.poisson),
+        n_boundary: map.n_boundary,
+        contact_counts: map.contact_counts.clone(),
+        normal: prob.normal,
+        tangent: prob.tangent,
+        nodes: prob.mesh.num_nodes(),
+        elements: prob.mesh.triangles.len(),
+        free_dofs: prob.fixed.iter().filter(|f| f.is_none()).count(),
+        contact_nodes: prob.contact_nodes.len(),
+        partition: part.quality.to_string(),
+        read_s,
+        partition_s,
+        case,
+    };
+    Ok((setup, subs, RootData { map }))
+}
 
-    // 3. The Uzawa loop.
+/// The first rank sends every rank its subproblem; every rank returns its own.
+fn distribute(
+    mpi: &Mpi,
+    prepared: Option<(Setup, Vec<SubProblem>, RootData)>,
+) -> Result<(Setup, SubProblem, Option<RootData>)> {
+    let (setup, subs, root) = match prepared {
+        Some((s, subs, root)) => (Some(s), Some(subs), Some(root)),
+        None => (None, None, None),
+    };
+    let setup = mpi.broadcast(setup)?;
+    let mine = match subs {
+        Some(subs) => {
+            let mut it = subs.into_iter();
+            let own = it.next().unwrap_or_default();
+            for (r, sub) in it.enumerate() {
+                mpi.send_bytes(r + 1, &encode(&sub)?);
+            }
+            own
+        }
+        None => decode(&mpi.recv_bytes(0))?,
+    };
+    Ok((setup, mine, root))
+}
+
+/// This rank's factored subdomain and its condensed contribution.
+struct LocalSystem {
+    dofs: DofMap,
+    factor: LocalFactor,
+    /// Load + lifting of the prescribed dofs, per local equation.
+    base: Vec<f64>,
+    assemble_s: f64,
+    factor_s: f64,
+}
+
+impl LocalSystem {
+    fn new(setup: &Setup, sub: &SubProblem) -> Result<Self> {
+        let t0 = Instant::now();
+        let frictional = Problem::is_frictional(&setup.case);
+        let dofs = DofMap::with_last(&sub.fixed, &sub.boundary_dofs);
+        let mut blocks = contact_blocks(
+            &sub.contact_nodes,
+            &sub.contact.w,
+            setup.r,
+            setup.normal,
+            frictional,
+        );
+        let mut b_nodes: Vec<usize> = sub.boundary_dofs.iter().map(|d| d / 2).collect();
+        b_nodes.dedup();
+        blocks.extend(
+            b_nodes
+                .iter()
+                .map(|&v| (v, [[setup.alpha, 0.0], [0.0, setup.alpha]])),
+        );
+        let assembled = assemble(
+            &sub.nodes,
+            &sub.triangles,
+            &setup.case.material,
+            &dofs,
+            &blocks,
+        )?;
+        let mut base = assembled.lifting;
+        for (dof, eq) in dofs.eq.iter().enumerate() {
+            if let Some(i) = eq {
+                base[*i] += sub.load[dof];
+            }
+        }
+        let assemble_s = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let factor = LocalFactor::new(
+            assembled.matrix.as_ref(),
+            sub.boundary_dofs.len(),
+            setup.alpha,
+        )?;
+        Ok(LocalSystem {
+            dofs,
+            factor,
+            base,
+            assemble_s,
+            factor_s: t1.elapsed().as_secs_f64(),
+        })
+    }
+}
+
+/// Step 1 condensed onto the contact dofs: (Nu, Tu) = u0 + H f, this rank's rows of H,
+/// the forces of every rank gathered once per sweep.
+struct CondensedStep<'a> {
+    mpi: &'a Mpi,
+    /// This rank's rows of H, row-major, each `ncd` long.
+    rows: Vec<f64>,
+    u0: Vec<f64>,
+    n_own: usize,
+    frictional: bool,
+    packed_counts: Vec<usize>,
+    local: Vec<f64>,
+    gathered: Vec<f64>,
+}
+
+impl LinearStep for CondensedStep<'_> {
+    fn solve(
+        &mut self,
+        force_n: &[f64],
+        force_t: &[f64],
+        un: &mut [f64],
+        ut: &mut [f64],
+    ) -> Result<()> {
+        use rayon::prelude::*;
+        self.local.clear();
+        self.local.extend_from_slice(force_n);
+        if self.frictional {
+            self.local.extend_from_slice(force_t);
+        }
+        self.mpi
+            .all_gather(&self.local, &self.packed_counts, &mut self.gathered);
+        let ncd = self.gathered.len();
+        let f = &self.gathered;
+        let mut y = vec![0.0; self.u0.len()];
+        if ncd > 0 {
+            y.par_iter_mut()
+                .zip(self.rows.par_chunks(ncd))
+                .zip(&self.u0)
+                .for_each(|((y, row), u0)| {
+                    *y = u0 + row.iter().zip(f).map(|(h, f)| h * f).sum::<f64>()
+                });
+        }
+        un.copy_from_slice(&y[..self.n_own]);
+        if self.frictional {
+            ut.copy_from_slice(&y[self.n_own..]);
+        } else {
+            ut.fill(0.0);
+        }
+        Ok(())
+    }
+}
+
+/// Augmentation blocks r w_i (m m', or I with friction since m m' + t t' = I).
+pub fn contact_blocks(
+    nodes: &[usize],
+    w: &[f64],
+    r: f64,
+    m: [f64; 2],
+    frictional: bool,
+) -> Vec<(usize, [[f64; 2]; 2])> {
+    nodes
+        .iter()
+        .zip(w)
+        .map(|(&node, &w)| {
+            let rw = r * w;
+            let blk = if frictional {
+                [[rw, 0.0], [0.0, rw]]
+            } else {
+                [
+                    [rw * m[0] * m[0], rw * m[0] * m[1]],
+                    [rw * m[1] * m[0], rw * m[1] * m[1]],
+                ]
+            };
+            (node, blk)
+        })
+        .collect()
+}
+
+/// The whole run, on any number of ranks.
+pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
+    let t_start = Instant::now();
+    if opts.linear == LinearMode::Full && mpi.size > 1 {
+        return mpi.agree(Err(Error::Input(
+            "--linear full runs on one rank only; use the default (condensed) with mpirun".into(),
+        )));
+    }
+
+    // 1. First rank: read and validate the case and the mesh, partition, split.
+    let prepared = if mpi.is_root() {
+        Some(prepare(opts, mpi.size))
+    } else {
+        None
+    };
+    let prepared = mpi.agree(prepared.transpose())?;
+    let (setup, sub, root) = distribute(mpi, prepared)?;
+    let case = &setup.case;
+    let frictional = Problem::is_frictional(case);
+    print.line(format!(
+        "contact-par: {} | {} nodes, {} triangles, {} contact nodes | friction {} | r = {:e}, tol = {:e} | {} rank(s) x {} thread(s)",
+        if case.title.is_empty() { &case.origin } else { &case.title },
+        setup.nodes,
+        setup.elements,
+        setup.contact_nodes,
+        friction_name(&case.contact.friction),
+        setup.r,
+        case.solver.tol,
+        mpi.size,
+        rayon::current_num_threads()
+    ));
+    if mpi.size > 1 {
+        print.line(format!("partition: {}", setup.partition));
+    }
+
+    // 2. Every rank: assemble and factor its subdomain once, condense onto B.
+    let mut local = mpi.agree(LocalSystem::new(&setup, &sub))?;
+    let t_condense = Instant::now();
+    let s_local = local.factor.schur();
+    let g_local = local.factor.condensed_rhs(&local.base);
+
+    // 3. First rank: the global condensed operator; every rank gets its rows of H.
+    let (pos_counts, offsets) = {
+        let (_, off) = packed_layout(&setup.contact_counts, frictional);
+        let counts: Vec<usize> = off.windows(2).map(|w| w[1] - w[0]).collect();
+        (counts, off)
+    };
+    let condensed = if let Some(root) = &root {
+        let mut s = Mat::<f64>::zeros(setup.n_boundary, setup.n_boundary);
+        let mut g = vec![0.0; setup.n_boundary];
+        add_piece(&mut s, &mut g, &sub.boundary_global, &s_local, &g_local);
+        for r in 1..mpi.size {
+            let (index, flat, gr): (Vec<usize>, Vec<f64>, Vec<f64>) = decode(&mpi.recv_bytes(r))?;
+            let nb = index.len();
+            let sr = Mat::<f64>::from_fn(nb, nb, |i, j| flat[i + nb * j]);
+            add_piece(&mut s, &mut g, &index, &sr, &gr);
+        }
+        Some(Condensed::new(
+            s,
+            g,
+            &root.map.contact_dofs,
+            &setup.contact_counts,
+            setup.normal,
+            setup.tangent,
+            frictional,
+        ))
+    } else {
+        let nb = s_local.nrows();
+        let flat: Vec<f64> = (0..nb * nb).map(|k| s_local[(k % nb, k / nb)]).collect();
+        mpi.send_bytes(0, &encode(&(&sub.boundary_global, flat, &g_local))?);
+        None
+    };
+    let condensed = mpi.agree(condensed.transpose())?;
+    let (rows, u0): (Vec<f64>, Vec<f64>) = match &condensed {
+        Some(c) => {
+            let ncd = c.h.nrows();
+            let block = |r: usize| {
+                let (a, b) = (offsets[r], offsets[r + 1]);
+                let rows: Vec<f64> = (a..b)
+                    .flat_map(|i| (0..ncd).map(move |j| (i, j)))
+                    .map(|(i, j)| c.h[(i, j)])
+                    .collect();
+                (rows, c.u0[a..b].to_vec())
+            };
+            for r in 1..mpi.size {
+                mpi.send_bytes(r, &encode(&block(r))?);
+            }
+            block(0)
+        }
+        None => decode(&mpi.recv_bytes(0))?,
+    };
+    let condense_s = t_condense.elapsed().as_secs_f64();
+
+    // 4. The Uzawa loop on this rank's contact nodes.
     let t_loop = Instant::now();
     let params = contact::Params {
-        r,
+        r: setup.r,
         tol: case.solver.tol,
         max_iter: case.solver.max_iter,
         friction: case.contact.friction,
@@ -216,48 +495,138 @@ pub fn run(opts: &Options, print: &Printer) -> Result<RunReport> {
             print.line(monitor_line(s));
         }
     };
-    let outcome = contact::solve(&mut step, &NoComm, &prob.contact, &params, &mut monitor)?;
-    times.uzawa = t_loop.elapsed().as_secs_f64();
+    let n_own = sub.contact_nodes.len();
+    let (outcome, u_local) = if opts.linear == LinearMode::Full {
+        let mut step = full_step(&setup, &sub)?;
+        let o = contact::solve(&mut step, mpi, &sub.contact, &params, &mut monitor)?;
+        (o, step.displacement())
+    } else {
+        let mut step = CondensedStep {
+            mpi,
+            rows,
+            u0,
+            n_own,
+            frictional,
+            packed_counts: pos_counts.clone(),
+            local: Vec::new(),
+            gathered: Vec::new(),
+        };
+        let o = contact::solve(&mut step, mpi, &sub.contact, &params, &mut monitor)?;
+        // Recover the displacement from the forces of the last sweep.
+        let x_b = condensed.as_ref().map(|c| {
+            c.boundary_solution(
+                &step.gathered,
+                &root
+                    .as_ref()
+                    .map(|r| r.map.contact_dofs.clone())
+                    .unwrap_or_default(),
+                &setup.contact_counts,
+                setup.normal,
+                setup.tangent,
+                frictional,
+            )
+        });
+        let x_b: Vec<f64> = mpi.broadcast(x_b)?;
+        let mut f = local.base.clone();
+        let fn_: Vec<f64> = step.local[..n_own].to_vec();
+        let ft: Vec<f64> = if frictional {
+            step.local[n_own..].to_vec()
+        } else {
+            vec![0.0; n_own]
+        };
+        add_contact_forces(
+            &local.dofs,
+            &sub.contact_nodes,
+            setup.normal,
+            setup.tangent,
+            &fn_,
+            &ft,
+            &mut f,
+        );
+        let xb_local: Vec<f64> = sub.boundary_global.iter().map(|&b| x_b[b]).collect();
+        let u_free = local.factor.recover(&f, &xb_local);
+        let u: Vec<[f64; 2]> = local
+            .dofs
+            .expand(&u_free)
+            .chunks_exact(2)
+            .map(|c| [c[0], c[1]])
+            .collect();
+        (o, u)
+    };
+    let loop_s = t_loop.elapsed().as_secs_f64();
     if let Some(last) = outcome.history.last() {
         if last.iter % every != 0 {
             print.line(monitor_line(last));
         }
     }
 
-    // 4. Outputs.
+    // 5. Outputs: each rank its piece, the first rank the gathered files.
     let t_out = Instant::now();
-    let u = step.displacement();
-    write_outputs(
-        opts,
-        &case,
-        &prob,
-        &u,
-        &outcome,
-        r,
-        step.factor_nnz(),
-        times,
-        t_out,
-        t_start,
-    )?;
-    let total_normal: f64 = prob
-        .contact
-        .w
-        .iter()
-        .zip(&outcome.lambda)
-        .map(|(w, l)| w * l)
-        .sum();
-    let status_count = |s: Status| outcome.status.iter().filter(|&&x| x == s).count();
+    let stats = RankStats {
+        rank: mpi.rank,
+        elements: sub.triangles.len(),
+        nodes: sub.nodes.len(),
+        interface_nodes: sub.interface_nodes,
+        boundary_dofs: sub.boundary_dofs.len(),
+        contact_nodes: n_own,
+        factor_nnz: local.factor.factor_nnz(),
+        peak_memory_bytes: 0,
+        assemble_s: local.assemble_s,
+        factor_s: local.factor_s,
+        loop_s,
+        output_s: 0.0,
+    };
+    let times = Timings {
+        read: setup.read_s,
+        partition: setup.partition_s,
+        assemble: local.assemble_s,
+        factor: local.factor_s,
+        condense: condense_s,
+        uzawa: loop_s,
+        output: 0.0,
+        total: 0.0,
+    };
+    let result = write_outputs(
+        opts, mpi, &setup, &sub, &u_local, &outcome, stats, times, t_out, t_start,
+    );
+    mpi.agree(result)?;
 
+    if let Some(last) = outcome.history.last() {
+        let _ = last;
+    }
+    let sums = {
+        let mut v = [
+            sub.contact
+                .w
+                .iter()
+                .zip(&outcome.lambda)
+                .map(|(w, l)| w * l)
+                .sum::<f64>(),
+            outcome
+                .status
+                .iter()
+                .filter(|&&s| s == Status::Stick)
+                .count() as f64,
+            outcome
+                .status
+                .iter()
+                .filter(|&&s| s == Status::Slip)
+                .count() as f64,
+        ];
+        mpi.sum_in_place(&mut v);
+        v
+    };
+    let mut times = times;
     times.output = t_out.elapsed().as_secs_f64();
     times.total = t_start.elapsed().as_secs_f64();
     print.line(format!(
         "{} after {} iterations: {} active contact nodes ({} stick, {} slip), total normal force {}",
         if outcome.converged { "converged" } else { "NOT CONVERGED" },
         outcome.iterations,
-        status_count(Status::Stick) + status_count(Status::Slip),
-        status_count(Status::Stick),
-        status_count(Status::Slip),
-        total_normal
+        (sums[1] + sums[2]) as usize,
+        sums[1] as usize,
+        sums[2] as usize,
+        sums[0]
     ));
     print_timings(print, &times, outcome.iterations);
     print.line(format!("outputs in {}", opts.out.display()));
@@ -266,12 +635,34 @@ pub fn run(opts: &Options, print: &Printer) -> Result<RunReport> {
     })
 }
 
+/// The uncondensed step on the whole (one-rank) subdomain.
+fn full_step(setup: &Setup, sub: &SubProblem) -> Result<DirectStep> {
+    let (step, _) = DirectStep::new(
+        &sub.nodes,
+        &sub.triangles,
+        &setup.case.material,
+        &sub.fixed,
+        &sub.load,
+        &ContactDofs {
+            nodes: &sub.contact_nodes,
+            w: &sub.contact.w,
+            normal: setup.normal,
+            tangent: setup.tangent,
+            frictional: Problem::is_frictional(&setup.case),
+        },
+        setup.r,
+    )?;
+    Ok(step)
+}
+
 fn print_timings(print: &Printer, t: &Timings, iterations: usize) {
     print.line("phase         seconds");
     for (name, v) in [
         ("read", t.read),
         ("assemble", t.assemble),
+        ("partition", t.partition),
         ("factor", t.factor),
+        ("condense", t.condense),
         ("loop", t.uzawa),
         ("output", t.output),
         ("total", t.total),
@@ -308,19 +699,25 @@ pub fn element_stresses(case: &Case, mesh: &Mesh, u: &[[f64; 2]]) -> (Vec<[f64; 
     (stress, vm)
 }
 
+/// What each rank sends the first rank for the gathered outputs: contact rows
+/// (x, y, u_n, u_t, p_n, p_t, gap, status, w), owned nodes (global id; x, y, ux, uy), figures.
+type RankOutput = (Vec<[f64; 9]>, Vec<(usize, [f64; 4])>, RankStats);
+
+/// Writes every output; collective (each rank its .vtu piece, the first rank the rest).
 #[allow(clippy::too_many_arguments)]
 fn write_outputs(
     opts: &Options,
-    case: &Case,
-    prob: &Problem,
+    mpi: &Mpi,
+    setup: &Setup,
+    sub: &SubProblem,
     u: &[[f64; 2]],
     o: &contact::Outcome,
-    r: f64,
-    factor_nnz: usize,
+    mut stats: RankStats,
     mut times: Timings,
     t_out: Instant,
     t_start: Instant,
 ) -> Result<()> {
+    let case = &setup.case;
     let dir = &opts.out;
     std::fs::create_dir_all(dir).map_err(|e| {
         Error::Output(format!(
@@ -328,31 +725,113 @@ fn write_outputs(
             dir.display()
         ))
     })?;
-    let mesh = &prob.mesh;
-    let n = mesh.num_nodes();
 
-    let rows: Vec<ContactRow> = prob
+    // This rank's piece of the field output.
+    let mesh = Mesh {
+        nodes: sub.nodes.clone(),
+        triangles: sub.triangles.clone(),
+        ..Default::default()
+    };
+    let (stress, vm) = element_stresses(case, &mesh, u);
+    let n = sub.nodes.len();
+    let mut pressure = vec![0.0; n];
+    let mut traction = vec![0.0; n];
+    let mut status = vec![-1i32; n];
+    for (k, &node) in sub.contact_nodes.iter().enumerate() {
+        pressure[node] = o.lambda[k];
+        traction[node] = -o.mu[k] + 0.0;
+        status[node] = o.status[k] as i32;
+    }
+    let rank_field = vec![mpi.rank as i32; sub.triangles.len()];
+    let piece = output::Piece {
+        nodes: &sub.nodes,
+        triangles: &sub.triangles,
+        displacement: u,
+        stress: &stress,
+        von_mises: &vm,
+        rank: &rank_field,
+        contact_pressure: &pressure,
+        tangential_traction: &traction,
+        contact_status: &status,
+    };
+    output::write_atomic(
+        &dir.join(format!("solution_{}.vtu", mpi.rank)),
+        &output::vtu_bytes(&piece)?,
+    )?;
+
+    // Contact rows and owned nodes travel to the first rank.
+    let rows: Vec<[f64; 9]> = sub
         .contact_nodes
         .iter()
         .enumerate()
-        .map(|(k, &node)| ContactRow {
-            x: mesh.nodes[node][0],
-            y: mesh.nodes[node][1],
-            u_n: o.un[k],
-            u_t: o.ut[k],
-            p_n: o.lambda[k],
-            p_t: -o.mu[k],
-            gap: prob.contact.g[k],
+        .map(|(k, &node)| {
+            let x = sub.nodes[node];
+            [
+                x[0],
+                x[1],
+                o.un[k],
+                o.ut[k],
+                o.lambda[k],
+                -o.mu[k] + 0.0,
+                sub.contact.g[k],
+                o.status[k] as i32 as f64,
+                sub.contact.w[k],
+            ]
+        })
+        .collect();
+    let owned: Vec<(usize, [f64; 4])> = if opts.nodes_csv {
+        (0..n)
+            .filter(|&l| sub.owned[l])
+            .map(|l| {
+                (
+                    sub.global_nodes[l],
+                    [sub.nodes[l][0], sub.nodes[l][1], u[l][0], u[l][1]],
+                )
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    stats.peak_memory_bytes = peak_memory_bytes();
+    stats.output_s = t_out.elapsed().as_secs_f64();
+    if !mpi.is_root() {
+        mpi.send_bytes(0, &encode(&(rows, owned, stats))?);
+        return Ok(());
+    }
+    let mut all_rows = rows;
+    let mut all_nodes = owned;
+    let mut all_stats = vec![stats];
+    for r in 1..mpi.size {
+        let (rr, nn, ss): RankOutput =
+            decode(&mpi.recv_bytes(r))?;
+        all_rows.extend(rr);
+        all_nodes.extend(nn);
+        all_stats.push(ss);
+    }
+
+    let contact_rows: Vec<ContactRow> = all_rows
+        .iter()
+        .map(|r| ContactRow {
+            x: r[0],
+            y: r[1],
+            u_n: r[2],
+            u_t: r[3],
+            p_n: r[4],
+            p_t: r[5],
+            gap: r[6],
         })
         .collect();
     output::write_atomic(
         &dir.join("contact.csv"),
-        output::contact_csv(&rows).as_bytes(),
+        output::contact_csv(&contact_rows).as_bytes(),
     )?;
     if opts.nodes_csv {
+        all_nodes.sort_unstable_by_key(|(g, _)| *g);
+        let xy: Vec<[f64; 2]> = all_nodes.iter().map(|(_, v)| [v[0], v[1]]).collect();
+        let uu: Vec<[f64; 2]> = all_nodes.iter().map(|(_, v)| [v[2], v[3]]).collect();
         output::write_atomic(
             &dir.join("nodes.csv"),
-            output::nodes_csv(&mesh.nodes, u).as_bytes(),
+            output::nodes_csv(&xy, &uu).as_bytes(),
         )?;
     }
     let history: Vec<HistoryRow> = o
@@ -370,69 +849,59 @@ fn write_outputs(
         &dir.join("history.csv"),
         output::history_csv(&history).as_bytes(),
     )?;
+    let sources: Vec<String> = (0..mpi.size).map(|r| format!("solution_{r}.vtu")).collect();
+    output::write_atomic(&dir.join("solution.pvtu"), &output::pvtu_bytes(&sources)?)?;
 
-    let (stress, vm) = element_stresses(case, mesh, u);
-    let mut pressure = vec![0.0; n];
-    let mut traction = vec![0.0; n];
-    let mut status = vec![-1i32; n];
-    for (k, &node) in prob.contact_nodes.iter().enumerate() {
-        pressure[node] = o.lambda[k];
-        traction[node] = -o.mu[k];
-        status[node] = o.status[k] as i32;
-    }
-    let rank = vec![0i32; mesh.triangles.len()];
-    let piece = output::Piece {
-        nodes: &mesh.nodes,
-        triangles: &mesh.triangles,
-        displacement: u,
-        stress: &stress,
-        von_mises: &vm,
-        rank: &rank,
-        contact_pressure: &pressure,
-        tangential_traction: &traction,
-        contact_status: &status,
-    };
-    output::write_atomic(&dir.join("solution.vtu"), &output::vtu_bytes(&piece)?)?;
-
-    let count = |s: Status| o.status.iter().filter(|&&x| x == s).count();
+    let with_status = |s: Status| all_rows.iter().filter(|r| r[7] == s as i32 as f64).count();
+    let (stick, slip) = (with_status(Status::Stick), with_status(Status::Slip));
+    let active = stick + slip;
     let last = o.history.last();
     times.output = t_out.elapsed().as_secs_f64();
     times.total = t_start.elapsed().as_secs_f64();
-    let summary = Summary {
-        title: &case.title,
-        case: &case.origin,
-        converged: o.converged,
-        iterations: o.iterations,
-        outer_iterations: o.outer_iterations,
-        ranks: 1,
-        threads: rayon::current_num_threads(),
-        nodes: n,
-        elements: mesh.triangles.len(),
-        dofs: 2 * n,
-        free_dofs: prob.fixed.iter().filter(|f| f.is_none()).count(),
-        contact_nodes: prob.contact_nodes.len(),
-        active_nodes: count(Status::Stick) + count(Status::Slip),
-        stick_nodes: count(Status::Stick),
-        slip_nodes: count(Status::Slip),
-        total_normal_force: prob
-            .contact
-            .w
-            .iter()
-            .zip(&o.lambda)
-            .map(|(w, l)| w * l)
-            .sum(),
-        total_tangential_force: prob.contact.w.iter().zip(&o.mu).map(|(w, m)| -w * m).sum(),
-        friction: friction_name(&case.contact.friction),
-        r,
-        tol: case.solver.tol,
-        final_residuals: Residuals {
-            primal: last.map_or(f64::NAN, |s| s.primal),
-            dual: last.map_or(f64::NAN, |s| s.dual),
+    let max_over =
+        |f: &dyn Fn(&RankStats) -> f64| all_stats.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
+    let min_over =
+        |f: &dyn Fn(&RankStats) -> f64| all_stats.iter().map(f).fold(f64::INFINITY, f64::min);
+    let summary = serde_json::json!({
+        "title": case.title,
+        "case": case.origin,
+        "converged": o.converged,
+        "iterations": o.iterations,
+        "outer_iterations": o.outer_iterations,
+        "ranks": mpi.size,
+        "threads": rayon::current_num_threads(),
+        "linear": format!("{:?}", opts.linear).to_lowercase(),
+        "nodes": setup.nodes,
+        "elements": setup.elements,
+        "dofs": 2 * setup.nodes,
+        "free_dofs": setup.free_dofs,
+        "boundary_dofs": setup.n_boundary,
+        "contact_nodes": setup.contact_nodes,
+        "active_nodes": active,
+        "stick_nodes": stick,
+        "slip_nodes": slip,
+        "total_normal_force": all_rows.iter().map(|r| r[8] * r[4]).sum::<f64>(),
+        "total_tangential_force": all_rows.iter().map(|r| r[8] * r[5]).sum::<f64>(),
+        "friction": friction_name(&case.contact.friction),
+        "r": setup.r,
+        "tol": case.solver.tol,
+        "final_residuals": { "primal": last.map(|s| s.primal), "dual": last.map(|s| s.dual) },
+        "timings_s": times,
+        "peak_memory_bytes": all_stats.iter().map(|s| s.peak_memory_bytes).max().unwrap_or(0),
+        "peak_memory_bytes_per_rank": all_stats.iter().map(|s| s.peak_memory_bytes).collect::<Vec<_>>(),
+        "per_rank": all_stats,
+        "per_rank_max": {
+            "assemble_s": max_over(&|s| s.assemble_s), "factor_s": max_over(&|s| s.factor_s),
+            "loop_s": max_over(&|s| s.loop_s), "elements": max_over(&|s| s.elements as f64),
+            "interface_nodes": max_over(&|s| s.interface_nodes as f64),
         },
-        factor_nnz,
-        timings_s: times,
-        peak_memory_bytes: peak_memory_bytes(),
-    };
+        "per_rank_min": {
+            "assemble_s": min_over(&|s| s.assemble_s), "factor_s": min_over(&|s| s.factor_s),
+            "loop_s": min_over(&|s| s.loop_s), "elements": min_over(&|s| s.elements as f64),
+            "interface_nodes": min_over(&|s| s.interface_nodes as f64),
+        },
+        "partition": setup.partition,
+    });
     let json = serde_json::to_string_pretty(&summary)
         .map_err(|e| Error::Output(format!("cannot format summary.json: {e}")))?;
     output::write_atomic(&dir.join("summary.json"), json.as_bytes())?;

@@ -2,17 +2,17 @@
 //! here so that every later stage can trust it. Also the built-in cases.
 
 use crate::error::{input, Error, Result};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// Plane hypothesis of the 2D model (thickness 1 in both).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Hypothesis {
     PlaneStrain,
     PlaneStress,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Material {
     pub young: f64,
     pub poisson: f64,
@@ -20,7 +20,7 @@ pub struct Material {
 }
 
 /// Friction law on the contact boundary.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum Friction {
     None,
     /// Tresca: a given slip threshold s (force per unit length).
@@ -34,7 +34,7 @@ pub enum Friction {
 }
 
 /// How the Coulomb threshold s = nu_f * lambda is refreshed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum CoulombMode {
     /// Every sweep, from the current normal multiplier (one fixed-point loop).
     Inner,
@@ -42,21 +42,21 @@ pub enum CoulombMode {
     Outer,
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Dirichlet {
     pub group: String,
     pub ux: Option<f64>,
     pub uy: Option<f64>,
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Traction {
     pub group: String,
     pub t: [f64; 2],
 }
 
 /// The rigid straight foundation and the friction law.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Contact {
     pub group: String,
     pub obstacle_point: [f64; 2],
@@ -65,7 +65,7 @@ pub struct Contact {
     pub friction: Friction,
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Solver {
     /// Augmentation parameter; `None` lets the solver choose from E and h.
     pub r: Option<f64>,
@@ -86,13 +86,13 @@ impl Default for Solver {
 }
 
 /// Where the mesh comes from.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum MeshSource {
     File(PathBuf),
     Builtin { name: BuiltinMesh, level: u32 },
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum BuiltinMesh {
     /// Quarter disc of radius `HERTZ_RADIUS` touching y = 0 at the origin.
     QuarterDisc,
@@ -101,7 +101,7 @@ pub enum BuiltinMesh {
 }
 
 /// A validated case. Group names are checked against the mesh later, once it is read.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Case {
     pub title: String,
     /// Where the case came from, for messages (a file path or "built-in case NAME").

@@ -11,6 +11,8 @@ pub enum Error {
     Numerical(String),
     /// Writing outputs failed: exit code 5.
     Output(String),
+    /// Another rank failed and reported it; this rank exits with that code quietly.
+    Silent(i32),
 }
 
 impl Error {
@@ -19,12 +21,14 @@ impl Error {
             Error::Input(_) => 2,
             Error::Numerical(_) => 4,
             Error::Output(_) => 5,
+            Error::Silent(code) => *code,
         }
     }
 
     pub fn message(&self) -> &str {
         match self {
             Error::Input(m) | Error::Numerical(m) | Error::Output(m) => m,
+            Error::Silent(_) => "",
         }
     }
 }

@@ -8,6 +8,7 @@
 pub mod app;
 pub mod case;
 pub mod contact;
+pub mod dd;
 pub mod error;
 pub mod fem;
 pub mod linear;

@@ -199,6 +199,31 @@ impl DirectStep {
     }
 }
 
+/// Adds the contact forces N' force_n + T' force_t (N_i' = -m, T_i' = t) to a right-hand
+/// side on the free dofs.
+pub fn add_contact_forces(
+    dofs: &DofMap,
+    contact_nodes: &[usize],
+    normal: [f64; 2],
+    tangent: [f64; 2],
+    force_n: &[f64],
+    force_t: &[f64],
+    rhs: &mut [f64],
+) {
+    let ([mx, my], [tx, ty]) = (normal, tangent);
+    for (k, &node) in contact_nodes.iter().enumerate() {
+        let f = [
+            -mx * force_n[k] + tx * force_t[k],
+            -my * force_n[k] + ty * force_t[k],
+        ];
+        for c in 0..2 {
+            if let Some(i) = dofs.eq[2 * node + c] {
+                rhs[i] += f[c];
+            }
+        }
+    }
+}
+
 impl LinearStep for DirectStep {
     fn solve(
         &mut self,
@@ -230,5 +255,306 @@ impl LinearStep for DirectStep {
             ut[k] = tx * ux + ty * uy;
         }
         Ok(())
+    }
+}
+
+/// A subdomain matrix factored once with its boundary dofs (interface and contact)
+/// ordered last, so that the Schur complement onto them comes out of the same
+/// factorization: with A = L L', the trailing block gives S = L_BB L_BB'.
+///
+/// The boundary block is shifted by `alpha` I before factoring. A subdomain without
+/// Dirichlet conditions ("floating") has a singular local matrix whose Schur complement
+/// is only semi-definite; the shift makes the factorization exist, and since it touches
+/// only the boundary block, S = L_BB L_BB' - alpha I exactly, while the condensed
+/// right-hand side and the interior recovery do not depend on it.
+pub struct LocalFactor {
+    chol: SparseCholesky,
+    n_interior: usize,
+    /// L_BB, dense lower triangle (n_b x n_b).
+    l_bb: Mat<f64>,
+    alpha: f64,
+    rhs: Mat<f64>,
+}
+
+impl LocalFactor {
+    /// `a` is the LOWER triangle of the shifted matrix A + alpha E_B, in an equation
+    /// order where the last `n_b` equations are the boundary dofs.
+    pub fn new(a: SparseColMatRef<'_, usize, f64>, n_b: usize, alpha: f64) -> Result<Self> {
+        let n = a.nrows();
+        let n_interior = n - n_b;
+        let perm = interior_amd_then_boundary(a, n_interior)?;
+        let (fwd, inv) = (&perm.0, &perm.1);
+        let chol = SparseCholesky::factor(
+            a,
+            SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(fwd, inv, n)),
+        )?;
+        let l_bb = chol.trailing_block(n_interior);
+        Ok(LocalFactor {
+            chol,
+            n_interior,
+            l_bb,
+            alpha,
+            rhs: Mat::zeros(n, 1),
+        })
+    }
+
+    pub fn n_boundary(&self) -> usize {
+        self.l_bb.nrows()
+    }
+
+    pub fn factor_nnz(&self) -> usize {
+        self.chol.factor_nnz()
+    }
+
+    /// The subdomain's Schur complement onto its boundary dofs (dense, symmetric).
+    pub fn schur(&self) -> Mat<f64> {
+        let mut s = &self.l_bb * self.l_bb.transpose();
+        for i in 0..s.nrows() {
+            s[(i, i)] -= self.alpha;
+        }
+        s
+    }
+
+    /// Full solve with the shifted matrix; the solution stays in `self.rhs`.
+    fn solve_shifted(&mut self, f: &[f64]) {
+        for (i, v) in f.iter().enumerate() {
+            self.rhs[(i, 0)] = *v;
+        }
+        self.chol.solve_in_place(self.rhs.as_mut());
+    }
+
+    /// S~ x for the shifted Schur complement S~ = L_BB L_BB'.
+    fn shifted_schur_times(&self, x: &[f64]) -> Vec<f64> {
+        let nb = self.n_boundary();
+        let xb = faer::Col::<f64>::from_fn(nb, |i| x[i]);
+        let y = &self.l_bb * (self.l_bb.transpose() * &xb);
+        (0..nb).map(|i| y[i]).collect()
+    }
+
+    /// The condensed right-hand side g = f_B - A_BI A_II^-1 f_I, computed as S~ u_B with
+    /// u = A~^-1 f (the shift cancels).
+    pub fn condensed_rhs(&mut self, f: &[f64]) -> Vec<f64> {
+        self.solve_shifted(f);
+        let ub: Vec<f64> = (self.n_interior..self.rhs.nrows())
+            .map(|i| self.rhs[(i, 0)])
+            .collect();
+        self.shifted_schur_times(&ub)
+    }
+
+    /// The subdomain solution whose boundary values are `x_b`: u_I = A_II^-1 (f_I - A_IB x_B).
+    /// Solves A~ u = f + [0; z] with z = S~ x_B - g, which pins u_B = x_B.
+    pub fn recover(&mut self, f: &[f64], x_b: &[f64]) -> Vec<f64> {
+        let g = self.condensed_rhs(f);
+        let sx = self.shifted_schur_times(x_b);
+        let mut f2 = f.to_vec();
+        for k in 0..x_b.len() {
+            f2[self.n_interior + k] += sx[k] - g[k];
+        }
+        self.solve_shifted(&f2);
+        (0..self.rhs.nrows()).map(|i| self.rhs[(i, 0)]).collect()
+    }
+}
+
+/// AMD on the interior block, the boundary equations kept last in their order.
+fn interior_amd_then_boundary(
+    a: SparseColMatRef<'_, usize, f64>,
+    n_interior: usize,
+) -> Result<(Vec<usize>, Vec<usize>)> {
+    use faer::sparse::linalg::amd;
+    use faer::sparse::SymbolicSparseColMat;
+    let n = a.nrows();
+    let mut col_ptr = Vec::with_capacity(n_interior + 1);
+    let mut row_idx = Vec::new();
+    col_ptr.push(0);
+    for j in 0..n_interior {
+        row_idx.extend(a.symbolic().row_idx_of_col(j).filter(|&i| i < n_interior));
+        col_ptr.push(row_idx.len());
+    }
+    let interior =
+        SymbolicSparseColMat::new_checked(n_interior, n_interior, col_ptr, None, row_idx);
+    let mut fwd = vec![0usize; n];
+    let mut inv = vec![0usize; n];
+    if n_interior > 0 {
+        let nnz = interior.row_idx().len();
+        let mut mem = MemBuffer::new(amd::order_scratch::<usize>(n_interior, nnz));
+        amd::order(
+            &mut fwd[..n_interior],
+            &mut inv[..n_interior],
+            interior.as_ref(),
+            amd::Control::default(),
+            MemStack::new(&mut mem),
+        )
+        .map_err(|e| Error::Numerical(format!("AMD ordering failed: {e:?}")))?;
+    }
+    for i in n_interior..n {
+        fwd[i] = i;
+        inv[i] = i;
+    }
+    Ok((fwd, inv))
+}
+
+impl SparseCholesky {
+    /// The trailing `n - first` rows and columns of the Cholesky factor L (in the
+    /// factor's own, permuted, order), dense. Requires an ordering that keeps those
+    /// equations last in place.
+    fn trailing_block(&self, first: usize) -> Mat<f64> {
+        use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
+        let n = self.dim();
+        let nb = n - first;
+        let mut l = Mat::<f64>::zeros(nb, nb);
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(s) => {
+                let (cp, ri) = (s.col_ptr(), s.row_idx());
+                for j in first..n {
+                    for p in cp[j]..cp[j + 1] {
+                        l[(ri[p] - first, j - first)] = self.values[p];
+                    }
+                }
+            }
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                let (begin, end) = (s.supernode_begin(), s.supernode_end());
+                let (rp, vp, ri) = (s.col_ptr_for_row_idx(), s.col_ptr_for_val(), s.row_idx());
+                for sn in 0..s.n_supernodes() {
+                    let (b, e) = (begin[sn], end[sn]);
+                    if e <= first {
+                        continue;
+                    }
+                    let pattern = &ri[rp[sn]..rp[sn + 1]];
+                    let nrows = (e - b) + pattern.len();
+                    // Column-major dense block: the diagonal block rows b..e, then the
+                    // rows of the pattern.
+                    let vals = &self.values[vp[sn]..vp[sn + 1]];
+                    for j in b.max(first)..e {
+                        let col = &vals[(j - b) * nrows..(j - b + 1) * nrows];
+                        for i in j..e {
+                            l[(i - first, j - first)] = col[i - b];
+                        }
+                        for (k, &i) in pattern.iter().enumerate() {
+                            l[(i - first, j - first)] = col[(e - b) + k];
+                        }
+                    }
+                }
+            }
+        }
+        l
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::case::{Hypothesis, Material};
+    use crate::fem::{assemble, DofMap};
+    use crate::mesh::builtin;
+    use faer::prelude::Solve;
+
+    fn material() -> Material {
+        Material {
+            young: 1000.0,
+            poisson: 0.3,
+            hypothesis: Hypothesis::PlaneStrain,
+        }
+    }
+
+    /// Dense copy of a lower-triangle CSC matrix, symmetrised.
+    fn dense(a: SparseColMatRef<'_, usize, f64>) -> Mat<f64> {
+        let n = a.nrows();
+        let mut d = Mat::<f64>::zeros(n, n);
+        for j in 0..n {
+            for (i, v) in a.row_idx_of_col(j).zip(a.val_of_col(j)) {
+                d[(i, j)] += *v;
+                if i != j {
+                    d[(j, i)] += *v;
+                }
+            }
+        }
+        d
+    }
+
+    /// Checks S, the condensed rhs and the recovery against dense formulas, for a block
+    /// mesh of nx x ny cells, with or without Dirichlet conditions.
+    fn check(nx: usize, ny: usize, clamp_bottom: bool) {
+        let mesh = builtin::block(2.0, 1.0, nx, ny);
+        let n = mesh.num_nodes();
+        let mut fixed = vec![None; 2 * n];
+        if clamp_bottom {
+            for node in mesh.group_nodes("bottom").unwrap() {
+                fixed[2 * node] = Some(0.0);
+                fixed[2 * node + 1] = Some(1e-3);
+            }
+        }
+        // Boundary: the free dofs of the top and right sides.
+        let mut last: Vec<usize> = mesh.group_nodes("top").unwrap();
+        last.extend(mesh.group_nodes("right").unwrap());
+        last.sort_unstable();
+        last.dedup();
+        let last_dofs: Vec<usize> = last
+            .iter()
+            .flat_map(|&v| [2 * v, 2 * v + 1])
+            .filter(|&d| fixed[d].is_none())
+            .collect();
+        let dofs = DofMap::with_last(&fixed, &last_dofs);
+        let nb = last_dofs.len();
+        let alpha = 1000.0;
+        let plain = assemble(&mesh.nodes, &mesh.triangles, &material(), &dofs, &[]).unwrap();
+        let shift: Vec<(usize, [[f64; 2]; 2])> = last
+            .iter()
+            .map(|&v| (v, [[alpha, 0.0], [0.0, alpha]]))
+            .collect();
+        let shifted = assemble(&mesh.nodes, &mesh.triangles, &material(), &dofs, &shift).unwrap();
+        let mut lf = LocalFactor::new(shifted.matrix.as_ref(), nb, alpha).unwrap();
+
+        let a = dense(plain.matrix.as_ref());
+        let ni = dofs.n_free - nb;
+        let a_ii = a.submatrix(0, 0, ni, ni).to_owned();
+        let a_ib = a.submatrix(0, ni, ni, nb).to_owned();
+        let a_bb = a.submatrix(ni, ni, nb, nb).to_owned();
+        let llt = a_ii.llt(Side::Lower).unwrap();
+        let x = llt.solve(&a_ib);
+        let s_ref = &a_bb - a_ib.transpose() * &x;
+        let s = lf.schur();
+        let scale = a_bb.norm_max();
+        assert!(
+            (&s - &s_ref).norm_max() < 1e-10 * scale,
+            "{}",
+            (&s - &s_ref).norm_max()
+        );
+
+        let f: Vec<f64> = (0..dofs.n_free)
+            .map(|i| ((i * 7919) % 13) as f64 - 6.0)
+            .collect();
+        let g = lf.condensed_rhs(&f);
+        let f_i = faer::Col::<f64>::from_fn(ni, |i| f[i]);
+        let y = llt.solve(&f_i);
+        let g_ref = faer::Col::<f64>::from_fn(nb, |k| f[ni + k]) - a_ib.transpose() * &y;
+        for k in 0..nb {
+            assert!((g[k] - g_ref[k]).abs() < 1e-9 * g_ref.norm_max().max(1.0));
+        }
+
+        let xb: Vec<f64> = (0..nb).map(|k| 1e-3 * (k as f64).sin()).collect();
+        let u = lf.recover(&f, &xb);
+        let xbc = faer::Col::<f64>::from_fn(nb, |k| xb[k]);
+        let ui_ref = llt.solve(&(f_i - &a_ib * &xbc));
+        for i in 0..ni {
+            assert!((u[i] - ui_ref[i]).abs() < 1e-9 * ui_ref.norm_max());
+        }
+        for k in 0..nb {
+            assert!((u[ni + k] - xb[k]).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn schur_from_the_factor_small_simplicial() {
+        check(4, 3, true);
+    }
+
+    #[test]
+    fn schur_from_the_factor_supernodal() {
+        check(40, 20, true);
+    }
+
+    #[test]
+    fn schur_of_a_floating_subdomain() {
+        check(12, 6, false);
     }
 }

@@ -9,8 +9,10 @@
 //! 4 numerical failure, 5 outputs could not be written.
 
 use clap::Parser;
-use contact_par::app::{self, Options, Printer};
+use contact_par::app::{self, LinearMode, Options, Printer};
 use contact_par::case::{self, CoulombMode};
+use contact_par::dd::comm::Mpi;
+use contact_par::error::Error;
 use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
@@ -55,9 +57,21 @@ struct Cli {
     /// Print a monitor line every K sweeps.
     #[arg(long, default_value_t = 10)]
     monitor_every: usize,
-    /// Threads per rank (assembly and factorization); default: all cores / ranks.
+    /// Threads per rank (assembly, factorization, sweep); default: cores / ranks.
     #[arg(long)]
     threads: Option<usize>,
+    /// Linear solve in the loop: condensed (default) or full (one rank only, for
+    /// comparison: a sparse forward and backward solve per sweep).
+    #[arg(long, default_value = "condensed", value_parser = parse_linear)]
+    linear: LinearMode,
+}
+
+fn parse_linear(s: &str) -> Result<LinearMode, String> {
+    match s {
+        "condensed" => Ok(LinearMode::Condensed),
+        "full" => Ok(LinearMode::Full),
+        _ => Err(format!("\"{s}\" is not condensed or full")),
+    }
 }
 
 fn parse_coulomb(s: &str) -> Result<CoulombMode, String> {
@@ -97,16 +111,19 @@ fn run() -> i32 {
         }
         return 0;
     }
-    if world.size() > 1 {
-        if rank == 0 {
-            eprintln!("contact-par: runs on one rank in this version; use mpirun -n 1");
-        }
-        return 2;
-    }
-    let threads = cli.threads.unwrap_or(0);
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = cli
+        .threads
+        .unwrap_or_else(|| (cores / world.size() as usize).max(1))
+        .max(1);
     let _ = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build_global();
+    faer::set_global_parallelism(if threads == 1 {
+        faer::Par::Seq
+    } else {
+        faer::Par::rayon(threads)
+    });
     let opts = Options {
         case_file: cli.case,
         builtin: cli.builtin,
@@ -119,23 +136,36 @@ fn run() -> i32 {
         max_iter: cli.max_iter,
         coulomb: cli.coulomb,
         monitor_every: cli.monitor_every,
+        linear: cli.linear,
     };
     let print = Printer {
         enabled: rank == 0 && !opts.quiet,
     };
-    match app::run(&opts, &print) {
+    let mpi = Mpi::new(world);
+    match app::run(&opts, &mpi, &print) {
         Ok(report) if report.converged => 0,
         Ok(_) => 3,
+        Err(Error::Silent(code)) => code,
         Err(e) => {
-            if rank == 0 {
-                eprintln!("contact-par: error: {e}");
-            }
+            // Only the rank that failed first holds the message (see Mpi::agree).
+            eprintln!("contact-par: error: {e}");
             e.exit_code()
         }
     }
 }
 
 fn main() {
+    // A panic on one rank must not leave the others waiting in a collective forever:
+    // print it, then abort the whole job.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        default_hook(info);
+        // SAFETY: MPI_Abort may be called at any time after MPI_Init; if MPI is not
+        // initialised the process simply ends with the panic.
+        unsafe {
+            mpi::ffi::MPI_Abort(mpi::ffi::RSMPI_COMM_WORLD, 70);
+        }
+    }));
     let code = run();
     std::process::exit(code);
 }

@@ -34,6 +34,34 @@ impl DofMap {
         DofMap { eq, value, n_free }
     }
 
+    /// Free dofs numbered in dof order except `last`, which come after all others in
+    /// the given order (the interface and contact dofs of a subdomain, so that the
+    /// trailing block of the Cholesky factor is their Schur complement).
+    pub fn with_last(fixed: &[Option<f64>], last: &[usize]) -> Self {
+        let mut is_last = vec![false; fixed.len()];
+        for &d in last {
+            is_last[d] = true;
+        }
+        let mut eq = vec![None; fixed.len()];
+        let mut n_free = 0;
+        for (d, f) in fixed.iter().enumerate() {
+            if f.is_none() && !is_last[d] {
+                eq[d] = Some(n_free);
+                n_free += 1;
+            }
+        }
+        for &d in last {
+            debug_assert!(
+                fixed[d].is_none(),
+                "a prescribed dof cannot be condensed on"
+            );
+            eq[d] = Some(n_free);
+            n_free += 1;
+        }
+        let value = fixed.iter().map(|f| f.unwrap_or(0.0)).collect();
+        DofMap { eq, value, n_free }
+    }
+
     /// Scatters a free-dof vector and the prescribed values into a full dof vector.
     pub fn expand(&self, free: &[f64]) -> Vec<f64> {
         self.eq
@@ -171,6 +199,9 @@ mod tests {
         assert_eq!(m.eq, vec![Some(0), None, Some(1), None]);
         assert_eq!(m.n_free, 2);
         assert_eq!(m.expand(&[5.0, 6.0]), vec![5.0, 1.0, 6.0, -2.0]);
+        let l = DofMap::with_last(&[None, Some(1.0), None, None], &[2, 0]);
+        assert_eq!(l.eq, vec![Some(2), None, Some(1), Some(0)]);
+        assert_eq!(l.n_free, 3);
     }
 
     #[test]
