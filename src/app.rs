@@ -42,8 +42,10 @@ pub struct Printer {
 
 impl Printer {
     pub fn line(&self, s: impl AsRef<str>) {
+        use std::io::Write;
         if self.enabled {
-            println!("{}", s.as_ref());
+            // A closed stdout (e.g. piped into `head`) must not stop the computation.
+            let _ = writeln!(std::io::stdout(), "{}", s.as_ref());
         }
     }
 }
@@ -553,6 +555,13 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
             .collect();
         (o, u)
     };
+    let mut outcome = outcome;
+    // Report u_n and u_t of the recovered field (frictionless sweeps do not compute u_t).
+    for (k, &node) in sub.contact_nodes.iter().enumerate() {
+        let u = u_local[node];
+        outcome.un[k] = -(setup.normal[0] * u[0] + setup.normal[1] * u[1]);
+        outcome.ut[k] = setup.tangent[0] * u[0] + setup.tangent[1] * u[1];
+    }
     let loop_s = t_loop.elapsed().as_secs_f64();
     if let Some(last) = outcome.history.last() {
         if last.iter % every != 0 {
@@ -802,8 +811,7 @@ fn write_outputs(
     let mut all_nodes = owned;
     let mut all_stats = vec![stats];
     for r in 1..mpi.size {
-        let (rr, nn, ss): RankOutput =
-            decode(&mpi.recv_bytes(r))?;
+        let (rr, nn, ss): RankOutput = decode(&mpi.recv_bytes(r))?;
         all_rows.extend(rr);
         all_nodes.extend(nn);
         all_stats.push(ss);

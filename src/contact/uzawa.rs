@@ -1,9 +1,15 @@
 //! The Uzawa block relaxation loop (ALG2 of ALGORITHM.md), written once for any rank
 //! count: it sees only this rank's contact nodes, a [`LinearStep`] and a [`Reduce`].
 //!
-//! Per sweep it calls the linear step once and the reduction once (8 numbers: the
+//! Per sweep it calls the linear step once and the reduction once (10 numbers: the
 //! squared W-norms of the primal and dual residuals, of the normal and tangential
-//! displacements, and the active and slip counts).
+//! displacements and multipliers, and the active and slip counts).
+//!
+//! Both residuals are measured in force units and relative to
+//! S = max(|lambda|_W + |mu|_W, r (|Nu|_W + |Tu|_W)): the multipliers when there is
+//! contact, the displacements when there is none. A purely displacement-based scale
+//! fails when the contact nodes sit exactly on the foundation (Nu -> g = 0), and a
+//! purely multiplier-based one when nothing touches.
 
 use super::kernels::{coulomb_threshold, project_normal, shrink, update_multiplier};
 use super::{ContactNodes, LinearStep, Reduce, Status};
@@ -26,9 +32,9 @@ pub struct Params {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sweep {
     pub iter: usize,
-    /// |Nu - p|_W + |Tu - q|_W relative to |Nu|_W + |Tu|_W.
+    /// r (|Nu - p|_W + |Tu - q|_W) / S (the change of the multipliers).
     pub primal: f64,
-    /// |p - p_prev|_W + |q - q_prev|_W relative to the same scale (r cancels).
+    /// r (|p - p_prev|_W + |q - q_prev|_W) / S.
     pub dual: f64,
     pub active: usize,
     pub slip: usize,
@@ -241,15 +247,17 @@ fn sweeps(
         step.solve(&force_n, &force_t, &mut st.un, &mut st.ut)?;
 
         // Steps 2 and 3, node by node.
-        let mut sums = [0.0; 8];
+        let mut sums = [0.0; 10];
         for i in 0..n {
             let w = nodes.w[i];
             let p = project_normal(nodes.g[i], st.un[i], st.lambda[i], r);
             sums[0] += w * (st.un[i] - p).powi(2);
             sums[2] += w * (p - st.p[i]).powi(2);
             sums[4] += w * st.un[i].powi(2);
+            let lambda_old = st.lambda[i];
             st.lambda[i] = update_multiplier(st.lambda[i], r, st.un[i], p);
             st.p[i] = p;
+            sums[8] += w * st.lambda[i].powi(2);
             if st.lambda[i] > 0.0 {
                 sums[6] += 1.0;
             }
@@ -262,7 +270,7 @@ fn sweeps(
             // The Coulomb threshold uses the pressure before this sweep's update.
             let s = match thresholds {
                 Thresholds::Fixed(s) => s[i],
-                Thresholds::Coulomb(c) => coulomb_threshold(c, st.lambda[i] - r * (st.un[i] - p)),
+                Thresholds::Coulomb(c) => coulomb_threshold(c, lambda_old),
                 Thresholds::Frictionless => 0.0,
             };
             let q = shrink(st.ut[i] + st.mu[i] / r, s / r);
@@ -271,17 +279,18 @@ fn sweeps(
             sums[5] += w * st.ut[i].powi(2);
             st.mu[i] = update_multiplier(st.mu[i], r, st.ut[i], q);
             st.q[i] = q;
+            sums[9] += w * st.mu[i].powi(2);
             if q != 0.0 && st.lambda[i] > 0.0 {
                 sums[7] += 1.0;
             }
         }
         comm.sum_in_place(&mut sums);
 
-        let scale = sums[4].sqrt() + sums[5].sqrt();
+        let scale = (sums[8].sqrt() + sums[9].sqrt()).max(r * (sums[4].sqrt() + sums[5].sqrt()));
         let sweep = Sweep {
             iter: history.len() + 1,
-            primal: relative(sums[0].sqrt() + sums[1].sqrt(), scale),
-            dual: relative(sums[2].sqrt() + sums[3].sqrt(), scale),
+            primal: relative(r * (sums[0].sqrt() + sums[1].sqrt()), scale),
+            dual: relative(r * (sums[2].sqrt() + sums[3].sqrt()), scale),
             active: sums[6] as usize,
             slip: sums[7] as usize,
         };

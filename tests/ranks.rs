@@ -1,0 +1,345 @@
+//! The answer must not depend on the number of ranks: every built-in case and friction
+//! law on 1, 2, 3 and 4 ranks (oversubscribed), compared node by node. Also the
+//! condensed sweep against the full sparse solve, and clean failures under mpirun.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const BIN: &str = env!("CARGO_BIN_EXE_contact-par");
+
+fn mpirun(np: usize, args: &[&str], dir: &Path) -> Output {
+    Command::new("mpirun")
+        .args(["-n", &np.to_string(), "--oversubscribe", BIN])
+        .args(args)
+        .current_dir(dir)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
+        .output()
+        .expect("mpirun must be installed (openmpi-bin)")
+}
+
+fn read_csv(path: &Path) -> Vec<Vec<f64>> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect()
+}
+
+fn summary(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
+}
+
+/// The built-in case `name` at `level` with its friction law replaced by `friction`
+/// (TOML lines for the [contact] table), written to `dir/case.toml`.
+fn case_file(dir: &Path, name: &str, level: u32, friction: &str, extra: &str) -> PathBuf {
+    let text = contact_par::case::builtin_case_text(name, level).unwrap();
+    let mut out = String::new();
+    for line in text.lines() {
+        let key = line.split('=').next().unwrap_or("").trim();
+        if ["friction", "threshold", "coefficient"].contains(&key) {
+            continue;
+        }
+        out.push_str(line);
+        out.push('\n');
+        if line.starts_with("obstacle_normal") {
+            out.push_str(friction);
+            out.push('\n');
+        }
+    }
+    out.push_str(extra);
+    let path = dir.join("case.toml");
+    std::fs::write(&path, out).unwrap();
+    path
+}
+
+/// Largest difference over the given columns, relative to `scale`.
+fn max_diff(a: &[Vec<f64>], b: &[Vec<f64>], cols: &[usize], scale: f64) -> f64 {
+    assert_eq!(a.len(), b.len(), "row counts differ");
+    let mut worst: f64 = 0.0;
+    for (ra, rb) in a.iter().zip(b) {
+        for &c in cols {
+            worst = worst.max((ra[c] - rb[c]).abs() / scale);
+        }
+    }
+    worst
+}
+
+fn max_abs(rows: &[Vec<f64>], cols: &[usize]) -> f64 {
+    rows.iter()
+        .flat_map(|r| cols.iter().map(move |&c| r[c].abs()))
+        .fold(0.0, f64::max)
+        .max(1e-300)
+}
+
+/// Compares two runs: coordinates to 1e-14 of their size, displacements (nodes.csv ux,
+/// uy and contact.csv u_n, u_t) to `tol` of the largest displacement, tractions
+/// (contact.csv p_n, p_t) to `tol` of the largest pressure.
+fn compare(
+    c1: &[Vec<f64>],
+    n1: &[Vec<f64>],
+    c2: &[Vec<f64>],
+    n2: &[Vec<f64>],
+    tol: f64,
+    what: &str,
+) {
+    let xs = max_abs(n1, &[0, 1]);
+    let us = max_abs(n1, &[2, 3]);
+    let ps = max_abs(c1, &[4]);
+    let d = max_diff(n1, n2, &[0, 1], xs);
+    assert!(d < 1e-14, "{what}: node coordinates differ by {d:e}");
+    let d = max_diff(c1, c2, &[0, 1, 6], xs);
+    assert!(
+        d < 1e-14,
+        "{what}: contact coordinates or gaps differ by {d:e}"
+    );
+    let d = max_diff(n1, n2, &[2, 3], us);
+    assert!(d < tol, "{what}: displacements differ by {d:e}");
+    let d = max_diff(c1, c2, &[2, 3], us);
+    assert!(d < tol, "{what}: u_n, u_t differ by {d:e}");
+    let d = max_diff(c1, c2, &[4, 5], ps);
+    assert!(d < tol, "{what}: p_n, p_t differ by {d:e}");
+}
+
+/// Runs the case on 1..=4 ranks and checks iteration counts (+-1), contact.csv and
+/// nodes.csv (1e-8 relative per column; u_n is compared through the gap column's scale
+/// because it sits at round-off level on flat contact).
+fn check_rank_independence(name: &str, level: u32, friction: &str) {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = case_file(tmp.path(), name, level, friction, "[solver]\ntol = 1e-10\n");
+    let mut reference: Option<(i64, Vec<Vec<f64>>, Vec<Vec<f64>>)> = None;
+    for np in 1..=4 {
+        let out = tmp.path().join(format!("out{np}"));
+        let o = mpirun(
+            np,
+            &[
+                case.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--nodes-csv",
+                "--quiet",
+            ],
+            tmp.path(),
+        );
+        assert!(
+            o.status.success(),
+            "{name} {friction} on {np} ranks: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let s = summary(&out);
+        assert_eq!(s["ranks"], np as i64);
+        assert_eq!(s["converged"], true);
+        let iters = s["iterations"].as_i64().unwrap();
+        let contact = read_csv(&out.join("contact.csv"));
+        let nodes = read_csv(&out.join("nodes.csv"));
+        assert!(!contact.is_empty() && !nodes.is_empty());
+        match &reference {
+            None => reference = Some((iters, contact, nodes)),
+            Some((it1, c1, n1)) => {
+                assert!(
+                    (iters - it1).abs() <= 1,
+                    "{name} {friction}: {iters} iterations on {np} ranks, {it1} on 1"
+                );
+                compare(
+                    c1,
+                    n1,
+                    &contact,
+                    &nodes,
+                    1e-8,
+                    &format!("{name} {friction} on {np} ranks"),
+                );
+            }
+        }
+        // One .vtu piece per rank behind the .pvtu index.
+        for r in 0..np {
+            assert!(out.join(format!("solution_{r}.vtu")).exists());
+        }
+        let pvtu = std::fs::read_to_string(out.join("solution.pvtu")).unwrap();
+        assert_eq!(pvtu.matches("<Piece ").count(), np);
+    }
+}
+
+#[test]
+fn hertz_frictionless_1_to_4_ranks() {
+    check_rank_independence("hertz", 0, "friction = \"none\"");
+}
+
+#[test]
+fn hertz_tresca_1_to_4_ranks() {
+    check_rank_independence("hertz", 0, "friction = \"tresca\"\nthreshold = 500.0");
+}
+
+#[test]
+fn hertz_coulomb_1_to_4_ranks() {
+    check_rank_independence("hertz", 0, "friction = \"coulomb\"\ncoefficient = 0.2");
+}
+
+#[test]
+fn block_frictionless_1_to_4_ranks() {
+    check_rank_independence("block", 0, "friction = \"none\"");
+}
+
+#[test]
+fn block_tresca_1_to_4_ranks() {
+    check_rank_independence("block", 0, "friction = \"tresca\"\nthreshold = 20.0");
+}
+
+#[test]
+fn block_coulomb_1_to_4_ranks() {
+    check_rank_independence("block", 0, "friction = \"coulomb\"\ncoefficient = 0.3");
+}
+
+#[test]
+fn block_coulomb_outer_1_to_4_ranks() {
+    let f = "friction = \"coulomb\"\ncoefficient = 0.3";
+    check_rank_independence_with(
+        "block",
+        0,
+        f,
+        "[solver]\ntol = 1e-10\ncoulomb = \"outer\"\n",
+    );
+}
+
+#[test]
+fn block_flat_1_to_4_ranks() {
+    check_rank_independence("block_flat", 0, "friction = \"none\"");
+}
+
+fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: &str) {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = case_file(tmp.path(), name, level, friction, solver);
+    let mut first: Option<(i64, Vec<Vec<f64>>, Vec<Vec<f64>>)> = None;
+    for np in 1..=4 {
+        let out = tmp.path().join(format!("out{np}"));
+        let o = mpirun(
+            np,
+            &[
+                case.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--nodes-csv",
+                "--quiet",
+            ],
+            tmp.path(),
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let it = summary(&out)["iterations"].as_i64().unwrap();
+        let nodes = read_csv(&out.join("nodes.csv"));
+        let contact = read_csv(&out.join("contact.csv"));
+        match &first {
+            None => first = Some((it, contact, nodes)),
+            Some((it1, c1, n1)) => {
+                assert!((it - it1).abs() <= 1, "{it} vs {it1} iterations");
+                compare(
+                    c1,
+                    n1,
+                    &contact,
+                    &nodes,
+                    1e-8,
+                    &format!("{name} {solver} on {np} ranks"),
+                );
+            }
+        }
+    }
+}
+
+/// The condensed sweep and the full sparse solve give the same iterates: same
+/// iteration count and the same fields to round-off, for each law.
+#[test]
+fn condensed_sweep_equals_full_solve() {
+    for (name, friction) in [
+        ("hertz", "friction = \"none\""),
+        ("block", "friction = \"tresca\"\nthreshold = 20.0"),
+        ("block", "friction = \"coulomb\"\ncoefficient = 0.3"),
+    ] {
+        let tmp = tempfile::tempdir().unwrap();
+        let case = case_file(tmp.path(), name, 0, friction, "");
+        let mut runs = Vec::new();
+        for linear in ["condensed", "full"] {
+            let out = tmp.path().join(linear);
+            let o = mpirun(
+                1,
+                &[
+                    case.to_str().unwrap(),
+                    "--out",
+                    out.to_str().unwrap(),
+                    "--nodes-csv",
+                    "--quiet",
+                    "--linear",
+                    linear,
+                ],
+                tmp.path(),
+            );
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            runs.push((
+                summary(&out)["iterations"].as_i64().unwrap(),
+                read_csv(&out.join("contact.csv")),
+                read_csv(&out.join("nodes.csv")),
+            ));
+        }
+        assert!(
+            (runs[0].0 - runs[1].0).abs() <= 1,
+            "{name}: {} vs {} iterations",
+            runs[0].0,
+            runs[1].0
+        );
+        compare(
+            &runs[0].1,
+            &runs[0].2,
+            &runs[1].1,
+            &runs[1].2,
+            1e-9,
+            &format!("{name} {friction} condensed vs full"),
+        );
+    }
+}
+
+/// A bad case under mpirun: one error line (from one rank), exit code 2, no hang, no
+/// output files.
+#[test]
+fn bad_input_on_four_ranks_fails_once_and_cleanly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = contact_par::case::builtin_case_text("block", 0)
+        .unwrap()
+        .replace("poisson = 0.33", "poison = 0.33");
+    std::fs::write(tmp.path().join("bad.toml"), text).unwrap();
+    let start = std::time::Instant::now();
+    let o = mpirun(4, &["bad.toml", "--out", "res"], tmp.path());
+    assert!(start.elapsed().as_secs() < 60, "took {:?}", start.elapsed());
+    let err = String::from_utf8_lossy(&o.stderr);
+    let ours: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("contact-par:"))
+        .collect();
+    assert_eq!(ours.len(), 1, "{err}");
+    assert!(
+        ours[0].contains("bad.toml") && ours[0].contains("poison"),
+        "{}",
+        ours[0]
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).trim().is_empty());
+    assert!(!tmp.path().join("res").exists());
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn more_ranks_than_triangles_is_an_input_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A unit square of two triangles (MSH 2.2).
+    let msh = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n1 1 \"bottom\"\n1 2 \"top\"\n$EndPhysicalNames\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n$EndNodes\n$Elements\n4\n1 1 2 1 1 1 2\n2 1 2 2 2 3 4\n3 2 2 3 3 1 2 3\n4 2 2 3 3 1 3 4\n$EndElements\n";
+    std::fs::write(tmp.path().join("two.msh"), msh).unwrap();
+    let case = "[mesh]\nfile = \"two.msh\"\n[material]\nyoung = 1.0\npoisson = 0.3\n[[dirichlet]]\ngroup = \"top\"\nuy = -0.01\nux = 0.0\n[contact]\ngroup = \"bottom\"\nobstacle_point = [0.0, 0.0]\nobstacle_normal = [0.0, 1.0]\n";
+    std::fs::write(tmp.path().join("c.toml"), case).unwrap();
+    let ok = mpirun(2, &["c.toml", "--out", "ok", "--quiet"], tmp.path());
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let o = mpirun(3, &["c.toml", "--out", "res"], tmp.path());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("3 ranks for 2 triangles"), "{err}");
+    assert!(!tmp.path().join("res").exists());
+}
