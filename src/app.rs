@@ -407,7 +407,6 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
     let prepared = mpi.agree(prepared.transpose())?;
     let (setup, sub, root) = distribute(mpi, prepared)?;
     let case = &setup.case;
-    let frictional = Problem::is_frictional(case);
     print.line(format!(
         "contact-par: {} | {} nodes, {} triangles, {} contact nodes | friction {} | r = {:e}, tol = {:e} | {} rank(s) x {} thread(s)",
         if case.title.is_empty() { &case.origin } else { &case.title },
@@ -424,66 +423,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         print.line(format!("partition: {}", setup.partition));
     }
 
-    // 2. Every rank: assemble and factor its subdomain once, condense onto B.
-    let mut local = mpi.agree(LocalSystem::new(&setup, &sub))?;
-    let t_condense = Instant::now();
-    let s_local = local.factor.schur();
-    let g_local = local.factor.condensed_rhs(&local.base);
-
-    // 3. First rank: the global condensed operator; every rank gets its rows of H.
-    let (pos_counts, offsets) = {
-        let (_, off) = packed_layout(&setup.contact_counts, frictional);
-        let counts: Vec<usize> = off.windows(2).map(|w| w[1] - w[0]).collect();
-        (counts, off)
-    };
-    let condensed = if let Some(root) = &root {
-        let mut s = Mat::<f64>::zeros(setup.n_boundary, setup.n_boundary);
-        let mut g = vec![0.0; setup.n_boundary];
-        add_piece(&mut s, &mut g, &sub.boundary_global, &s_local, &g_local);
-        for r in 1..mpi.size {
-            let (index, flat, gr): (Vec<usize>, Vec<f64>, Vec<f64>) = decode(&mpi.recv_bytes(r))?;
-            let nb = index.len();
-            let sr = Mat::<f64>::from_fn(nb, nb, |i, j| flat[i + nb * j]);
-            add_piece(&mut s, &mut g, &index, &sr, &gr);
-        }
-        Some(Condensed::new(
-            s,
-            g,
-            &root.map.contact_dofs,
-            &setup.contact_counts,
-            setup.normal,
-            setup.tangent,
-            frictional,
-        ))
-    } else {
-        let nb = s_local.nrows();
-        let flat: Vec<f64> = (0..nb * nb).map(|k| s_local[(k % nb, k / nb)]).collect();
-        mpi.send_bytes(0, &encode(&(&sub.boundary_global, flat, &g_local))?);
-        None
-    };
-    let condensed = mpi.agree(condensed.transpose())?;
-    let (rows, u0): (Vec<f64>, Vec<f64>) = match &condensed {
-        Some(c) => {
-            let ncd = c.h.nrows();
-            let block = |r: usize| {
-                let (a, b) = (offsets[r], offsets[r + 1]);
-                let rows: Vec<f64> = (a..b)
-                    .flat_map(|i| (0..ncd).map(move |j| (i, j)))
-                    .map(|(i, j)| c.h[(i, j)])
-                    .collect();
-                (rows, c.u0[a..b].to_vec())
-            };
-            for r in 1..mpi.size {
-                mpi.send_bytes(r, &encode(&block(r))?);
-            }
-            block(0)
-        }
-        None => decode(&mpi.recv_bytes(0))?,
-    };
-    let condense_s = t_condense.elapsed().as_secs_f64();
-
-    // 4. The Uzawa loop on this rank's contact nodes.
-    let t_loop = Instant::now();
+    // 2-4. Factor once, then the Uzawa loop on this rank's contact nodes.
     let params = contact::Params {
         r: setup.r,
         tol: case.solver.tol,
@@ -497,72 +437,18 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
             print.line(monitor_line(s));
         }
     };
-    let n_own = sub.contact_nodes.len();
-    let (outcome, u_local) = if opts.linear == LinearMode::Full {
-        let mut step = full_step(&setup, &sub)?;
-        let o = contact::solve(&mut step, mpi, &sub.contact, &params, &mut monitor)?;
-        (o, step.displacement())
-    } else {
-        let mut step = CondensedStep {
-            mpi,
-            rows,
-            u0,
-            n_own,
-            frictional,
-            packed_counts: pos_counts.clone(),
-            local: Vec::new(),
-            gathered: Vec::new(),
-        };
-        let o = contact::solve(&mut step, mpi, &sub.contact, &params, &mut monitor)?;
-        // Recover the displacement from the forces of the last sweep.
-        let x_b = condensed.as_ref().map(|c| {
-            c.boundary_solution(
-                &step.gathered,
-                &root
-                    .as_ref()
-                    .map(|r| r.map.contact_dofs.clone())
-                    .unwrap_or_default(),
-                &setup.contact_counts,
-                setup.normal,
-                setup.tangent,
-                frictional,
-            )
-        });
-        let x_b: Vec<f64> = mpi.broadcast(x_b)?;
-        let mut f = local.base.clone();
-        let fn_: Vec<f64> = step.local[..n_own].to_vec();
-        let ft: Vec<f64> = if frictional {
-            step.local[n_own..].to_vec()
-        } else {
-            vec![0.0; n_own]
-        };
-        add_contact_forces(
-            &local.dofs,
-            &sub.contact_nodes,
-            setup.normal,
-            setup.tangent,
-            &fn_,
-            &ft,
-            &mut f,
-        );
-        let xb_local: Vec<f64> = sub.boundary_global.iter().map(|&b| x_b[b]).collect();
-        let u_free = local.factor.recover(&f, &xb_local);
-        let u: Vec<[f64; 2]> = local
-            .dofs
-            .expand(&u_free)
-            .chunks_exact(2)
-            .map(|c| [c[0], c[1]])
-            .collect();
-        (o, u)
+    let (mut outcome, u_local, phases) = match opts.linear {
+        LinearMode::Condensed => {
+            solve_condensed(mpi, &setup, &sub, root.as_ref(), &params, &mut monitor)?
+        }
+        LinearMode::Full => solve_full(mpi, &setup, &sub, &params, &mut monitor)?,
     };
-    let mut outcome = outcome;
     // Report u_n and u_t of the recovered field (frictionless sweeps do not compute u_t).
     for (k, &node) in sub.contact_nodes.iter().enumerate() {
         let u = u_local[node];
         outcome.un[k] = -(setup.normal[0] * u[0] + setup.normal[1] * u[1]);
         outcome.ut[k] = setup.tangent[0] * u[0] + setup.tangent[1] * u[1];
     }
-    let loop_s = t_loop.elapsed().as_secs_f64();
     if let Some(last) = outcome.history.last() {
         if last.iter % every != 0 {
             print.line(monitor_line(last));
@@ -577,21 +463,21 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         nodes: sub.nodes.len(),
         interface_nodes: sub.interface_nodes,
         boundary_dofs: sub.boundary_dofs.len(),
-        contact_nodes: n_own,
-        factor_nnz: local.factor.factor_nnz(),
+        contact_nodes: sub.contact_nodes.len(),
+        factor_nnz: phases.factor_nnz,
         peak_memory_bytes: 0,
-        assemble_s: local.assemble_s,
-        factor_s: local.factor_s,
-        loop_s,
+        assemble_s: phases.assemble,
+        factor_s: phases.factor,
+        loop_s: phases.uzawa,
         output_s: 0.0,
     };
     let times = Timings {
         read: setup.read_s,
         partition: setup.partition_s,
-        assemble: local.assemble_s,
-        factor: local.factor_s,
-        condense: condense_s,
-        uzawa: loop_s,
+        assemble: phases.assemble,
+        factor: phases.factor,
+        condense: phases.condense,
+        uzawa: phases.uzawa,
         output: 0.0,
         total: 0.0,
     };
@@ -644,9 +530,157 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
     })
 }
 
-/// The uncondensed step on the whole (one-rank) subdomain.
-fn full_step(setup: &Setup, sub: &SubProblem) -> Result<DirectStep> {
-    let (step, _) = DirectStep::new(
+/// Wall-clock seconds and sizes of the solve phases of one rank.
+struct Phases {
+    assemble: f64,
+    factor: f64,
+    condense: f64,
+    uzawa: f64,
+    factor_nnz: usize,
+}
+
+/// The default path: each rank factors its subdomain with its boundary dofs last and
+/// condenses onto them; the first rank forms the contact operator H; the loop sweeps on H.
+fn solve_condensed(
+    mpi: &Mpi,
+    setup: &Setup,
+    sub: &SubProblem,
+    root: Option<&RootData>,
+    params: &contact::Params,
+    monitor: &mut dyn FnMut(&Sweep),
+) -> Result<(contact::Outcome, Vec<[f64; 2]>, Phases)> {
+    let frictional = Problem::is_frictional(&setup.case);
+    let mut local = mpi.agree(LocalSystem::new(setup, sub))?;
+    let t_condense = Instant::now();
+    let s_local = local.factor.schur();
+    let g_local = local.factor.condensed_rhs(&local.base);
+
+    // 3. First rank: the global condensed operator; every rank gets its rows of H.
+    let (pos_counts, offsets) = {
+        let (_, off) = packed_layout(&setup.contact_counts, frictional);
+        let counts: Vec<usize> = off.windows(2).map(|w| w[1] - w[0]).collect();
+        (counts, off)
+    };
+    let condensed = if let Some(root) = root {
+        let mut s = Mat::<f64>::zeros(setup.n_boundary, setup.n_boundary);
+        let mut g = vec![0.0; setup.n_boundary];
+        add_piece(&mut s, &mut g, &sub.boundary_global, &s_local, &g_local);
+        for r in 1..mpi.size {
+            let (index, flat, gr): (Vec<usize>, Vec<f64>, Vec<f64>) = decode(&mpi.recv_bytes(r))?;
+            let nb = index.len();
+            let sr = Mat::<f64>::from_fn(nb, nb, |i, j| flat[i + nb * j]);
+            add_piece(&mut s, &mut g, &index, &sr, &gr);
+        }
+        Some(Condensed::new(
+            s,
+            g,
+            &root.map.contact_dofs,
+            &setup.contact_counts,
+            setup.normal,
+            setup.tangent,
+            frictional,
+        ))
+    } else {
+        let nb = s_local.nrows();
+        let flat: Vec<f64> = (0..nb * nb).map(|k| s_local[(k % nb, k / nb)]).collect();
+        mpi.send_bytes(0, &encode(&(&sub.boundary_global, flat, &g_local))?);
+        None
+    };
+    let condensed = mpi.agree(condensed.transpose())?;
+    let (rows, u0): (Vec<f64>, Vec<f64>) = match &condensed {
+        Some(c) => {
+            let ncd = c.h.nrows();
+            let block = |r: usize| {
+                let (a, b) = (offsets[r], offsets[r + 1]);
+                let rows: Vec<f64> = (a..b)
+                    .flat_map(|i| (0..ncd).map(move |j| (i, j)))
+                    .map(|(i, j)| c.h[(i, j)])
+                    .collect();
+                (rows, c.u0[a..b].to_vec())
+            };
+            for r in 1..mpi.size {
+                mpi.send_bytes(r, &encode(&block(r))?);
+            }
+            block(0)
+        }
+        None => decode(&mpi.recv_bytes(0))?,
+    };
+    let condense_s = t_condense.elapsed().as_secs_f64();
+
+    let t_loop = Instant::now();
+    let n_own = sub.contact_nodes.len();
+    let (outcome, u_local) = {
+        let mut step = CondensedStep {
+            mpi,
+            rows,
+            u0,
+            n_own,
+            frictional,
+            packed_counts: pos_counts.clone(),
+            local: Vec::new(),
+            gathered: Vec::new(),
+        };
+        let o = contact::solve(&mut step, mpi, &sub.contact, params, monitor)?;
+        // Recover the displacement from the forces of the last sweep.
+        let x_b = condensed.as_ref().map(|c| {
+            c.boundary_solution(
+                &step.gathered,
+                &root.map(|r| r.map.contact_dofs.clone()).unwrap_or_default(),
+                &setup.contact_counts,
+                setup.normal,
+                setup.tangent,
+                frictional,
+            )
+        });
+        let x_b: Vec<f64> = mpi.broadcast(x_b)?;
+        let mut f = local.base.clone();
+        let fn_: Vec<f64> = step.local[..n_own].to_vec();
+        let ft: Vec<f64> = if frictional {
+            step.local[n_own..].to_vec()
+        } else {
+            vec![0.0; n_own]
+        };
+        add_contact_forces(
+            &local.dofs,
+            &sub.contact_nodes,
+            setup.normal,
+            setup.tangent,
+            &fn_,
+            &ft,
+            &mut f,
+        );
+        let xb_local: Vec<f64> = sub.boundary_global.iter().map(|&b| x_b[b]).collect();
+        let u_free = local.factor.recover(&f, &xb_local);
+        let u: Vec<[f64; 2]> = local
+            .dofs
+            .expand(&u_free)
+            .chunks_exact(2)
+            .map(|c| [c[0], c[1]])
+            .collect();
+        (o, u)
+    };
+    Ok((
+        outcome,
+        u_local,
+        Phases {
+            assemble: local.assemble_s,
+            factor: local.factor_s,
+            condense: condense_s,
+            uzawa: t_loop.elapsed().as_secs_f64(),
+            factor_nnz: local.factor.factor_nnz(),
+        },
+    ))
+}
+
+/// The uncondensed path (one rank): a sparse forward and backward solve per sweep.
+fn solve_full(
+    mpi: &Mpi,
+    setup: &Setup,
+    sub: &SubProblem,
+    params: &contact::Params,
+    monitor: &mut dyn FnMut(&Sweep),
+) -> Result<(contact::Outcome, Vec<[f64; 2]>, Phases)> {
+    let (mut step, times) = DirectStep::new(
         &sub.nodes,
         &sub.triangles,
         &setup.case.material,
@@ -661,7 +695,19 @@ fn full_step(setup: &Setup, sub: &SubProblem) -> Result<DirectStep> {
         },
         setup.r,
     )?;
-    Ok(step)
+    let t_loop = Instant::now();
+    let outcome = contact::solve(&mut step, mpi, &sub.contact, params, monitor)?;
+    Ok((
+        outcome,
+        step.displacement(),
+        Phases {
+            assemble: times.assemble,
+            factor: times.factor,
+            condense: 0.0,
+            uzawa: t_loop.elapsed().as_secs_f64(),
+            factor_nnz: step.factor_nnz(),
+        },
+    ))
 }
 
 fn print_timings(print: &Printer, t: &Timings, iterations: usize) {

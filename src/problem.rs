@@ -29,16 +29,30 @@ pub struct Problem {
 }
 
 impl Problem {
-    /// Default augmentation parameter: the effective modulus over the contact mesh size,
-    /// so that r w_i, the augmentation at a contact node, matches the stiffness of the
-    /// elements under it whatever the units and the refinement.
+    /// Default augmentation parameter r = E_eff / sqrt(h L), h the mean contact edge
+    /// length and L the smaller side of the body's bounding box.
+    ///
+    /// Why: seen from the contact boundary, an elastic body is stiff like E/L for smooth
+    /// modes and like E/h for mesh-scale ones; the Uzawa/ADMM iteration converges fastest
+    /// when r w_i sits between the two, and the geometric mean balances the primal and
+    /// dual contraction, so that the sweep count grows like sqrt(L/h) instead of L/h
+    /// (r = E/h) or worse. Measured on the built-in cases at four levels: within 1.3x of
+    /// the best r of a sweep over two decades (see the note of the core issue).
     pub fn default_r(&self, case: &Case) -> f64 {
         let m = &case.material;
         let e_eff = match m.hypothesis {
             Hypothesis::PlaneStrain => m.young / (1.0 - m.poisson * m.poisson),
             Hypothesis::PlaneStress => m.young,
         };
-        e_eff / self.contact_h
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in &self.mesh.nodes {
+            for c in 0..2 {
+                lo[c] = lo[c].min(p[c]);
+                hi[c] = hi[c].max(p[c]);
+            }
+        }
+        let size = (hi[0] - lo[0]).min(hi[1] - lo[1]).max(self.contact_h);
+        e_eff / (self.contact_h * size).sqrt()
     }
 
     pub fn is_frictional(case: &Case) -> bool {
