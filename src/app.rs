@@ -8,7 +8,7 @@ use crate::dd::condense::{add_piece, packed_layout, Condensed};
 use crate::dd::split::{split, GlobalMap, SubProblem};
 use crate::error::{Error, Result};
 use crate::fem::{self, assemble, DofMap};
-use crate::linear::{add_contact_forces, ContactDofs, DirectStep, LocalFactor};
+use crate::linear::{add_contact_forces, interior_groups, ContactDofs, DirectStep, LocalFactor};
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::{self, ContactRow, HistoryRow};
 use crate::problem::{self, Problem};
@@ -64,6 +64,7 @@ struct Timings {
     condense: f64,
     #[serde(rename = "loop")]
     uzawa: f64,
+    recover: f64,
     output: f64,
     total: f64,
 }
@@ -174,6 +175,9 @@ pub struct RankStats {
     assemble_s: f64,
     factor_s: f64,
     loop_s: f64,
+    /// One sparse forward+backward solve with this rank's factor (the cost a sweep
+    /// would have without condensation).
+    one_solve_s: f64,
     output_s: f64,
 }
 
@@ -301,6 +305,7 @@ impl LocalSystem {
             assembled.matrix.as_ref(),
             sub.boundary_dofs.len(),
             setup.alpha,
+            &interior_groups(&dofs),
         )?;
         Ok(LocalSystem {
             dofs,
@@ -469,6 +474,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         assemble_s: phases.assemble,
         factor_s: phases.factor,
         loop_s: phases.uzawa,
+        one_solve_s: phases.one_solve,
         output_s: 0.0,
     };
     let times = Timings {
@@ -478,6 +484,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         factor: phases.factor,
         condense: phases.condense,
         uzawa: phases.uzawa,
+        recover: phases.recover,
         output: 0.0,
         total: 0.0,
     };
@@ -536,7 +543,10 @@ struct Phases {
     factor: f64,
     condense: f64,
     uzawa: f64,
+    recover: f64,
     factor_nnz: usize,
+    /// One sparse forward+backward solve with this rank's factor.
+    one_solve: f64,
 }
 
 /// The default path: each rank factors its subdomain with its boundary dofs last and
@@ -609,56 +619,60 @@ fn solve_condensed(
 
     let t_loop = Instant::now();
     let n_own = sub.contact_nodes.len();
-    let (outcome, u_local) = {
-        let mut step = CondensedStep {
-            mpi,
-            rows,
-            u0,
-            n_own,
-            frictional,
-            packed_counts: pos_counts.clone(),
-            local: Vec::new(),
-            gathered: Vec::new(),
-        };
-        let o = contact::solve(&mut step, mpi, &sub.contact, params, monitor)?;
-        // Recover the displacement from the forces of the last sweep.
-        let x_b = condensed.as_ref().map(|c| {
-            c.boundary_solution(
-                &step.gathered,
-                &root.map(|r| r.map.contact_dofs.clone()).unwrap_or_default(),
-                &setup.contact_counts,
-                setup.normal,
-                setup.tangent,
-                frictional,
-            )
-        });
-        let x_b: Vec<f64> = mpi.broadcast(x_b)?;
-        let mut f = local.base.clone();
-        let fn_: Vec<f64> = step.local[..n_own].to_vec();
-        let ft: Vec<f64> = if frictional {
-            step.local[n_own..].to_vec()
-        } else {
-            vec![0.0; n_own]
-        };
-        add_contact_forces(
-            &local.dofs,
-            &sub.contact_nodes,
+    let mut step = CondensedStep {
+        mpi,
+        rows,
+        u0,
+        n_own,
+        frictional,
+        packed_counts: pos_counts,
+        local: Vec::new(),
+        gathered: Vec::new(),
+    };
+    let outcome = contact::solve(&mut step, mpi, &sub.contact, params, monitor)?;
+    let loop_s = t_loop.elapsed().as_secs_f64();
+
+    // Recover the displacement from the forces of the last sweep: the first rank solves
+    // for the boundary values, every rank then solves for its interior.
+    let t_recover = Instant::now();
+    let x_b = condensed.as_ref().map(|c| {
+        c.boundary_solution(
+            &step.gathered,
+            &root.map(|r| r.map.contact_dofs.clone()).unwrap_or_default(),
+            &setup.contact_counts,
             setup.normal,
             setup.tangent,
-            &fn_,
-            &ft,
-            &mut f,
-        );
-        let xb_local: Vec<f64> = sub.boundary_global.iter().map(|&b| x_b[b]).collect();
-        let u_free = local.factor.recover(&f, &xb_local);
-        let u: Vec<[f64; 2]> = local
-            .dofs
-            .expand(&u_free)
-            .chunks_exact(2)
-            .map(|c| [c[0], c[1]])
-            .collect();
-        (o, u)
+            frictional,
+        )
+    });
+    let x_b: Vec<f64> = mpi.broadcast(x_b)?;
+    let mut f = local.base.clone();
+    let (fn_, ft) = step.local.split_at(n_own);
+    let ft = if frictional {
+        ft.to_vec()
+    } else {
+        vec![0.0; n_own]
     };
+    add_contact_forces(
+        &local.dofs,
+        &sub.contact_nodes,
+        setup.normal,
+        setup.tangent,
+        fn_,
+        &ft,
+        &mut f,
+    );
+    let xb_local: Vec<f64> = sub.boundary_global.iter().map(|&b| x_b[b]).collect();
+    let t_solves = Instant::now();
+    let u_free = local.factor.recover(&f, &xb_local);
+    // recover() is two forward+backward solves with the local factor.
+    let one_solve = 0.5 * t_solves.elapsed().as_secs_f64();
+    let u_local: Vec<[f64; 2]> = local
+        .dofs
+        .expand(&u_free)
+        .chunks_exact(2)
+        .map(|c| [c[0], c[1]])
+        .collect();
     Ok((
         outcome,
         u_local,
@@ -666,8 +680,10 @@ fn solve_condensed(
             assemble: local.assemble_s,
             factor: local.factor_s,
             condense: condense_s,
-            uzawa: t_loop.elapsed().as_secs_f64(),
+            uzawa: loop_s,
+            recover: t_recover.elapsed().as_secs_f64(),
             factor_nnz: local.factor.factor_nnz(),
+            one_solve,
         },
     ))
 }
@@ -697,6 +713,7 @@ fn solve_full(
     )?;
     let t_loop = Instant::now();
     let outcome = contact::solve(&mut step, mpi, &sub.contact, params, monitor)?;
+    let one_solve = t_loop.elapsed().as_secs_f64() / outcome.iterations.max(1) as f64;
     Ok((
         outcome,
         step.displacement(),
@@ -705,7 +722,9 @@ fn solve_full(
             factor: times.factor,
             condense: 0.0,
             uzawa: t_loop.elapsed().as_secs_f64(),
+            recover: 0.0,
             factor_nnz: step.factor_nnz(),
+            one_solve,
         },
     ))
 }
@@ -719,6 +738,7 @@ fn print_timings(print: &Printer, t: &Timings, iterations: usize) {
         ("factor", t.factor),
         ("condense", t.condense),
         ("loop", t.uzawa),
+        ("recover", t.recover),
         ("output", t.output),
         ("total", t.total),
     ] {
@@ -941,6 +961,8 @@ fn write_outputs(
         "tol": case.solver.tol,
         "final_residuals": { "primal": last.map(|s| s.primal), "dual": last.map(|s| s.dual) },
         "timings_s": times,
+        "sweep_s": times.uzawa / o.iterations.max(1) as f64,
+        "one_solve_s": max_over(&|s| s.one_solve_s),
         "peak_memory_bytes": all_stats.iter().map(|s| s.peak_memory_bytes).max().unwrap_or(0),
         "peak_memory_bytes_per_rank": all_stats.iter().map(|s| s.peak_memory_bytes).collect::<Vec<_>>(),
         "per_rank": all_stats,

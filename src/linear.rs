@@ -278,11 +278,19 @@ pub struct LocalFactor {
 
 impl LocalFactor {
     /// `a` is the LOWER triangle of the shifted matrix A + alpha E_B, in an equation
-    /// order where the last `n_b` equations are the boundary dofs.
-    pub fn new(a: SparseColMatRef<'_, usize, f64>, n_b: usize, alpha: f64) -> Result<Self> {
+    /// order where the last `n_b` equations are the boundary dofs. `groups` gives, for
+    /// each interior equation, its node: the equations of a node are consecutive and
+    /// are ordered together, so the fill-reducing ordering works on the 4x smaller
+    /// node graph.
+    pub fn new(
+        a: SparseColMatRef<'_, usize, f64>,
+        n_b: usize,
+        alpha: f64,
+        groups: &[usize],
+    ) -> Result<Self> {
         let n = a.nrows();
         let n_interior = n - n_b;
-        let perm = interior_amd_then_boundary(a, n_interior)?;
+        let perm = interior_nd_then_boundary(a, n_interior, groups)?;
         let (fwd, inv) = (&perm.0, &perm.1);
         let chol = SparseCholesky::factor(
             a,
@@ -355,7 +363,64 @@ impl LocalFactor {
     }
 }
 
-/// AMD on the interior block, the boundary equations kept last in their order.
+/// Nested dissection (METIS) of the interior block, the boundary equations kept last
+/// in their order. On 2D meshes nested dissection gives clearly less fill than minimum
+/// degree (measured: see the note of the performance issue); AMD is the fallback if
+/// METIS fails.
+fn interior_nd_then_boundary(
+    a: SparseColMatRef<'_, usize, f64>,
+    n_interior: usize,
+    groups: &[usize],
+) -> Result<(Vec<usize>, Vec<usize>)> {
+    let n = a.nrows();
+    // Group index of each interior equation: runs of equal node ids.
+    let mut group_of = vec![0usize; n_interior];
+    let mut first_eq = Vec::new();
+    for i in 0..n_interior {
+        if i == 0 || groups[i] != groups[i - 1] {
+            first_eq.push(i);
+        }
+        group_of[i] = first_eq.len() - 1;
+    }
+    let ng = first_eq.len();
+    first_eq.push(n_interior);
+    // Symmetric adjacency between groups of the interior block (lower triangle given).
+    let mut edges: Vec<(usize, usize)> = Vec::new();
+    for j in 0..n_interior {
+        for i in a.symbolic().row_idx_of_col(j) {
+            if i < n_interior && group_of[i] != group_of[j] {
+                edges.push((group_of[i], group_of[j]));
+                edges.push((group_of[j], group_of[i]));
+            }
+        }
+    }
+    edges.sort_unstable();
+    edges.dedup();
+    let mut xadj = vec![0usize; ng + 1];
+    for &(u, _) in &edges {
+        xadj[u + 1] += 1;
+    }
+    for v in 0..ng {
+        xadj[v + 1] += xadj[v];
+    }
+    let adjncy: Vec<usize> = edges.iter().map(|&(_, v)| v).collect();
+    let group_perm = match partition::nested_dissection(&xadj, &adjncy) {
+        Ok(p) => p,
+        Err(_) => return interior_amd_then_boundary(a, n_interior),
+    };
+    let mut fwd: Vec<usize> = group_perm
+        .iter()
+        .flat_map(|&g| first_eq[g]..first_eq[g + 1])
+        .collect();
+    fwd.extend(n_interior..n);
+    let mut inv = vec![0usize; n];
+    for (new, &old) in fwd.iter().enumerate() {
+        inv[old] = new;
+    }
+    Ok((fwd, inv))
+}
+
+/// Minimum degree (AMD) on the interior block, the boundary equations kept last in their order.
 fn interior_amd_then_boundary(
     a: SparseColMatRef<'_, usize, f64>,
     n_interior: usize,
@@ -391,6 +456,18 @@ fn interior_amd_then_boundary(
         inv[i] = i;
     }
     Ok((fwd, inv))
+}
+
+/// The node of each interior equation of a [`DofMap`] built by `DofMap::with_last`
+/// (equations below `n_free - n_last`), for [`LocalFactor::new`].
+pub fn interior_groups(dofs: &DofMap) -> Vec<usize> {
+    let mut groups = vec![usize::MAX; dofs.n_free];
+    for (dof, eq) in dofs.eq.iter().enumerate() {
+        if let Some(e) = eq {
+            groups[*e] = dof / 2;
+        }
+    }
+    groups
 }
 
 impl SparseCholesky {
@@ -502,7 +579,8 @@ mod tests {
             .map(|&v| (v, [[alpha, 0.0], [0.0, alpha]]))
             .collect();
         let shifted = assemble(&mesh.nodes, &mesh.triangles, &material(), &dofs, &shift).unwrap();
-        let mut lf = LocalFactor::new(shifted.matrix.as_ref(), nb, alpha).unwrap();
+        let groups = interior_groups(&dofs);
+        let mut lf = LocalFactor::new(shifted.matrix.as_ref(), nb, alpha, &groups).unwrap();
 
         let a = dense(plain.matrix.as_ref());
         let ni = dofs.n_free - nb;
