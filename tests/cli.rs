@@ -1,0 +1,213 @@
+//! The command line: bad input is rejected with one clear line and exit code 2 before
+//! anything is written; an exhausted budget exits 3 with outputs marked so; printed cases
+//! run as the built-in ones; the CSV outputs are complete, consistent, exact and sorted.
+
+mod common;
+use common::*;
+
+/// A valid case (the built-in block at level 0) as printed by the binary.
+fn good_case() -> String {
+    print_case("block", 0)
+}
+
+/// Runs `case.toml` = `text` and checks the input-error contract: exit code 2, exactly
+/// one line on stderr containing every string of `must_name`, nothing on stdout, and no
+/// output directory. Returns the message.
+fn expect_input_error(text: &str, must_name: &[&str]) -> String {
+    let run = run_case(text, &[]);
+    assert_eq!(
+        run.code, 2,
+        "exit code {} for bad input; stderr: {}",
+        run.code, run.stderr
+    );
+    let lines: Vec<&str> = run.stderr.lines().collect();
+    assert_eq!(lines.len(), 1, "stderr is not one line: {:?}", run.stderr);
+    for s in must_name {
+        assert!(
+            lines[0].contains(s),
+            "the message does not name {s:?}: {}",
+            lines[0]
+        );
+    }
+    assert!(run.stdout.trim().is_empty(), "stdout: {}", run.stdout);
+    assert!(
+        !run.out.exists(),
+        "the output directory was created for bad input"
+    );
+    // Nothing else was written either: the run directory holds only the case file.
+    let entries: Vec<String> = std::fs::read_dir(run.dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(entries, ["case.toml"], "files left by a bad-input run");
+    println!("{}", lines[0]);
+    lines[0].to_string()
+}
+
+#[test]
+fn misspelled_key_is_named_with_the_file() {
+    let text = good_case().replace("poisson = 0.33", "poison = 0.33");
+    assert!(text.contains("poison"), "the printed case changed: {text}");
+    let msg = expect_input_error(&text, &["case.toml", "poison"]);
+    // The line of the offending key.
+    let line = text.lines().position(|l| l.starts_with("poison")).unwrap() + 1;
+    assert!(msg.contains(&format!("line {line}")), "{msg}");
+}
+
+#[test]
+fn missing_group_suggests_the_closest_name() {
+    let text = good_case().replace("group = \"top\"", "group = \"topp\"");
+    assert!(text.contains("\"topp\""));
+    expect_input_error(&text, &["case.toml", "\"topp\"", "did you mean \"top\""]);
+}
+
+#[test]
+fn non_unit_normal_is_rejected() {
+    let text = good_case().replace(
+        "obstacle_normal = [0.0, 1.0]",
+        "obstacle_normal = [0.0, 2.0]",
+    );
+    assert!(text.contains("[0.0, 2.0]"));
+    expect_input_error(&text, &["case.toml", "obstacle_normal"]);
+}
+
+#[test]
+fn missing_mesh_file_is_named() {
+    let text = good_case().replace("builtin = \"block\"", "file = \"no_such_mesh.msh\"");
+    let text: String = text
+        .lines()
+        .filter(|l| !l.starts_with("level"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    expect_input_error(&text, &["no_such_mesh.msh"]);
+}
+
+#[test]
+fn exhausted_budget_exits_3_with_outputs_marked() {
+    let run = run_builtin("block", 0, &["--max-iter", "3"]);
+    run.expect_code(3);
+    let s = run.summary();
+    assert_eq!(s["converged"], false, "{s}");
+    assert_eq!(s["iterations"], 3, "{s}");
+    // The last iterate is written in full.
+    let rows = run.contact();
+    assert_eq!(rows.len() as f64, num(&s, "contact_nodes"));
+    let history = std::fs::read_to_string(run.out.join("history.csv")).unwrap();
+    assert_eq!(history.lines().count(), 1 + 3, "{history}");
+}
+
+#[test]
+fn printed_case_runs_like_the_builtin() {
+    for (name, level) in [("block", 0), ("block_flat", 0), ("hertz", 0)] {
+        let text = print_case(name, level);
+        let from_file = run_case(&text, &[]);
+        let builtin = run_builtin(name, level, &[]);
+        from_file.expect_code(0);
+        builtin.expect_code(0);
+        // Same case, same mesh, same arithmetic: byte-identical results.
+        let a = std::fs::read_to_string(from_file.out.join("contact.csv")).unwrap();
+        let b = std::fs::read_to_string(builtin.out.join("contact.csv")).unwrap();
+        assert!(
+            a == b,
+            "{name}: contact.csv differs between --print-case file and built-in"
+        );
+        let (sa, sb) = (from_file.summary(), builtin.summary());
+        for key in [
+            "iterations",
+            "nodes",
+            "total_normal_force",
+            "total_tangential_force",
+        ] {
+            assert_eq!(sa[key], sb[key], "{name}: {key}");
+        }
+    }
+}
+
+#[test]
+fn nodes_csv_has_every_node_and_agrees_with_contact_csv() {
+    // m = (0, 1), t = (1, 0): at a contact node u_n = -uy and u_t = ux, whatever the law.
+    for (law, extra) in [
+        ("none", "friction = \"none\""),
+        ("tresca", "friction = \"tresca\"\nthreshold = 20.0"),
+        ("coulomb", "friction = \"coulomb\"\ncoefficient = 0.3"),
+    ] {
+        let run = run_case(
+            &block_case(0, "ux = 0.01\nuy = -0.02", extra, [0.0, 1.0], ""),
+            &["--nodes-csv"],
+        );
+        run.expect_code(0);
+        let s = run.summary();
+        let nodes = read_nodes(&run.out.join("nodes.csv"));
+        assert_eq!(
+            nodes.len() as f64,
+            num(&s, "nodes"),
+            "{law}: nodes.csv rows"
+        );
+        // The built-in block at level 0: 40 x 10 cells of size 1, so 41 x 11 nodes.
+        assert_eq!(nodes.len(), 41 * 11, "{law}");
+        let rows = run.contact();
+        let umax = nodes
+            .iter()
+            .map(|n| n[2].abs().max(n[3].abs()))
+            .fold(0.0, f64::max);
+        let (mut en, mut et) = (0.0f64, 0.0f64);
+        for r in &rows {
+            let n = nodes
+                .iter()
+                .find(|n| n[0] == r.x && n[1] == r.y)
+                .unwrap_or_else(|| {
+                    panic!("{law}: contact node ({}, {}) not in nodes.csv", r.x, r.y)
+                });
+            en = en.max((r.u_n + n[3]).abs() / umax);
+            et = et.max((r.u_t - n[2]).abs() / umax);
+        }
+        println!("{law}: contact.csv vs nodes.csv: max |u_n + uy| / max|u| = {en:e}, max |u_t - ux| / max|u| = {et:e}");
+        // Same displacement, two projections: round-off only.
+        assert!(
+            en <= 1e-9,
+            "{law}: u_n in contact.csv differs from -uy in nodes.csv by {en:e}"
+        );
+        assert!(
+            et <= 1e-9,
+            "{law}: u_t in contact.csv differs from ux in nodes.csv by {et:e}"
+        );
+    }
+}
+
+#[test]
+fn contact_csv_numbers_round_trip_and_rows_are_sorted() {
+    // The quarter disc: irrational coordinates and values of every magnitude.
+    let run = run_builtin("hertz", 0, &[]);
+    run.expect_code(0);
+    let text = std::fs::read_to_string(run.out.join("contact.csv")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x,y,u_n,u_t,p_n,p_t,gap"));
+    let mut keys = Vec::new();
+    let mut count = 0;
+    for l in lines {
+        let fields: Vec<&str> = l.split(',').collect();
+        assert_eq!(fields.len(), 7, "{l}");
+        for f in &fields {
+            let v: f64 = f
+                .parse()
+                .unwrap_or_else(|_| panic!("{f:?} is not a number"));
+            assert!(v.is_finite(), "{f}");
+            // Shortest round-trip text: printing the parsed value gives the same text, so
+            // no digit was lost or invented.
+            assert_eq!(v.to_string(), *f, "{f} does not round-trip");
+            count += 1;
+        }
+        keys.push((
+            fields[0].parse::<f64>().unwrap(),
+            fields[1].parse::<f64>().unwrap(),
+        ));
+    }
+    let s = run.summary();
+    assert_eq!(keys.len() as f64, num(&s, "contact_nodes"));
+    assert!(
+        keys.windows(2)
+            .all(|w| w[0].0 < w[1].0 || (w[0].0 == w[1].0 && w[0].1 < w[1].1)),
+        "rows are not sorted by x then y"
+    );
+    println!("{count} numbers round-trip, {} rows sorted", keys.len());
+}
