@@ -1,7 +1,7 @@
 //! One run of the program, told as numbered steps: read, build, assemble and factor,
 //! iterate, write. `main.rs` only wires the command line and MPI to this.
 
-use crate::case::{self, BuiltinMesh, Case, CoulombMode, Friction, MeshSource};
+use crate::case::{self, Acceleration, BuiltinMesh, Case, CoulombMode, Friction, MeshSource};
 use crate::contact::{self, LinearStep, Reduce, Status, Sweep};
 use crate::dd::comm::{decode, encode, Mpi};
 use crate::dd::condense::{add_piece, packed_layout, Condensed};
@@ -31,6 +31,7 @@ pub struct Options {
     pub tol: Option<f64>,
     pub max_iter: Option<usize>,
     pub coulomb: Option<CoulombMode>,
+    pub acceleration: Option<Acceleration>,
     pub monitor_every: usize,
     pub linear: LinearMode,
 }
@@ -87,6 +88,9 @@ pub fn load_case(opts: &Options) -> Result<Case> {
     }
     if let Some(c) = opts.coulomb {
         case.solver.coulomb = c;
+    }
+    if let Some(acc) = opts.acceleration {
+        case.solver.acceleration = acc;
     }
     Ok(case)
 }
@@ -435,6 +439,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         max_iter: case.solver.max_iter,
         friction: case.contact.friction,
         coulomb: case.solver.coulomb,
+        acceleration: case.solver.acceleration,
     };
     let every = opts.monitor_every.max(1);
     let mut monitor = |s: &Sweep| {
@@ -942,6 +947,8 @@ fn write_outputs(
         "converged": o.converged,
         "iterations": o.iterations,
         "outer_iterations": o.outer_iterations,
+        "acceleration": format!("{:?}", case.solver.acceleration),
+        "refused_accelerations": o.refused,
         "ranks": mpi.size,
         "threads": rayon::current_num_threads(),
         "linear": format!("{:?}", opts.linear).to_lowercase(),

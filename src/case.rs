@@ -2,7 +2,7 @@
 //! here so that every later stage can trust it. Also the built-in cases.
 
 use crate::error::{input, Error, Result};
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
 use std::path::{Path, PathBuf};
 
 /// Plane hypothesis of the 2D model (thickness 1 in both).
@@ -65,6 +65,15 @@ pub struct Contact {
     pub friction: Friction,
 }
 
+/// Acceleration of the Uzawa fixed point (see `contact::uzawa`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Acceleration {
+    /// Plain ALG2.
+    None,
+    /// Safeguarded Anderson mixing with this memory.
+    Anderson { memory: usize },
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Solver {
     /// Augmentation parameter; `None` lets the solver choose from E and h.
@@ -72,6 +81,7 @@ pub struct Solver {
     pub tol: f64,
     pub max_iter: usize,
     pub coulomb: CoulombMode,
+    pub acceleration: Acceleration,
 }
 
 impl Default for Solver {
@@ -81,6 +91,7 @@ impl Default for Solver {
             tol: 1e-8,
             max_iter: 10000,
             coulomb: CoulombMode::Inner,
+            acceleration: Acceleration::Anderson { memory: 5 },
         }
     }
 }
@@ -161,12 +172,14 @@ struct RawDirichlet {
 #[serde(deny_unknown_fields)]
 struct RawTraction {
     group: String,
+    #[serde(deserialize_with = "pair")]
     t: [f64; 2],
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawBodyForce {
+    #[serde(deserialize_with = "pair")]
     f: [f64; 2],
 }
 
@@ -174,7 +187,9 @@ struct RawBodyForce {
 #[serde(deny_unknown_fields)]
 struct RawContact {
     group: String,
+    #[serde(deserialize_with = "pair")]
     obstacle_point: [f64; 2],
+    #[serde(deserialize_with = "pair")]
     obstacle_normal: [f64; 2],
     friction: Option<String>,
     threshold: Option<f64>,
@@ -188,6 +203,70 @@ struct RawSolver {
     tol: Option<f64>,
     max_iter: Option<usize>,
     coulomb: Option<String>,
+    acceleration: Option<String>,
+    anderson_memory: Option<usize>,
+}
+
+/// A 2D vector `[x, y]`: exactly two numbers. Why not `[f64; 2]` directly: the TOML
+/// deserializer would take the first two numbers of a longer array and drop the rest, so
+/// `[0.0, 1.0, 0.0]` (a 3D habit) would pass unnoticed.
+fn pair<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<[f64; 2], D::Error> {
+    let v = Vec::<f64>::deserialize(d)?;
+    <[f64; 2]>::try_from(v.as_slice()).map_err(|_| {
+        serde::de::Error::custom(format!(
+            "expected [x, y], two numbers, found {} number{}",
+            v.len(),
+            if v.len() == 1 { "" } else { "s" }
+        ))
+    })
+}
+
+/// What a required key holds, for the message when it is missing.
+fn required(key: &str) -> Option<&'static str> {
+    Some(match key {
+        "mesh" => "[mesh] with file = \"mesh.msh\" (or builtin = \"block\")",
+        "material" => "[material] with young and poisson",
+        "contact" => "[contact] with group, obstacle_point and obstacle_normal",
+        "young" => "young = <Young's modulus>, e.g. young = 210000.0",
+        "poisson" => "poisson = <Poisson's ratio in (-1, 0.5)>, e.g. poisson = 0.3",
+        "group" => "group = \"<name of a physical group of the mesh>\"",
+        "obstacle_point" => "obstacle_point = [x, y], a point of the rigid foundation",
+        "obstacle_normal" => {
+            "obstacle_normal = [mx, my], the unit normal from the foundation into the body"
+        }
+        "t" => "t = [tx, ty], the traction (force per unit length)",
+        "f" => "f = [fx, fy], the body force (per unit area)",
+        _ => return None,
+    })
+}
+
+/// The TOML parser's message made into a fix where it is terse: a missing key says what
+/// to add, a table written where an array of tables is expected says to double the
+/// brackets. `header` is the table header on the line the error points at, if any.
+fn explain(msg: &str, header: Option<&str>) -> String {
+    const SEE: &str = "see the case-file reference in README.md";
+    if let Some(key) = msg
+        .strip_prefix("missing field `")
+        .and_then(|m| m.strip_suffix('`'))
+    {
+        if let Some(what) = required(key) {
+            return match (key, header) {
+                ("mesh" | "material" | "contact", _) => {
+                    format!("the required table [{key}] is missing; add {what} ({SEE})")
+                }
+                (_, Some(h)) => format!("{h} lacks the required key {key}; add {what} ({SEE})"),
+                _ => format!("the required key {key} is missing; add {what} ({SEE})"),
+            };
+        }
+    }
+    if msg.contains("expected a sequence") {
+        if let Some(h) = header.filter(|h| !h.starts_with("[[")) {
+            return format!(
+                "{msg}: a block that can repeat is an array of tables, written [{h}] ({SEE})"
+            );
+        }
+    }
+    format!("{msg} ({SEE})")
 }
 
 /// 1-based line and column of a byte offset, for messages that point into the file.
@@ -201,8 +280,13 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
 /// Reads and validates a case file. Relative mesh paths are taken from the file's folder.
 pub fn read_case(path: &Path) -> Result<Case> {
     let text = std::fs::read_to_string(path).map_err(|e| {
+        let why = if e.kind() == std::io::ErrorKind::InvalidData {
+            "it is not UTF-8 text; save it as UTF-8".to_string()
+        } else {
+            format!("{e}; check the path")
+        };
         Error::Input(format!(
-            "{}: cannot read the case file: {e}; check the path",
+            "{}: cannot read the case file: {why}",
             path.display()
         ))
     })?;
@@ -218,13 +302,22 @@ pub fn parse_case(text: &str, origin: &str, dir: &Path) -> Result<Case> {
         match e.span() {
             Some(span) => {
                 let (line, col) = line_col(text, span.start);
+                let source = text.lines().nth(line - 1).unwrap_or_default();
+                let source = source.split('#').next().unwrap_or_default();
+                let header = Some(source.trim()).filter(|l| l.starts_with('['));
+                // A bad value: name its key, which the parser's message often does not.
+                let key = source
+                    .find('=')
+                    .filter(|&eq| col > eq + 1)
+                    .map(|eq| source[..eq].trim())
+                    .filter(|k| !k.is_empty() && !k.starts_with('[') && !msg.contains(*k))
+                    .map_or(String::new(), |k| format!("{k}: "));
                 Error::Input(format!(
-                    "{origin}: line {line}, column {col}: {msg} (see the case-file reference in README.md)"
+                    "{origin}: line {line}, column {col}: {key}{}",
+                    explain(&msg, header)
                 ))
             }
-            None => Error::Input(format!(
-                "{origin}: {msg} (see the case-file reference in README.md)"
-            )),
+            None => Error::Input(format!("{origin}: {}", explain(&msg, None))),
         }
     })?;
     validate(raw, origin, dir)
@@ -251,6 +344,14 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
             MeshSource::File(dir.join(file))
         }
         (None, Some(name)) => MeshSource::Builtin {
+            level: match raw.mesh.level.unwrap_or(0) {
+                level if level <= MAX_LEVEL => level,
+                level => {
+                    return input(format!(
+                        "{origin}: [mesh] level = {level} is too fine: use 0 to {MAX_LEVEL} (each level multiplies the node count by 4; quarter_disc has 4.8 M nodes at level 6)"
+                    ))
+                }
+            },
             name: match name.as_str() {
                 "block" => BuiltinMesh::Block,
                 "quarter_disc" => BuiltinMesh::QuarterDisc,
@@ -260,7 +361,6 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
                     ))
                 }
             },
-            level: raw.mesh.level.unwrap_or(0),
         },
         (Some(_), Some(_)) => {
             return input(format!(
@@ -306,11 +406,23 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
             ));
         }
         let ux =
-            d.ux.map(|v| finite(origin, "dirichlet.ux", v))
-                .transpose()?;
+            d.ux.map(|v| {
+                finite(
+                    origin,
+                    &format!("[[dirichlet]] group \"{}\": ux", d.group),
+                    v,
+                )
+            })
+            .transpose()?;
         let uy =
-            d.uy.map(|v| finite(origin, "dirichlet.uy", v))
-                .transpose()?;
+            d.uy.map(|v| {
+                finite(
+                    origin,
+                    &format!("[[dirichlet]] group \"{}\": uy", d.group),
+                    v,
+                )
+            })
+            .transpose()?;
         dirichlet.push(Dirichlet {
             group: d.group,
             ux,
@@ -320,7 +432,7 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
     let mut traction = Vec::new();
     for t in raw.traction {
         for v in t.t {
-            finite(origin, "traction.t", v)?;
+            finite(origin, &format!("[[traction]] group \"{}\": t", t.group), v)?;
         }
         traction.push(Traction {
             group: t.group,
@@ -333,8 +445,11 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
     }
 
     let c = raw.contact;
-    for v in c.obstacle_point.iter().chain(&c.obstacle_normal) {
-        finite(origin, "contact.obstacle_point/obstacle_normal", *v)?;
+    for v in c.obstacle_point {
+        finite(origin, "contact.obstacle_point", v)?;
+    }
+    for v in c.obstacle_normal {
+        finite(origin, "contact.obstacle_normal", v)?;
     }
     let [mx, my] = c.obstacle_normal;
     let norm = mx.hypot(my);
@@ -350,7 +465,20 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
             my / norm
         ));
     }
-    let friction = match c.friction.as_deref().unwrap_or("none") {
+    // A threshold or coefficient under another law would be ignored: most likely the
+    // friction line was forgotten, and the run would silently be frictionless.
+    let law = c.friction.as_deref().unwrap_or("none");
+    for (key, given, needs) in [
+        ("threshold", c.threshold.is_some(), "tresca"),
+        ("coefficient", c.coefficient.is_some(), "coulomb"),
+    ] {
+        if given && law != needs && matches!(law, "none" | "tresca" | "coulomb") {
+            return input(format!(
+                "{origin}: contact.{key} applies to friction = \"{needs}\" only, but friction = \"{law}\"; set friction = \"{needs}\" or remove {key}"
+            ));
+        }
+    }
+    let friction = match law {
         "none" => Friction::None,
         "tresca" => {
             let threshold = c.threshold.ok_or_else(|| {
@@ -418,6 +546,21 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
             ))
         })?;
     }
+    if let Some(acc) = s.acceleration.as_deref() {
+        solver.acceleration = parse_acceleration(acc, s.anderson_memory.unwrap_or(5)).ok_or_else(|| {
+            Error::Input(format!("{origin}: solver.acceleration = \"{acc}\" is unknown; use \"anderson\" or \"none\""))
+        })?;
+    }
+    if let Some(m) = s.anderson_memory {
+        if !(1..=50).contains(&m) {
+            return input(format!(
+                "{origin}: solver.anderson_memory = {m} must lie in 1..=50 (5 is a good value)"
+            ));
+        }
+        if let Acceleration::Anderson { memory } = &mut solver.acceleration {
+            *memory = m;
+        }
+    }
 
     Ok(Case {
         title: raw.title.unwrap_or_default(),
@@ -441,6 +584,14 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
     })
 }
 
+pub fn parse_acceleration(s: &str, memory: usize) -> Option<Acceleration> {
+    match s {
+        "none" => Some(Acceleration::None),
+        "anderson" => Some(Acceleration::Anderson { memory }),
+        _ => None,
+    }
+}
+
 pub fn parse_coulomb_mode(s: &str) -> Option<CoulombMode> {
     match s {
         "inner" => Some(CoulombMode::Inner),
@@ -450,6 +601,10 @@ pub fn parse_coulomb_mode(s: &str) -> Option<CoulombMode> {
 }
 
 // ---- built-in cases ----
+
+/// Finest refinement level of the built-in meshes: level 8 is about 80 M nodes, far past
+/// the machine; the cap keeps a typo such as `level = 40` from overflowing the cell counts.
+pub const MAX_LEVEL: u32 = 8;
 
 /// Radius of the built-in quarter disc (mm).
 pub const HERTZ_RADIUS: f64 = 50.0;

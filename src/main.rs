@@ -10,7 +10,7 @@
 
 use clap::Parser;
 use contact_par::app::{self, LinearMode, Options, Printer};
-use contact_par::case::{self, CoulombMode};
+use contact_par::case::{self, Acceleration, CoulombMode};
 use contact_par::dd::comm::Mpi;
 use contact_par::error::Error;
 use std::path::PathBuf;
@@ -54,6 +54,9 @@ struct Cli {
     /// Override solver.coulomb: inner (threshold refreshed every sweep) or outer.
     #[arg(long, value_parser = parse_coulomb)]
     coulomb: Option<CoulombMode>,
+    /// Override solver.acceleration: anderson (default) or none (plain ALG2).
+    #[arg(long, value_parser = parse_acc)]
+    acceleration: Option<Acceleration>,
     /// Print a monitor line every K sweeps.
     #[arg(long, default_value_t = 10)]
     monitor_every: usize,
@@ -72,6 +75,10 @@ fn parse_linear(s: &str) -> Result<LinearMode, String> {
         "full" => Ok(LinearMode::Full),
         _ => Err(format!("\"{s}\" is not condensed or full")),
     }
+}
+
+fn parse_acc(s: &str) -> Result<Acceleration, String> {
+    case::parse_acceleration(s, 5).ok_or_else(|| format!("\"{s}\" is not anderson or none"))
 }
 
 fn parse_coulomb(s: &str) -> Result<CoulombMode, String> {
@@ -135,6 +142,7 @@ fn run() -> i32 {
         tol: cli.tol,
         max_iter: cli.max_iter,
         coulomb: cli.coulomb,
+        acceleration: cli.acceleration,
         monitor_every: cli.monitor_every,
         linear: cli.linear,
     };

@@ -6,6 +6,7 @@ use crate::case::{Case, Friction, Hypothesis};
 use crate::contact::ContactNodes;
 use crate::error::{input, Error, Result};
 use crate::fem::assembly::{add_body_force, add_edge_traction, edge_length};
+use crate::mesh::validate::{self, Free, Holds};
 use crate::mesh::Mesh;
 use std::collections::{HashMap, HashSet};
 
@@ -96,7 +97,7 @@ fn line_group<'a>(case: &Case, mesh: &'a Mesh, what: &str, name: &str) -> Result
     match mesh.line_groups.get(name) {
         Some(lines) if !lines.is_empty() => Ok(lines),
         Some(_) => input(format!(
-            "{}: {what} group \"{name}\" has no line elements",
+            "{}: {what} group \"{name}\" has no line elements; put its curves in the physical group and mesh again",
             case.origin
         )),
         None if mesh.point_groups.contains_key(name) => input(format!(
@@ -114,39 +115,7 @@ fn line_group<'a>(case: &Case, mesh: &'a Mesh, what: &str, name: &str) -> Result
 /// Orients every triangle counter-clockwise; rejects degenerate ones. A mesh whose
 /// triangles are all clockwise (a surface with normal -z in Gmsh) is simply flipped.
 pub fn orient(mesh: &mut Mesh, origin: &str) -> Result<()> {
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in &mesh.nodes {
-        for c in 0..2 {
-            lo[c] = lo[c].min(p[c]);
-            hi[c] = hi[c].max(p[c]);
-        }
-    }
-    let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-    for t in 0..mesh.triangles.len() {
-        let a2 = mesh.signed_area2(t);
-        let [i, j, k] = mesh.triangles[t];
-        let longest = [(i, j), (j, k), (k, i)]
-            .iter()
-            .map(|&(a, b)| edge_length(&mesh.nodes, a, b))
-            .fold(0.0, f64::max);
-        // Relative to the element's own size (and the mesh's, for zero-length edges).
-        if a2.abs() <= 1e-12 * longest * longest || longest <= 1e-14 * size {
-            let p = mesh.nodes[i];
-            return input(format!(
-                "{origin}: triangle {} (nodes {}, {}, {}, near ({}, {})) is degenerate (zero area); fix the mesh",
-                t + 1,
-                i + 1,
-                j + 1,
-                k + 1,
-                p[0],
-                p[1]
-            ));
-        }
-        if a2 < 0.0 {
-            mesh.triangles[t].swap(1, 2);
-        }
-    }
-    Ok(())
+    validate::orient(mesh, origin).map(|_| ())
 }
 
 /// Edges that belong to exactly one triangle.
@@ -165,8 +134,12 @@ pub fn boundary_edges(mesh: &Mesh) -> HashSet<(usize, usize)> {
 }
 
 /// Builds the discrete problem; `mesh_name` names the mesh in messages.
+///
+/// Everything that can be wrong with the input is reported here, before any assembly:
+/// the mesh checks of [`validate::check`], the groups, the contact boundary and gaps, and
+/// last whether the conditions hold every part of the body ([`check_held`]).
 pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
-    orient(&mut mesh, mesh_name)?;
+    let boundary = validate::check(&mut mesh, mesh_name)?;
     let n = mesh.num_nodes();
 
     let mut fixed: Vec<Option<f64>> = vec![None; 2 * n];
@@ -189,7 +162,6 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
 
     let c = &case.contact;
     let lines = line_group(case, &mesh, "contact", &c.group)?;
-    let boundary = boundary_edges(&mesh);
     if let Some(&[a, b]) = lines
         .iter()
         .find(|&&[a, b]| !boundary.contains(&(a.min(b), a.max(b))))
@@ -226,6 +198,8 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         ));
     }
 
+    check_held(case, &mesh, &fixed, &contact_nodes)?;
+
     Ok(Problem {
         mesh,
         fixed,
@@ -236,4 +210,111 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         tangent: [m[1], -m[0]],
         contact_h,
     })
+}
+
+/// How a direction reads in a fix: the displacement component that holds it.
+fn component(v: [f64; 2]) -> &'static str {
+    if v[1].abs() <= 1e-9 {
+        "ux"
+    } else if v[0].abs() <= 1e-9 {
+        "uy"
+    } else {
+        "ux or uy"
+    }
+}
+
+/// Rejects a problem whose stiffness matrix would be singular because a rigid motion of
+/// some part of the mesh is held by nothing, before anything is assembled or factored.
+///
+/// The rule is structural (see [`Holds`] for why it is exact): each separate part of the
+/// mesh (triangles joined through nodes) must be held by lines of action that are neither
+/// all parallel nor all through one point. Each fixed dof holds its node along x or y;
+/// each contact node holds along the obstacle normal, and with friction (Tresca or
+/// Coulomb) also along the tangent. So frictionless contact alone always leaves the
+/// sliding along the foundation free, which some Dirichlet condition must stop. Pieces
+/// joined at a single node (a hinge) count as one part here; a mechanism through such a
+/// hinge is left to the factorization, which reports a numerical failure.
+pub fn check_held(
+    case: &Case,
+    mesh: &Mesh,
+    fixed: &[Option<f64>],
+    contact_nodes: &[usize],
+) -> Result<()> {
+    let (part, count) = validate::parts(mesh);
+    let tol = validate::SAME_LINE * validate::size(mesh);
+    let mut holds = vec![Holds::new(tol); count];
+    // Per part: ux fixed, uy fixed, contact along the normal, friction along the tangent.
+    let mut kinds = vec![[false; 4]; count];
+    for (dof, _) in fixed.iter().enumerate().filter(|(_, f)| f.is_some()) {
+        let (node, c) = (dof / 2, dof % 2);
+        let dir = if c == 0 { [1.0, 0.0] } else { [0.0, 1.0] };
+        holds[part[node]].add(mesh.nodes[node], dir);
+        kinds[part[node]][c] = true;
+    }
+    let m = case.contact.obstacle_normal;
+    let t = [m[1], -m[0]];
+    let frictional = Problem::is_frictional(case);
+    for &node in contact_nodes {
+        holds[part[node]].add(mesh.nodes[node], m);
+        kinds[part[node]][2] = true;
+        if frictional {
+            holds[part[node]].add(mesh.nodes[node], t);
+            kinds[part[node]][3] = true;
+        }
+    }
+    let Some((p, free)) = holds
+        .iter()
+        .enumerate()
+        .find_map(|(p, h)| h.free().map(|f| (p, f)))
+    else {
+        return Ok(());
+    };
+    let origin = &case.origin;
+    let body = if count == 1 {
+        "the body".to_string()
+    } else {
+        let first = part.iter().position(|&q| q == p).unwrap_or(0);
+        let x = mesh.nodes[first];
+        format!(
+            "the part of the mesh with node {} at ({}, {}) (one of {count} separate parts)",
+            first + 1,
+            x[0],
+            x[1]
+        )
+    };
+    let names = [
+        "ux fixed",
+        "uy fixed",
+        "contact along obstacle_normal",
+        "friction",
+    ];
+    let held_by: Vec<&str> = (0..4).filter(|&k| kinds[p][k]).map(|k| names[k]).collect();
+    let held_by = held_by.join(", ");
+    let groups = format!("groups in the mesh: {}", mesh.group_names().join(", "));
+    let msg = match free {
+        Free::Everything => format!(
+            "{origin}: {body} has no [[dirichlet]] condition and no contact node, so nothing holds it (singular problem); fix ux and uy on one of its groups with [[dirichlet]] ({groups})"
+        ),
+        Free::Slide { along } if kinds[p][2] && !frictional => {
+            let comp = component(along);
+            format!(
+                "{origin}: nothing stops {body} from sliding along the foundation (singular problem): frictionless contact holds it only along obstacle_normal and no [[dirichlet]] fixes {comp}; add a [[dirichlet]] with {comp} = 0.0 on a symmetry line or on one node (a point group), or use friction = \"tresca\" or \"coulomb\" ({groups})"
+            )
+        }
+        Free::Slide { along } => format!(
+            "{origin}: {body} can translate rigidly along ({}, {}) (singular problem): all its conditions ({held_by}) act across that direction; add a [[dirichlet]] that fixes {} on one of its groups ({groups})",
+            along[0],
+            along[1],
+            component(along)
+        ),
+        Free::Turn { centre } => format!(
+            "{origin}: {body} can rotate rigidly about ({}, {}) (singular problem): all its conditions ({held_by}) act on lines through that point; also fix ux or uy at a node away from it (uy at another x, or ux at another y) ({groups})",
+            centre[0], centre[1]
+        ),
+        Free::SlideAndTurn { point, dir } => format!(
+            "{origin}: {body} can translate and rotate rigidly (singular problem): all its conditions ({held_by}) act along one line, through ({}, {}) along ({}, {}); fix both ux and uy, on a line group or at two separate nodes ({groups})",
+            point[0], point[1], dir[0], dir[1]
+        ),
+    };
+    Err(Error::Input(msg))
 }

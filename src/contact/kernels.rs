@@ -33,6 +33,23 @@ pub fn coulomb_threshold(coefficient: f64, lambda: f64) -> f64 {
     coefficient * lambda.max(0.0)
 }
 
+/// Normal auxiliary variable and multiplier from the state s = Nu + lambda / r of the
+/// previous sweep: p = min(g, s) (the projection) and lambda = r (s - p) >= 0 (the
+/// update lambda + r (Nu - p) written in s).
+#[inline]
+pub fn normal_from_state(s: f64, g: f64, r: f64) -> (f64, f64) {
+    let p = g.min(s);
+    (p, r * (s - p))
+}
+
+/// Tangential auxiliary variable and multiplier from z = Tu + mu / r: q = shrink(z, s/r)
+/// and mu = r (z - q), which is z r clamped to the friction interval [-s, s].
+#[inline]
+pub fn tangential_from_state(z: f64, threshold: f64, r: f64) -> (f64, f64) {
+    let q = shrink(z, threshold / r);
+    (q, r * (z - q))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -81,6 +98,30 @@ mod tests {
             let a = update_multiplier(mu, r, ut, q);
             let b = (mu + r * ut).clamp(-s, s);
             assert!((a - b).abs() < 1e-12, "{a} {b}");
+        }
+    }
+
+    #[test]
+    fn state_form_equals_the_sweep_form() {
+        for &(un, lambda, g, r) in &[
+            (0.3, 2.0, 0.1, 7.0),
+            (-0.3, 0.0, 0.1, 7.0),
+            (0.1, 1.0, 0.1, 3.0),
+        ] {
+            let s = un + lambda / r;
+            let (p, l) = normal_from_state(s, g, r);
+            assert_eq!(p, project_normal(g, un, lambda, r));
+            assert!((l - update_multiplier(lambda, r, un, p)).abs() < 1e-12);
+        }
+        for &(ut, mu, th, r) in &[
+            (0.3, 1.0, 2.0, 10.0),
+            (-0.3, 1.0, 2.0, 10.0),
+            (0.01, 0.5, 2.0, 10.0),
+        ] {
+            let z = ut + mu / r;
+            let (q, m) = tangential_from_state(z, th, r);
+            assert_eq!(q, shrink(z, th / r));
+            assert!((m - (mu + r * ut).clamp(-th, th)).abs() < 1e-12);
         }
     }
 

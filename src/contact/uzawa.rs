@@ -1,19 +1,39 @@
 //! The Uzawa block relaxation loop (ALG2 of ALGORITHM.md), written once for any rank
 //! count: it sees only this rank's contact nodes, a [`LinearStep`] and a [`Reduce`].
 //!
-//! Per sweep it calls the linear step once and the reduction once (10 numbers: the
-//! squared W-norms of the primal and dual residuals, of the normal and tangential
-//! displacements and multipliers, and the active and slip counts).
+//! ## The sweep as a fixed-point map
+//! Steps 2 and 3 of a sweep only read s = Nu + lambda / r (normal) and z = Tu + mu / r
+//! (tangential) at each node: p = min(g, s), lambda = r (s - p); q = shrink(z, s_f / r),
+//! mu = r (z - q). So one sweep is a map x -> G(x) of the state x = (s, z), one value
+//! (two with friction) per contact node:
+//!   1. from x: p, lambda, q, mu and the forces w (r p - lambda), w (r q - mu);
+//!   2. the linear step: (Nu, Tu);
+//!   3. G(x) = (Nu + lambda / r, Tu + mu / r).
+//! Iterating G is exactly ALG2; this form lets an accelerator act on x.
 //!
-//! Both residuals are measured in force units and relative to
-//! S = max(|lambda|_W + |mu|_W, r (|Nu|_W + |Tu|_W)): the multipliers when there is
-//! contact, the displacements when there is none. A purely displacement-based scale
-//! fails when the contact nodes sit exactly on the foundation (Nu -> g = 0), and a
-//! purely multiplier-based one when nothing touches.
+//! ## Acceleration
+//! Anderson mixing (type II, memory m) on G, with the W-weighted inner product summed
+//! over all ranks, so every rank computes the same mixing coefficients and the iterates
+//! do not depend on the rank count. Safeguard: a mixed point is kept only if its
+//! fixed-point residual |G(y) - y| does not exceed the residual of the last kept point;
+//! otherwise the plain step G(x) is taken and the memory is cleared. The plain method
+//! therefore bounds the accelerated one (at the price of one extra solve per refusal).
+//!
+//! ## Communication per sweep
+//! One linear step, and one all-reduce of 10 + m(m+1)/2 + m numbers: the squared
+//! W-norms of the residuals, displacements and multipliers, the active and slip counts,
+//! and the Anderson Gram matrix and right-hand side.
+//!
+//! ## Residuals
+//! Both are in force units and relative to S = max(|lambda|_W + |mu|_W, r (|Nu|_W +
+//! |Tu|_W)): primal = |lambda+ - lambda|_W + |mu+ - mu|_W (= r |Nu - p+|), dual =
+//! r (|p+ - p|_W + |q+ - q|_W). The multipliers set the scale when there is contact,
+//! the displacements when there is none: a displacement-only scale fails when contact
+//! nodes sit exactly on the foundation (Nu -> g = 0).
 
-use super::kernels::{coulomb_threshold, project_normal, shrink, update_multiplier};
+use super::kernels::{coulomb_threshold, normal_from_state, tangential_from_state};
 use super::{ContactNodes, LinearStep, Reduce, Status};
-use crate::case::{CoulombMode, Friction};
+use crate::case::{Acceleration, CoulombMode, Friction};
 use crate::error::{Error, Result};
 
 #[derive(Debug, Clone, PartialEq)]
@@ -26,15 +46,14 @@ pub struct Params {
     pub max_iter: usize,
     pub friction: Friction,
     pub coulomb: CoulombMode,
+    pub acceleration: Acceleration,
 }
 
-/// One line of the convergence history.
+/// One line of the convergence history (one linear solve).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sweep {
     pub iter: usize,
-    /// r (|Nu - p|_W + |Tu - q|_W) / S (the change of the multipliers).
     pub primal: f64,
-    /// r (|p - p_prev|_W + |q - q_prev|_W) / S.
     pub dual: f64,
     pub active: usize,
     pub slip: usize,
@@ -44,13 +63,17 @@ pub struct Sweep {
 #[derive(Debug, Clone)]
 pub struct Outcome {
     pub converged: bool,
+    /// Linear solves.
     pub iterations: usize,
     /// Outer Tresca solves (Coulomb outer mode), else 1.
     pub outer_iterations: usize,
+    /// Accelerated points refused by the safeguard.
+    pub refused: usize,
     /// Normal multiplier = contact pressure p_n (force per unit length).
     pub lambda: Vec<f64>,
     /// Tangential multiplier = -p_t.
     pub mu: Vec<f64>,
+    /// Nu and Tu of the last solve.
     pub un: Vec<f64>,
     pub ut: Vec<f64>,
     /// Slip threshold s_i at the end (0 when frictionless).
@@ -60,22 +83,268 @@ pub struct Outcome {
 }
 
 /// The slip thresholds seen by one run of sweeps.
-enum Thresholds<'a> {
+#[derive(Clone, Copy)]
+enum Law<'a> {
     Frictionless,
     Fixed(&'a [f64]),
     Coulomb(f64),
 }
 
-struct State {
-    lambda: Vec<f64>,
-    mu: Vec<f64>,
+impl Law<'_> {
+    fn frictional(&self) -> bool {
+        !matches!(self, Law::Frictionless)
+    }
+
+    fn threshold(&self, i: usize, lambda: f64) -> f64 {
+        match *self {
+            Law::Frictionless => 0.0,
+            Law::Fixed(s) => s[i],
+            Law::Coulomb(c) => coulomb_threshold(c, lambda),
+        }
+    }
+}
+
+/// Multipliers and auxiliary variables derived from a state.
+struct Derived {
     p: Vec<f64>,
+    lambda: Vec<f64>,
     q: Vec<f64>,
+    mu: Vec<f64>,
+}
+
+fn derive(x: &[f64], nodes: &ContactNodes, law: Law, r: f64) -> Derived {
+    let n = nodes.len();
+    let mut d = Derived {
+        p: vec![0.0; n],
+        lambda: vec![0.0; n],
+        q: vec![0.0; n],
+        mu: vec![0.0; n],
+    };
+    for i in 0..n {
+        let (p, lambda) = normal_from_state(x[i], nodes.g[i], r);
+        d.p[i] = p;
+        d.lambda[i] = lambda;
+        if law.frictional() {
+            let (q, mu) = tangential_from_state(x[n + i], law.threshold(i, lambda), r);
+            d.q[i] = q;
+            d.mu[i] = mu;
+        }
+    }
+    d
+}
+
+/// One evaluation of G: its value, the quantities derived from the input and output,
+/// and the local sums of the residual statistics.
+struct Eval {
+    gx: Vec<f64>,
+    out: Derived,
+    sums: [f64; 10],
+}
+
+struct Sweeper<'a, S: LinearStep> {
+    step: &'a mut S,
+    nodes: &'a ContactNodes,
+    r: f64,
+    force_n: Vec<f64>,
+    force_t: Vec<f64>,
     un: Vec<f64>,
     ut: Vec<f64>,
 }
 
-/// Runs ALG2 to convergence (or to the sweep budget) from zero multipliers.
+impl<S: LinearStep> Sweeper<'_, S> {
+    fn eval(&mut self, x: &[f64], law: Law) -> Result<Eval> {
+        let (n, r) = (self.nodes.len(), self.r);
+        let w = &self.nodes.w;
+        let inp = derive(x, self.nodes, law, r);
+        for i in 0..n {
+            self.force_n[i] = w[i] * (r * inp.p[i] - inp.lambda[i]);
+            self.force_t[i] = w[i] * (r * inp.q[i] - inp.mu[i]);
+        }
+        self.step
+            .solve(&self.force_n, &self.force_t, &mut self.un, &mut self.ut)?;
+        let mut gx = vec![0.0; x.len()];
+        for i in 0..n {
+            gx[i] = self.un[i] + inp.lambda[i] / r;
+            if law.frictional() {
+                gx[n + i] = self.ut[i] + inp.mu[i] / r;
+            }
+        }
+        let out = derive(&gx, self.nodes, law, r);
+        let mut sums = [0.0; 10];
+        for i in 0..n {
+            sums[0] += w[i] * (out.lambda[i] - inp.lambda[i]).powi(2);
+            sums[1] += w[i] * (out.mu[i] - inp.mu[i]).powi(2);
+            sums[2] += w[i] * (r * (out.p[i] - inp.p[i])).powi(2);
+            sums[3] += w[i] * (r * (out.q[i] - inp.q[i])).powi(2);
+            sums[4] += w[i] * (r * self.un[i]).powi(2);
+            sums[5] += w[i] * (r * self.ut[i]).powi(2);
+            sums[6] += w[i] * out.lambda[i].powi(2);
+            sums[7] += w[i] * out.mu[i].powi(2);
+            if out.lambda[i] > 0.0 {
+                sums[8] += 1.0;
+                if !law.frictional() || out.q[i] != 0.0 {
+                    sums[9] += 1.0;
+                }
+            }
+        }
+        Ok(Eval { gx, out, sums })
+    }
+}
+
+/// W-weighted inner product of two states (normal and tangential parts alike).
+fn dot(a: &[f64], b: &[f64], w: &[f64]) -> f64 {
+    let n = w.len();
+    let mut s = 0.0;
+    for i in 0..n {
+        s += w[i] * a[i] * b[i];
+        if a.len() > n {
+            s += w[i] * a[n + i] * b[n + i];
+        }
+    }
+    s
+}
+
+/// Anderson memory: differences of residuals and of images of the last iterations.
+struct Anderson {
+    m: usize,
+    df: Vec<Vec<f64>>,
+    dg: Vec<Vec<f64>>,
+    last: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl Anderson {
+    fn new(m: usize) -> Self {
+        Anderson {
+            m,
+            df: Vec::new(),
+            dg: Vec::new(),
+            last: None,
+        }
+    }
+
+    fn clear(&mut self) {
+        self.df.clear();
+        self.dg.clear();
+        self.last = None;
+    }
+
+    /// Records (f, g) of an accepted point.
+    fn push(&mut self, f: &[f64], g: &[f64]) {
+        if let Some((f0, g0)) = self.last.take() {
+            if self.df.len() == self.m {
+                self.df.remove(0);
+                self.dg.remove(0);
+            }
+            self.df
+                .push(f.iter().zip(&f0).map(|(a, b)| a - b).collect());
+            self.dg
+                .push(g.iter().zip(&g0).map(|(a, b)| a - b).collect());
+        }
+        self.last = Some((f.to_vec(), g.to_vec()));
+    }
+
+    /// Local parts of the Gram matrix DF'DF (upper triangle, row by row) and of DF' f,
+    /// where DF is the memory as it will be once (f, g) is pushed: computing them with
+    /// the evaluation lets one reduction per sweep serve both the statistics and the
+    /// mixing.
+    fn local_sums_with_new(&self, f: &[f64], w: &[f64]) -> Vec<f64> {
+        let mut diffs: Vec<&[f64]> = self.df.iter().map(Vec::as_slice).collect();
+        let newest: Vec<f64>;
+        if let Some((f0, _)) = &self.last {
+            newest = f.iter().zip(f0).map(|(a, b)| a - b).collect();
+            if diffs.len() == self.m {
+                diffs.remove(0);
+            }
+            diffs.push(&newest);
+        }
+        let k = diffs.len();
+        let mut v = Vec::with_capacity(k * (k + 1) / 2 + k);
+        for a in 0..k {
+            for b in a..k {
+                v.push(dot(diffs[a], diffs[b], w));
+            }
+        }
+        for a in 0..k {
+            v.push(dot(diffs[a], f, w));
+        }
+        v
+    }
+
+    /// The mixed point g - DG gamma with (DF'DF) gamma = DF' f from the global sums;
+    /// `None` when the memory is empty or the small system is singular.
+    fn mix(&self, g: &[f64], sums: &[f64]) -> Option<Vec<f64>> {
+        let k = self.df.len();
+        if k == 0 {
+            return None;
+        }
+        let mut a = vec![vec![0.0; k]; k];
+        let mut idx = 0;
+        for i in 0..k {
+            for j in i..k {
+                a[i][j] = sums[idx];
+                a[j][i] = sums[idx];
+                idx += 1;
+            }
+        }
+        let mut b: Vec<f64> = sums[idx..idx + k].to_vec();
+        // A little Tikhonov regularisation keeps nearly dependent differences harmless.
+        let diag = (0..k).map(|i| a[i][i]).fold(0.0, f64::max);
+        if !(diag > 0.0) {
+            return None;
+        }
+        for i in 0..k {
+            a[i][i] += 1e-10 * diag;
+        }
+        let gamma = solve_small_spd(a, &mut b)?;
+        let mut y = g.to_vec();
+        for (c, dg) in gamma.iter().zip(&self.dg) {
+            for (yi, d) in y.iter_mut().zip(dg) {
+                *yi -= c * d;
+            }
+        }
+        Some(y)
+    }
+}
+
+/// Cholesky solve of a small SPD system (the Anderson least-squares normal equations).
+fn solve_small_spd(mut a: Vec<Vec<f64>>, b: &mut [f64]) -> Option<Vec<f64>> {
+    let k = b.len();
+    for j in 0..k {
+        let mut d = a[j][j];
+        for p in 0..j {
+            d -= a[j][p] * a[j][p];
+        }
+        if !(d > 0.0) {
+            return None;
+        }
+        let d = d.sqrt();
+        a[j][j] = d;
+        for i in j + 1..k {
+            let mut s = a[i][j];
+            for p in 0..j {
+                s -= a[i][p] * a[j][p];
+            }
+            a[i][j] = s / d;
+        }
+    }
+    for i in 0..k {
+        let mut s = b[i];
+        for p in 0..i {
+            s -= a[i][p] * b[p];
+        }
+        b[i] = s / a[i][i];
+    }
+    for i in (0..k).rev() {
+        let mut s = b[i];
+        for p in i + 1..k {
+            s -= a[p][i] * b[p];
+        }
+        b[i] = s / a[i][i];
+    }
+    Some(b.to_vec())
+}
+
+/// Runs ALG2 (accelerated or not) to convergence or to the sweep budget.
 pub fn solve(
     step: &mut impl LinearStep,
     comm: &impl Reduce,
@@ -84,81 +353,67 @@ pub fn solve(
     monitor: &mut dyn FnMut(&Sweep),
 ) -> Result<Outcome> {
     let n = nodes.len();
-    let mut st = State {
-        lambda: vec![0.0; n],
-        mu: vec![0.0; n],
-        // The foundation's own position is the natural start for nodes in contact and
-        // is never above an open gap.
-        p: nodes.g.iter().map(|g| g.min(0.0)).collect(),
-        q: vec![0.0; n],
+    let frictional = !matches!(params.friction, Friction::None);
+    let mut sweeper = Sweeper {
+        step,
+        nodes,
+        r: params.r,
+        force_n: vec![0.0; n],
+        force_t: vec![0.0; n],
         un: vec![0.0; n],
         ut: vec![0.0; n],
     };
-    let mut history = Vec::new();
+    // Start: lambda = mu = 0, p = min(g, 0), q = 0, i.e. s = min(g, 0), z = 0.
+    let mut x: Vec<f64> = nodes.g.iter().map(|g| g.min(0.0)).collect();
+    if frictional {
+        x.resize(2 * n, 0.0);
+    }
+    let mut run = Run {
+        history: Vec::new(),
+        refused: 0,
+    };
     let mut outer_iterations = 1;
-    let (converged, threshold) = match (params.friction, params.coulomb) {
+    let (converged, last, threshold) = match (params.friction, params.coulomb) {
         (Friction::None, _) => {
-            let c = sweeps(
-                step,
+            let (c, d) = run.sweeps(
+                &mut sweeper,
                 comm,
-                nodes,
                 params,
-                Thresholds::Frictionless,
-                &mut st,
-                &mut history,
+                Law::Frictionless,
+                &mut x,
                 monitor,
             )?;
-            (c, vec![0.0; n])
+            (c, d, vec![0.0; n])
         }
         (Friction::Tresca { threshold }, _) => {
             let s = vec![threshold; n];
-            let c = sweeps(
-                step,
-                comm,
-                nodes,
-                params,
-                Thresholds::Fixed(&s),
-                &mut st,
-                &mut history,
-                monitor,
-            )?;
-            (c, s)
+            let (c, d) = run.sweeps(&mut sweeper, comm, params, Law::Fixed(&s), &mut x, monitor)?;
+            (c, d, s)
         }
         (Friction::Coulomb { coefficient }, CoulombMode::Inner) => {
-            let c = sweeps(
-                step,
+            let (c, d) = run.sweeps(
+                &mut sweeper,
                 comm,
-                nodes,
                 params,
-                Thresholds::Coulomb(coefficient),
-                &mut st,
-                &mut history,
+                Law::Coulomb(coefficient),
+                &mut x,
                 monitor,
             )?;
-            (
-                c,
-                st.lambda
-                    .iter()
-                    .map(|&l| coulomb_threshold(coefficient, l))
-                    .collect(),
-            )
+            let s = d
+                .lambda
+                .iter()
+                .map(|&l| coulomb_threshold(coefficient, l))
+                .collect();
+            (c, d, s)
         }
         (Friction::Coulomb { coefficient }, CoulombMode::Outer) => {
             outer_iterations = 0;
             let mut s: Vec<f64> = vec![0.0; n];
             loop {
                 outer_iterations += 1;
-                let inner_ok = sweeps(
-                    step,
-                    comm,
-                    nodes,
-                    params,
-                    Thresholds::Fixed(&s),
-                    &mut st,
-                    &mut history,
-                    monitor,
-                )?;
-                let s_new: Vec<f64> = st
+                let (inner_ok, d) =
+                    run.sweeps(&mut sweeper, comm, params, Law::Fixed(&s), &mut x, monitor)?;
+                let s_new: Vec<f64> = d
                     .lambda
                     .iter()
                     .map(|&l| coulomb_threshold(coefficient, l))
@@ -169,32 +424,39 @@ pub fn solve(
                     sums[1] += nodes.w[i] * s_new[i].powi(2);
                 }
                 comm.sum_in_place(&mut sums);
-                s = s_new;
                 let change = relative(sums[0].sqrt(), sums[1].sqrt());
-                if !inner_ok || history.len() >= params.max_iter {
-                    break (false, s);
-                }
-                if change <= params.tol {
-                    break (true, s);
+                let done = change <= params.tol;
+                // The tangential state was converged for the old thresholds: keep it.
+                s = s_new;
+                if !inner_ok || run.history.len() >= params.max_iter || done {
+                    break (inner_ok && done, d, s);
                 }
             }
         }
     };
-
     let status = (0..n)
-        .map(|i| node_status(&params.friction, &st, &threshold, params.r, i))
+        .map(|i| {
+            if last.lambda[i] <= 0.0 {
+                Status::Free
+            } else if !frictional || last.q[i] != 0.0 {
+                Status::Slip
+            } else {
+                Status::Stick
+            }
+        })
         .collect();
     Ok(Outcome {
         converged,
-        iterations: history.len(),
+        iterations: run.history.len(),
         outer_iterations,
-        lambda: st.lambda,
-        mu: st.mu,
-        un: st.un,
-        ut: st.ut,
+        refused: run.refused,
+        lambda: last.lambda,
+        mu: last.mu,
+        un: sweeper.un,
+        ut: sweeper.ut,
         threshold,
         status,
-        history,
+        history: run.history,
     })
 }
 
@@ -206,107 +468,117 @@ fn relative(value: f64, scale: f64) -> f64 {
     }
 }
 
-fn node_status(friction: &Friction, st: &State, s: &[f64], r: f64, i: usize) -> Status {
-    if st.lambda[i] <= 0.0 {
-        Status::Free
-    } else if matches!(friction, Friction::None) || shrink(st.ut[i] + st.mu[i] / r, s[i] / r) != 0.0
-    {
-        Status::Slip
-    } else {
-        Status::Stick
-    }
+struct Run {
+    history: Vec<Sweep>,
+    refused: usize,
 }
 
-/// Sweeps until both residuals are below tol (true) or the budget is spent (false).
-#[allow(clippy::too_many_arguments)]
-fn sweeps(
-    step: &mut impl LinearStep,
-    comm: &impl Reduce,
-    nodes: &ContactNodes,
-    params: &Params,
-    thresholds: Thresholds,
-    st: &mut State,
-    history: &mut Vec<Sweep>,
-    monitor: &mut dyn FnMut(&Sweep),
-) -> Result<bool> {
-    let n = nodes.len();
-    let r = params.r;
-    let frictional = !matches!(thresholds, Thresholds::Frictionless);
-    let mut force_n = vec![0.0; n];
-    let mut force_t = vec![0.0; n];
-    while history.len() < params.max_iter {
-        // Step 1: linear elasticity with the constant matrix.
-        for i in 0..n {
-            force_n[i] = nodes.w[i] * (r * st.p[i] - st.lambda[i]);
-            force_t[i] = if frictional {
-                nodes.w[i] * (r * st.q[i] - st.mu[i])
-            } else {
-                0.0
-            };
-        }
-        step.solve(&force_n, &force_t, &mut st.un, &mut st.ut)?;
+/// An evaluation of G after the global reduction.
+struct Evaluated {
+    e: Eval,
+    /// |G(x) - x|_W over all ranks.
+    res: f64,
+    /// Anderson Gram sums with this point's residual difference included.
+    gram: Vec<f64>,
+    /// max(primal, dual) relative residual.
+    worst: f64,
+}
 
-        // Steps 2 and 3, node by node.
-        let mut sums = [0.0; 10];
-        for i in 0..n {
-            let w = nodes.w[i];
-            let p = project_normal(nodes.g[i], st.un[i], st.lambda[i], r);
-            sums[0] += w * (st.un[i] - p).powi(2);
-            sums[2] += w * (p - st.p[i]).powi(2);
-            sums[4] += w * st.un[i].powi(2);
-            let lambda_old = st.lambda[i];
-            st.lambda[i] = update_multiplier(st.lambda[i], r, st.un[i], p);
-            st.p[i] = p;
-            sums[8] += w * st.lambda[i].powi(2);
-            if st.lambda[i] > 0.0 {
-                sums[6] += 1.0;
-            }
-            if !frictional {
-                if st.lambda[i] > 0.0 {
-                    sums[7] += 1.0;
-                }
-                continue;
-            }
-            // The Coulomb threshold uses the pressure before this sweep's update.
-            let s = match thresholds {
-                Thresholds::Fixed(s) => s[i],
-                Thresholds::Coulomb(c) => coulomb_threshold(c, lambda_old),
-                Thresholds::Frictionless => 0.0,
-            };
-            let q = shrink(st.ut[i] + st.mu[i] / r, s / r);
-            sums[1] += w * (st.ut[i] - q).powi(2);
-            sums[3] += w * (q - st.q[i]).powi(2);
-            sums[5] += w * st.ut[i].powi(2);
-            st.mu[i] = update_multiplier(st.mu[i], r, st.ut[i], q);
-            st.q[i] = q;
-            sums[9] += w * st.mu[i].powi(2);
-            if q != 0.0 && st.lambda[i] > 0.0 {
-                sums[7] += 1.0;
-            }
+impl Run {
+    /// Evaluates G at `x` with one global reduction (statistics and, when accelerating,
+    /// the Gram sums of `aa` at the new residual); records the sweep.
+    fn evaluate<S: LinearStep>(
+        &mut self,
+        sweeper: &mut Sweeper<S>,
+        comm: &impl Reduce,
+        law: Law,
+        x: &[f64],
+        aa: Option<&Anderson>,
+        monitor: &mut dyn FnMut(&Sweep),
+    ) -> Result<Evaluated> {
+        let r = sweeper.r;
+        let e = sweeper.eval(x, law)?;
+        let f: Vec<f64> = e.gx.iter().zip(x).map(|(a, b)| a - b).collect();
+        let mut buf: Vec<f64> = e.sums.to_vec();
+        buf.push(dot(&f, &f, &sweeper.nodes.w));
+        if let Some(aa) = aa {
+            buf.extend(aa.local_sums_with_new(&f, &sweeper.nodes.w));
         }
-        comm.sum_in_place(&mut sums);
-
-        let scale = (sums[8].sqrt() + sums[9].sqrt()).max(r * (sums[4].sqrt() + sums[5].sqrt()));
+        comm.sum_in_place(&mut buf);
+        let s = &buf;
+        let scale = (s[6].sqrt() + s[7].sqrt()).max(s[4].sqrt() + s[5].sqrt());
         let sweep = Sweep {
-            iter: history.len() + 1,
-            primal: relative(r * (sums[0].sqrt() + sums[1].sqrt()), scale),
-            dual: relative(r * (sums[2].sqrt() + sums[3].sqrt()), scale),
-            active: sums[6] as usize,
-            slip: sums[7] as usize,
+            iter: self.history.len() + 1,
+            primal: relative(s[0].sqrt() + s[1].sqrt(), scale),
+            dual: relative(s[2].sqrt() + s[3].sqrt(), scale),
+            active: s[8] as usize,
+            slip: s[9] as usize,
         };
         if !(sweep.primal.is_finite() && sweep.dual.is_finite() && scale.is_finite()) {
             return Err(Error::Numerical(format!(
-                "iteration {}: the residuals are not finite (NaN or overflow); the problem may be unstable (check the Dirichlet conditions and material) or r = {r} unsuitable",
+                "iteration {}: the residuals are not finite (NaN or overflow); the problem may be unstable (check the Dirichlet conditions and the material) or r = {r} unsuitable",
                 sweep.iter
             )));
         }
-        history.push(sweep);
+        self.history.push(sweep);
         monitor(&sweep);
-        if sweep.primal <= params.tol && sweep.dual <= params.tol {
-            return Ok(true);
+        Ok(Evaluated {
+            worst: sweep.primal.max(sweep.dual),
+            res: s[10].sqrt(),
+            gram: s[11..].to_vec(),
+            e,
+        })
+    }
+
+    /// Iterates from `x` until both residuals are below tol (true) or the budget is
+    /// spent (false); returns the quantities derived from the last image G(x).
+    fn sweeps<S: LinearStep>(
+        &mut self,
+        sweeper: &mut Sweeper<S>,
+        comm: &impl Reduce,
+        params: &Params,
+        law: Law,
+        x: &mut Vec<f64>,
+        monitor: &mut dyn FnMut(&Sweep),
+    ) -> Result<(bool, Derived)> {
+        let memory = match params.acceleration {
+            Acceleration::None => 0,
+            Acceleration::Anderson { memory } => memory,
+        };
+        let mut aa = Anderson::new(memory);
+        let aa_on = memory > 0;
+        // The last accepted point is `x`, `cur` its evaluation.
+        let mut cur = self.evaluate(sweeper, comm, law, x, aa_on.then_some(&aa), monitor)?;
+        loop {
+            if cur.worst <= params.tol || self.history.len() >= params.max_iter {
+                *x = cur.e.gx;
+                return Ok((cur.worst <= params.tol, cur.e.out));
+            }
+            let proposal = if aa_on {
+                let f: Vec<f64> = cur.e.gx.iter().zip(x.iter()).map(|(a, b)| a - b).collect();
+                aa.push(&f, &cur.e.gx);
+                aa.mix(&cur.e.gx, &cur.gram)
+            } else {
+                None
+            };
+            let Some(y) = proposal else {
+                *x = std::mem::take(&mut cur.e.gx);
+                cur = self.evaluate(sweeper, comm, law, x, aa_on.then_some(&aa), monitor)?;
+                continue;
+            };
+            let next = self.evaluate(sweeper, comm, law, &y, Some(&aa), monitor)?;
+            if next.res <= cur.res || next.worst <= params.tol {
+                *x = y;
+                cur = next;
+            } else {
+                // Refused: the plain step from the last accepted point, memory cleared.
+                self.refused += 1;
+                aa.clear();
+                *x = std::mem::take(&mut cur.e.gx);
+                cur = self.evaluate(sweeper, comm, law, x, Some(&aa), monitor)?;
+            }
         }
     }
-    Ok(false)
 }
 
 #[cfg(test)]
@@ -314,106 +586,128 @@ mod tests {
     use super::*;
     use crate::contact::NoComm;
 
-    /// One contact node on a spring of stiffness k (force per displacement), pushed
-    /// towards the foundation by a force f: the exact answers are known in closed form.
-    /// Normal and tangential directions are independent springs.
-    struct Spring {
-        k: f64,
-        r_w: f64,
-        f: [f64; 2],
+    /// Contact nodes on independent springs (normal and tangential), pushed towards
+    /// the foundation: exact answers in closed form. Node i has spring stiffness k_i;
+    /// the matrix seen by the solve is k_i + r w_i.
+    struct Springs {
+        k: Vec<f64>,
+        rw: Vec<f64>,
+        f: Vec<[f64; 2]>,
+        calls: usize,
+        /// Add this to Nu on the given call (a disturbed solve, for the safeguard).
+        kick: Option<(usize, f64)>,
     }
 
-    impl LinearStep for Spring {
+    impl LinearStep for Springs {
         fn solve(&mut self, fnn: &[f64], ft: &[f64], un: &mut [f64], ut: &mut [f64]) -> Result<()> {
-            // (k + r w) u = f + force along each direction.
-            un[0] = (self.f[0] + fnn[0]) / (self.k + self.r_w);
-            ut[0] = (self.f[1] + ft[0]) / (self.k + self.r_w);
+            self.calls += 1;
+            for i in 0..un.len() {
+                un[i] = (self.f[i][0] + fnn[i]) / (self.k[i] + self.rw[i]);
+                ut[i] = (self.f[i][1] + ft[i]) / (self.k[i] + self.rw[i]);
+                if self.kick.is_some_and(|(c, _)| c == self.calls) {
+                    un[i] += self.kick.unwrap().1;
+                }
+            }
             Ok(())
         }
     }
 
-    fn params(friction: Friction) -> Params {
+    fn params(friction: Friction, acceleration: Acceleration) -> Params {
         Params {
             r: 10.0,
             tol: 1e-12,
             max_iter: 10000,
             friction,
             coulomb: CoulombMode::Inner,
+            acceleration,
         }
     }
 
-    fn run(friction: Friction, f: [f64; 2], g: f64) -> Outcome {
+    const PLAIN: Acceleration = Acceleration::None;
+    const ANDERSON: Acceleration = Acceleration::Anderson { memory: 5 };
+
+    fn run_with(friction: Friction, acc: Acceleration, f: [f64; 2], g: f64) -> Outcome {
         let nodes = ContactNodes {
             w: vec![0.5],
             g: vec![g],
         };
-        let mut spring = Spring {
-            k: 2.0,
-            r_w: 10.0 * 0.5,
-            f,
+        let mut s = Springs {
+            k: vec![2.0],
+            rw: vec![5.0],
+            f: vec![f],
+            calls: 0,
+            kick: None,
         };
-        solve(&mut spring, &NoComm, &nodes, &params(friction), &mut |_| {}).unwrap()
+        solve(&mut s, &NoComm, &nodes, &params(friction, acc), &mut |_| {}).unwrap()
     }
 
     #[test]
     fn frictionless_spring_touches_with_the_right_pressure() {
-        // Free displacement f/k = 3 > g = 1: contact, k g = f - w lambda.
-        let o = run(Friction::None, [6.0, 0.0], 1.0);
-        assert!(o.converged);
-        assert!((o.un[0] - 1.0).abs() < 1e-9);
-        assert!((o.lambda[0] * 0.5 - 4.0).abs() < 1e-8);
-        assert_eq!(o.status[0], Status::Slip);
+        for acc in [PLAIN, ANDERSON] {
+            // Free displacement f/k = 3 > g = 1: contact, k g = f - w lambda.
+            let o = run_with(Friction::None, acc, [6.0, 0.0], 1.0);
+            assert!(o.converged);
+            assert!((o.un[0] - 1.0).abs() < 1e-9);
+            assert!((o.lambda[0] * 0.5 - 4.0).abs() < 1e-8);
+            assert_eq!(o.status[0], Status::Slip);
+        }
     }
 
     #[test]
     fn open_gap_leaves_no_pressure() {
-        let o = run(Friction::None, [1.0, 0.0], 1.0);
-        assert!(o.converged);
-        assert!((o.un[0] - 0.5).abs() < 1e-9);
-        assert_eq!(o.lambda[0], 0.0);
-        assert_eq!(o.status[0], Status::Free);
+        for acc in [PLAIN, ANDERSON] {
+            let o = run_with(Friction::None, acc, [1.0, 0.0], 1.0);
+            assert!(o.converged);
+            assert!((o.un[0] - 0.5).abs() < 1e-9);
+            assert_eq!(o.lambda[0], 0.0);
+            assert_eq!(o.status[0], Status::Free);
+        }
     }
 
     #[test]
     fn tresca_stick_and_slip() {
-        // Tangential spring force 1 per unit u_t; friction force w s.
-        let stick = run(Friction::Tresca { threshold: 10.0 }, [6.0, 1.0], 1.0);
-        assert!(stick.converged);
-        assert!(stick.ut[0].abs() < 1e-9);
-        assert_eq!(stick.status[0], Status::Stick);
-        // f_t = 1, w s = 0.5 * 1.0 = 0.5: slips with k ut = 1 - 0.5.
-        let slip = run(Friction::Tresca { threshold: 1.0 }, [6.0, 1.0], 1.0);
-        assert!(slip.converged);
-        assert!((slip.ut[0] - 0.25).abs() < 1e-9);
-        assert_eq!(slip.status[0], Status::Slip);
-        // p_t = -mu opposes the slip.
-        assert!((-slip.mu[0] + 1.0).abs() < 1e-9);
+        for acc in [PLAIN, ANDERSON] {
+            let stick = run_with(Friction::Tresca { threshold: 10.0 }, acc, [6.0, 1.0], 1.0);
+            assert!(stick.converged);
+            assert!(stick.ut[0].abs() < 1e-9);
+            assert_eq!(stick.status[0], Status::Stick);
+            // f_t = 1, w s = 0.5: slips with k ut = 1 - 0.5, and p_t = -mu opposes it.
+            let slip = run_with(Friction::Tresca { threshold: 1.0 }, acc, [6.0, 1.0], 1.0);
+            assert!(slip.converged);
+            assert!((slip.ut[0] - 0.25).abs() < 1e-9);
+            assert_eq!(slip.status[0], Status::Slip);
+            assert!((-slip.mu[0] + 1.0).abs() < 1e-9);
+        }
     }
 
     #[test]
     fn coulomb_inner_and_outer_agree() {
-        let mut p = params(Friction::Coulomb { coefficient: 0.2 });
-        let nodes = ContactNodes {
-            w: vec![0.5],
-            g: vec![1.0],
-        };
-        let mut results = Vec::new();
-        for mode in [CoulombMode::Inner, CoulombMode::Outer] {
-            p.coulomb = mode;
-            let mut spring = Spring {
-                k: 2.0,
-                r_w: 5.0,
-                f: [6.0, 1.0],
-            };
-            results.push(solve(&mut spring, &NoComm, &nodes, &p, &mut |_| {}).unwrap());
+        for acc in [PLAIN, ANDERSON] {
+            let mut results = Vec::new();
+            for mode in [CoulombMode::Inner, CoulombMode::Outer] {
+                let mut p = params(Friction::Coulomb { coefficient: 0.2 }, acc);
+                p.coulomb = mode;
+                let nodes = ContactNodes {
+                    w: vec![0.5],
+                    g: vec![1.0],
+                };
+                let mut s = Springs {
+                    k: vec![2.0],
+                    rw: vec![5.0],
+                    f: vec![[6.0, 1.0]],
+                    calls: 0,
+                    kick: None,
+                };
+                results.push(solve(&mut s, &NoComm, &nodes, &p, &mut |_| {}).unwrap());
+            }
+            // lambda = 8, s = 1.6, w s = 0.8 < 1: slips with k ut = 0.2.
+            for o in &results {
+                assert!(o.converged);
+                assert!((o.lambda[0] - 8.0).abs() < 1e-8);
+                assert!((o.ut[0] - 0.1).abs() < 1e-8, "{}", o.ut[0]);
+            }
+            assert!(results[1].outer_iterations > 1);
         }
-        // lambda = 8, s = 1.6, w s = 0.8 < 1: slips with k ut = 0.2.
-        for o in &results {
-            assert!(o.converged);
-            assert!((o.lambda[0] - 8.0).abs() < 1e-8);
-            assert!((o.ut[0] - 0.1).abs() < 1e-8, "{}", o.ut[0]);
-        }
-        assert!(results[1].outer_iterations > 1);
     }
 
     #[test]
@@ -422,15 +716,70 @@ mod tests {
             w: vec![0.5],
             g: vec![1.0],
         };
-        let mut p = params(Friction::None);
+        let mut p = params(Friction::None, PLAIN);
         p.max_iter = 2;
-        let mut spring = Spring {
-            k: 2.0,
-            r_w: 5.0,
-            f: [6.0, 0.0],
+        let mut s = Springs {
+            k: vec![2.0],
+            rw: vec![5.0],
+            f: vec![[6.0, 0.0]],
+            calls: 0,
+            kick: None,
         };
-        let o = solve(&mut spring, &NoComm, &nodes, &p, &mut |_| {}).unwrap();
+        let o = solve(&mut s, &NoComm, &nodes, &p, &mut |_| {}).unwrap();
         assert!(!o.converged);
         assert_eq!(o.iterations, 2);
+    }
+
+    /// Many springs with spread stiffness: plain ALG2 needs many sweeps, Anderson few,
+    /// and both reach the same answer.
+    fn many(acc: Acceleration, kick: Option<(usize, f64)>) -> Outcome {
+        let n = 40;
+        let nodes = ContactNodes {
+            w: vec![0.5; n],
+            g: (0..n).map(|i| 0.02 * i as f64).collect(),
+        };
+        let k: Vec<f64> = (0..n)
+            .map(|i| 0.05 + 20.0 * (i as f64 / n as f64).powi(2))
+            .collect();
+        let mut s = Springs {
+            rw: vec![5.0; n],
+            f: k.iter().map(|k| [0.5 * k + 0.3, 0.2]).collect(),
+            k,
+            calls: 0,
+            kick,
+        };
+        let p = params(Friction::Coulomb { coefficient: 0.3 }, acc);
+        solve(&mut s, &NoComm, &nodes, &p, &mut |_| {}).unwrap()
+    }
+
+    #[test]
+    fn anderson_converges_to_the_plain_answer_in_fewer_sweeps() {
+        let plain = many(PLAIN, None);
+        let fast = many(ANDERSON, None);
+        assert!(plain.converged && fast.converged);
+        assert!(
+            fast.iterations * 2 < plain.iterations,
+            "{} vs {}",
+            fast.iterations,
+            plain.iterations
+        );
+        let scale = plain.lambda.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for i in 0..plain.lambda.len() {
+            assert!((plain.lambda[i] - fast.lambda[i]).abs() < 1e-9 * scale);
+            assert!((plain.mu[i] - fast.mu[i]).abs() < 1e-9 * scale);
+        }
+    }
+
+    #[test]
+    fn safeguard_refuses_a_bad_accelerated_point_and_still_converges() {
+        // Call 3 is the first accelerated point (1: start, 2: plain step); disturb it.
+        let kicked = many(ANDERSON, Some((3, 50.0)));
+        assert!(kicked.refused >= 1, "the safeguard did not engage");
+        assert!(kicked.converged);
+        let plain = many(PLAIN, None);
+        let scale = plain.lambda.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for i in 0..plain.lambda.len() {
+            assert!((plain.lambda[i] - kicked.lambda[i]).abs() < 1e-9 * scale);
+        }
     }
 }

@@ -1,0 +1,740 @@
+//! Checks that a mesh is one sound elastic body before anything is built on it, and the
+//! rigid-motion analysis that tells whether boundary conditions hold a body.
+//!
+//! Every check fails with one [`Error::Input`](crate::error::Error::Input) line that names
+//! the mesh, the place and the fix. Nodes and triangles are numbered from 1 in file order
+//! (Gmsh's own tags are not kept, though Gmsh numbers them the same way), so the messages
+//! also give coordinates.
+
+use crate::error::{input, Result};
+use crate::mesh::Mesh;
+use std::collections::HashSet;
+
+/// Two nodes within this fraction of the mesh size (in x and in y) are one point.
+pub const SAME_POINT: f64 = 1e-12;
+
+/// Constraint lines (see [`Holds`]) whose offsets differ by less than this fraction of the
+/// mesh size are one line, and a line passing this close to a point goes through it: CAD
+/// round-off along a straight line must not pass for a lever arm that holds a rotation.
+pub const SAME_LINE: f64 = 1e-9;
+
+/// Unit directions whose cross product is below this are parallel.
+const PARALLEL: f64 = 1e-9;
+
+/// Lower and upper corners of the box around `nodes` (infinite corners when empty).
+pub fn bounding_box(nodes: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in nodes {
+        for c in 0..2 {
+            lo[c] = lo[c].min(p[c]);
+            hi[c] = hi[c].max(p[c]);
+        }
+    }
+    (lo, hi)
+}
+
+/// The mesh size that relative tolerances refer to: the larger side of the bounding box.
+pub fn size(mesh: &Mesh) -> f64 {
+    let (lo, hi) = bounding_box(&mesh.nodes);
+    (hi[0] - lo[0]).max(hi[1] - lo[1]).max(0.0)
+}
+
+/// Runs every mesh check in the order that gives the most useful message first, orients
+/// the triangles counter-clockwise, and returns the boundary edges (node pairs
+/// `(min, max)` that belong to exactly one triangle).
+pub fn check(mesh: &mut Mesh, name: &str) -> Result<HashSet<(usize, usize)>> {
+    references(mesh, name)?;
+    let used = used_nodes(mesh);
+    duplicate_nodes(mesh, &used, name)?;
+    unused_nodes(mesh, &used, name)?;
+    let listed_cw = orient(mesh, name)?;
+    edges(mesh, &listed_cw, name)
+}
+
+/// Triangles exist, indices are in range and coordinates are finite. The Gmsh reader
+/// already guarantees this; meshes built in code (the library API, the fuzzers) may not,
+/// and must get an error rather than an index panic further on.
+fn references(mesh: &Mesh, name: &str) -> Result<()> {
+    let n = mesh.nodes.len();
+    if mesh.triangles.is_empty() {
+        return input(format!(
+            "{name}: the mesh has no triangles; mesh the surface in 2D (`gmsh -2`)"
+        ));
+    }
+    if let Some(k) = mesh
+        .nodes
+        .iter()
+        .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+    {
+        let p = mesh.nodes[k];
+        return input(format!(
+            "{name}: node {} is at ({}, {}), not a finite point; fix the geometry",
+            k + 1,
+            p[0],
+            p[1]
+        ));
+    }
+    if let Some((t, &bad)) = mesh
+        .triangles
+        .iter()
+        .enumerate()
+        .find_map(|(t, tri)| tri.iter().find(|&&i| i >= n).map(|i| (t, i)))
+    {
+        return input(format!(
+            "{name}: triangle {} uses node {}, but the mesh has {n} nodes; fix the mesh",
+            t + 1,
+            bad + 1
+        ));
+    }
+    let lines = mesh
+        .line_groups
+        .iter()
+        .flat_map(|(g, v)| v.iter().flatten().map(move |&i| (g, i)));
+    let points = mesh
+        .point_groups
+        .iter()
+        .flat_map(|(g, v)| v.iter().map(move |&i| (g, i)));
+    if let Some((group, bad)) = lines.chain(points).find(|&(_, i)| i >= n) {
+        return input(format!(
+            "{name}: group \"{group}\" uses node {}, but the mesh has {n} nodes; fix the mesh",
+            bad + 1
+        ));
+    }
+    Ok(())
+}
+
+fn used_nodes(mesh: &Mesh) -> Vec<bool> {
+    let mut used = vec![false; mesh.nodes.len()];
+    for &i in mesh.triangles.iter().flatten() {
+        used[i] = true;
+    }
+    used
+}
+
+/// Rejects two nodes at one place when a triangle uses at least one of them.
+///
+/// Why an error: coincident nodes cut the body along a slit (each side has its own node),
+/// which only a crack model could use, and contact-par has none; far more often they are
+/// a mesh whose pieces were never merged, and the body then falls apart under load.
+fn duplicate_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
+    let nodes = &mesh.nodes;
+    let (lo, _) = bounding_box(nodes);
+    let tol = SAME_POINT * size(mesh);
+    // Columns of width tol, then y: the duplicates of a node are in its column or the next
+    // one, within tol in y. Sorting keeps this O(n log n) for any mesh, even one whose
+    // nodes share a few x values (structured meshes).
+    let width = tol.max(f64::MIN_POSITIVE);
+    let mut order: Vec<(i64, f64, usize)> = nodes
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (((p[0] - lo[0]) / width).floor() as i64, p[1], i))
+        .collect();
+    order.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let close = |i: usize, j: usize| {
+        (nodes[i][0] - nodes[j][0]).abs() <= tol && (nodes[i][1] - nodes[j][1]).abs() <= tol
+    };
+    let mut first: Option<(usize, usize)> = None;
+    let mut pairs = 0usize;
+    for (pos, &(column, y, i)) in order.iter().enumerate() {
+        let next =
+            order.partition_point(|e| e.0 < column + 1 || (e.0 == column + 1 && e.1 < y - tol));
+        let same = order[pos + 1..]
+            .iter()
+            .take_while(|e| e.0 == column && e.1 <= y + tol);
+        let beside = order[next..]
+            .iter()
+            .take_while(|e| e.0 == column + 1 && e.1 <= y + tol);
+        for &(_, _, j) in same.chain(beside) {
+            if close(i, j) && (used[i] || used[j]) {
+                pairs += 1;
+                let pair = (i.min(j), i.max(j));
+                if first.is_none_or(|f| pair < f) {
+                    first = Some(pair);
+                }
+            }
+        }
+    }
+    let Some((i, j)) = first else {
+        return Ok(());
+    };
+    let (a, b) = (nodes[i], nodes[j]);
+    let more = if pairs > 1 {
+        format!(" ({pairs} such pairs)")
+    } else {
+        String::new()
+    };
+    input(format!(
+        "{name}: nodes {} at ({}, {}) and {} at ({}, {}) are the same point (within {SAME_POINT:e} of the mesh size){more}: duplicate nodes cut the body apart and contact-par has no cracks; merge them (Gmsh: `Coherence Mesh;`) and export again",
+        i + 1,
+        a[0],
+        a[1],
+        j + 1,
+        b[0],
+        b[1]
+    ))
+}
+
+/// Rejects nodes that no triangle uses: their displacement has no stiffness at all, so
+/// the matrix would be singular (or, under a condition, a load would act on nothing).
+fn unused_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
+    let count = used.iter().filter(|&&u| !u).count();
+    let Some(first) = used.iter().position(|&u| !u) else {
+        return Ok(());
+    };
+    let p = mesh.nodes[first];
+    let group = mesh
+        .line_groups
+        .iter()
+        .find(|(_, v)| v.iter().flatten().any(|&i| i == first))
+        .map(|(g, _)| g)
+        .or_else(|| {
+            mesh.point_groups
+                .iter()
+                .find(|(_, v)| v.contains(&first))
+                .map(|(g, _)| g)
+        })
+        .map_or(String::new(), |g| format!(" (in group \"{g}\")"));
+    let node = format!("node {} at ({}, {}){group}", first + 1, p[0], p[1]);
+    let (what, them) = if count == 1 {
+        (format!("{node} belongs"), "it")
+    } else {
+        (format!("{count} nodes, the first {node}, belong"), "them")
+    };
+    input(format!(
+        "{name}: {what} to no triangle, so nothing holds {them}; remove {them} or re-export with Mesh.SaveAll = 0 (and keep construction points out of physical groups)"
+    ))
+}
+
+/// Orients every triangle counter-clockwise and rejects degenerate ones; returns, per
+/// triangle, whether it was listed clockwise. A mesh listed all clockwise (a Gmsh surface
+/// with normal -z) is flipped silently: the orientation of the listing carries no meaning
+/// for a 2D body. Whether the flipped triangles fit their neighbours is [`edges`]' job.
+pub fn orient(mesh: &mut Mesh, name: &str) -> Result<Vec<bool>> {
+    let size = size(mesh);
+    let mut listed_cw = vec![false; mesh.triangles.len()];
+    for t in 0..mesh.triangles.len() {
+        let a2 = mesh.signed_area2(t);
+        let [i, j, k] = mesh.triangles[t];
+        let length = |a: usize, b: usize| {
+            let (p, q) = (mesh.nodes[a], mesh.nodes[b]);
+            (q[0] - p[0]).hypot(q[1] - p[1])
+        };
+        let longest = length(i, j).max(length(j, k)).max(length(k, i));
+        // Relative to the element's own size (and the mesh's, for zero-length edges).
+        if a2.abs() <= 1e-12 * longest * longest || longest <= 1e-14 * size {
+            let p = mesh.nodes[i];
+            return input(format!(
+                "{name}: triangle {} (nodes {}, {}, {}, near ({}, {})) is degenerate (zero area); fix the mesh",
+                t + 1,
+                i + 1,
+                j + 1,
+                k + 1,
+                p[0],
+                p[1]
+            ));
+        }
+        if a2 < 0.0 {
+            mesh.triangles[t].swap(1, 2);
+            listed_cw[t] = true;
+        }
+    }
+    Ok(listed_cw)
+}
+
+/// After [`orient`]: rejects a mesh that folds over itself (inverted triangles) and
+/// returns the boundary edges.
+///
+/// Why a geometric test rather than "every triangle listed the same way round": Gmsh lists
+/// the triangles of each surface along that surface's normal, so a sound mesh of two
+/// surfaces with opposite normals mixes both orientations, and turning such triangles
+/// round is harmless. What must not happen is an inverted triangle, one whose corners
+/// crossed over (a tangled mesh, e.g. after nodes were moved): it then lies on the same
+/// side of an edge as its neighbour and overlaps it. Once every triangle is
+/// counter-clockwise, each interior edge must be run once each way by its two triangles;
+/// an edge run twice the same way, or shared by three triangles, is a fold. Of the two
+/// triangles found there, the message names the one listed against the orientation of
+/// most of the file, which is the inverted one in a mesh from Gmsh.
+fn edges(mesh: &Mesh, listed_cw: &[bool], name: &str) -> Result<HashSet<(usize, usize)>> {
+    let n = mesh.nodes.len();
+    let nt = mesh.triangles.len();
+    // 32-bit entries (half the memory of usize ones at millions of triangles).
+    if n >= u32::MAX as usize || 3 * nt >= (u32::MAX >> 1) as usize {
+        return input(format!(
+            "{name}: {nt} triangles and {n} nodes are more than contact-par handles (2^30 edges)"
+        ));
+    }
+    // The edges of each node to higher-numbered ones, in compressed rows.
+    let mut start = vec![0u32; n + 1];
+    for t in &mesh.triangles {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            start[a.min(b) + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    // (other node, triangle << 1 | 1 when the triangle runs the edge from low to high)
+    let mut entries = vec![(0u32, 0u32); 3 * nt];
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
+            let low = a.min(b);
+            entries[fill[low] as usize] = (a.max(b) as u32, (t as u32) << 1 | u32::from(a < b));
+            fill[low] += 1;
+        }
+    }
+    let cw_majority = 2 * listed_cw.iter().filter(|&&c| c).count() > nt;
+    let mut boundary = HashSet::new();
+    for low in 0..n {
+        let row = &mut entries[start[low] as usize..start[low + 1] as usize];
+        row.sort_unstable();
+        for run in row.chunk_by(|x, y| x.0 == y.0) {
+            let high = run[0].0 as usize;
+            match run {
+                [_] => {
+                    boundary.insert((low, high));
+                }
+                [x, y] if (x.1 ^ y.1) & 1 == 1 => {}
+                _ => {
+                    // Two triangles that run this edge the same way (there are two among
+                    // three or more, whatever their directions).
+                    let (x, y) = run
+                        .iter()
+                        .enumerate()
+                        .find_map(|(k, x)| {
+                            run[k + 1..]
+                                .iter()
+                                .find(|y| (x.1 ^ y.1) & 1 == 0)
+                                .map(|y| (x.1 >> 1, y.1 >> 1))
+                        })
+                        .unwrap_or((run[0].1 >> 1, run[1].1 >> 1));
+                    let (x, y) = (x as usize, y as usize);
+                    let against = |t: usize| listed_cw[t] != cw_majority;
+                    let (bad, other) = match (against(x), against(y)) {
+                        (true, false) => (x, y),
+                        (false, true) => (y, x),
+                        _ => (x.max(y), x.min(y)),
+                    };
+                    let [i, j, k] = mesh.triangles[bad];
+                    let (p, q) = (mesh.nodes[low], mesh.nodes[high]);
+                    let c = centroid(mesh, bad);
+                    return input(format!(
+                        "{name}: triangle {} (nodes {}, {}, {}, near ({}, {})) is inverted: it lies on the same side of its edge ({}, {}) - ({}, {}) as triangle {}, so the mesh folds over itself; move the misplaced nodes back or re-mesh",
+                        bad + 1,
+                        i + 1,
+                        j + 1,
+                        k + 1,
+                        c[0],
+                        c[1],
+                        p[0],
+                        p[1],
+                        q[0],
+                        q[1],
+                        other + 1
+                    ));
+                }
+            }
+        }
+    }
+    Ok(boundary)
+}
+
+fn centroid(mesh: &Mesh, t: usize) -> [f64; 2] {
+    let [i, j, k] = mesh.triangles[t];
+    let (a, b, c) = (mesh.nodes[i], mesh.nodes[j], mesh.nodes[k]);
+    [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0]
+}
+
+/// The separate parts of a mesh (triangles joined through at least one node): the part of
+/// each node, numbered from 0 in the order of their lowest node, and the number of parts.
+pub fn parts(mesh: &Mesh) -> (Vec<usize>, usize) {
+    let n = mesh.nodes.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for t in &mesh.triangles {
+        for k in 1..3 {
+            let (a, b) = (root(&mut parent, t[0]), root(&mut parent, t[k]));
+            // The lower index as the root, so that a part is known by its lowest node.
+            parent[a.max(b)] = a.min(b);
+        }
+    }
+    let mut label = vec![usize::MAX; n];
+    let mut count = 0;
+    let mut part = vec![0; n];
+    for i in 0..n {
+        let r = root(&mut parent, i);
+        if label[r] == usize::MAX {
+            label[r] = count;
+            count += 1;
+        }
+        part[i] = label[r];
+    }
+    (part, count)
+}
+
+/// A rigid motion that the conditions on a part leave free (see [`Holds`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Free {
+    /// Nothing holds the part.
+    Everything,
+    /// Every condition acts along one line, through `point` with direction `dir`: the part
+    /// can translate across that line and rotate about any point of it.
+    SlideAndTurn { point: [f64; 2], dir: [f64; 2] },
+    /// Every condition acts along parallel lines: the part can translate along `along`,
+    /// across them.
+    Slide { along: [f64; 2] },
+    /// Every condition acts along lines through `centre`: the part can rotate about it.
+    Turn { centre: [f64; 2] },
+}
+
+/// The conditions on a rigid part, as lines of action (planar statics).
+///
+/// A condition that fixes the displacement of a point x along a unit direction d (a
+/// Dirichlet component: d = e_x or e_y; a contact node: d = the obstacle normal m, and
+/// with friction also the tangent t, both held by the augmentation r N'WN + r T'WT)
+/// removes the rigid motions u(y) = (a_x - w y_2, a_y + w y_1) for which d . u(x) = 0, a
+/// row [d_x, d_y, x × d] whose third entry is the moment arm of the line through x
+/// along d. Lines remove all three rigid motions exactly when they are neither all
+/// parallel nor all through one point: parallel lines leave the translation across them
+/// free, concurrent lines the rotation about their common point, a single line both. So
+/// the test is structural: it sorts the lines into directions and, per direction, into
+/// distinct lines; it never ranks a matrix against a pivot threshold. How many conditions
+/// lie on one line does not matter. Lines count as one when they agree to [`SAME_LINE`]
+/// of the mesh size.
+///
+/// Frictionless contact holds the body along m only (by the augmentation of the linear
+/// step; physically only when the load presses the body onto the foundation), so it
+/// always leaves the sliding along t to the Dirichlet conditions.
+#[derive(Debug, Clone)]
+pub struct Holds {
+    tol: f64,
+    classes: Vec<Class>,
+}
+
+/// The lines of one direction: the first one, and whether another, distinct one exists.
+#[derive(Debug, Clone, Copy)]
+struct Class {
+    dir: [f64; 2],
+    point: [f64; 2],
+    two_lines: bool,
+}
+
+fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[1] - a[1] * b[0]
+}
+
+impl Holds {
+    /// `tol` is the length under which two parallel lines are one, e.g. `SAME_LINE * size`.
+    pub fn new(tol: f64) -> Self {
+        Holds {
+            tol,
+            classes: Vec::new(),
+        }
+    }
+
+    /// Adds the condition "the displacement of `at` along `dir` is fixed" (`dir` non-zero).
+    pub fn add(&mut self, at: [f64; 2], dir: [f64; 2]) {
+        let norm = dir[0].hypot(dir[1]);
+        let dir = [dir[0] / norm, dir[1] / norm];
+        match self
+            .classes
+            .iter_mut()
+            .find(|c| cross(c.dir, dir).abs() <= PARALLEL)
+        {
+            Some(c) => {
+                if !c.two_lines {
+                    let offset = cross([at[0] - c.point[0], at[1] - c.point[1]], c.dir);
+                    c.two_lines = offset.abs() > self.tol;
+                }
+            }
+            None => self.classes.push(Class {
+                dir,
+                point: at,
+                two_lines: false,
+            }),
+        }
+    }
+
+    /// The rigid motion left free, or `None` when the part is held.
+    pub fn free(&self) -> Option<Free> {
+        match self.classes.as_slice() {
+            [] => Some(Free::Everything),
+            [c] if c.two_lines => Some(Free::Slide {
+                along: [-c.dir[1], c.dir[0]],
+            }),
+            [c] => Some(Free::SlideAndTurn {
+                point: c.point,
+                dir: c.dir,
+            }),
+            all if all.iter().any(|c| c.two_lines) => None,
+            [a, b, rest @ ..] => {
+                // a.point + s a.dir on the line of b (a and b are not parallel).
+                let s = cross([b.point[0] - a.point[0], b.point[1] - a.point[1]], b.dir)
+                    / cross(a.dir, b.dir);
+                let centre = [a.point[0] + s * a.dir[0], a.point[1] + s * a.dir[1]];
+                rest.iter()
+                    .all(|c| {
+                        cross([centre[0] - c.point[0], centre[1] - c.point[1]], c.dir).abs()
+                            <= self.tol
+                    })
+                    .then_some(Free::Turn { centre })
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::builtin;
+
+    /// The unit square as a 2 x 2 grid of cells, two counter-clockwise triangles each;
+    /// nodes row by row from (0, 0), node 4 (0-based) in the middle.
+    fn square() -> Mesh {
+        let mut nodes = Vec::new();
+        for j in 0..3 {
+            for i in 0..3 {
+                nodes.push([0.5 * i as f64, 0.5 * j as f64]);
+            }
+        }
+        let mut triangles = Vec::new();
+        for j in 0..2 {
+            for i in 0..2 {
+                let a = 3 * j + i;
+                triangles.push([a, a + 1, a + 4]);
+                triangles.push([a, a + 4, a + 3]);
+            }
+        }
+        let mut mesh = Mesh {
+            nodes,
+            triangles,
+            ..Default::default()
+        };
+        mesh.line_groups
+            .insert("bottom".into(), vec![[0, 1], [1, 2]]);
+        mesh.point_groups.insert("corner".into(), vec![0]);
+        mesh
+    }
+
+    fn error(mut mesh: Mesh) -> String {
+        let msg = check(&mut mesh, "m.msh").unwrap_err().to_string();
+        assert!(msg.starts_with("m.msh: ") && !msg.contains('\n'), "{msg}");
+        msg
+    }
+
+    #[test]
+    fn a_sound_mesh_passes_and_has_its_outline_as_boundary() {
+        let mut mesh = square();
+        let boundary = check(&mut mesh, "m.msh").unwrap();
+        assert_eq!(boundary.len(), 8);
+        assert!(boundary.contains(&(0, 1)) && !boundary.contains(&(0, 4)));
+    }
+
+    #[test]
+    fn builtin_meshes_pass() {
+        for level in 0..2 {
+            let mut block = builtin::block_for_level(40.0, 10.0, level);
+            check(&mut block, "block").unwrap();
+            let mut disc = builtin::quarter_disc_for_level(50.0, level);
+            check(&mut disc, "disc").unwrap();
+        }
+    }
+
+    #[test]
+    fn clockwise_listing_is_flipped_whether_all_or_some() {
+        let mut all_cw = square();
+        for t in &mut all_cw.triangles {
+            t.swap(0, 1);
+        }
+        check(&mut all_cw, "m.msh").unwrap();
+        assert!((0..all_cw.triangles.len()).all(|t| all_cw.signed_area2(t) > 0.0));
+        // Two surfaces with opposite normals: sound, only listed differently.
+        let mut mixed = square();
+        mixed.triangles[3].swap(1, 2);
+        mixed.triangles[6].swap(0, 2);
+        check(&mut mixed, "m.msh").unwrap();
+        assert!((0..mixed.triangles.len()).all(|t| mixed.signed_area2(t) > 0.0));
+    }
+
+    #[test]
+    fn a_folded_mesh_names_the_inverted_triangle() {
+        let mut mesh = square();
+        // The middle node pushed past the right side: the triangles between it and the
+        // right side turn over.
+        mesh.nodes[4] = [1.25, 0.5];
+        let msg = error(mesh);
+        assert!(
+            msg.contains("is inverted") && msg.contains("folds"),
+            "{msg}"
+        );
+        // Triangle 3 is [1, 2, 5] (1-based) listed counter-clockwise in a square listed
+        // so; the turned-over ones are the ones named.
+        let mut mesh = square();
+        mesh.nodes[4] = [1.25, 0.5];
+        let mut oriented = mesh.clone();
+        let listed_cw = orient(&mut oriented, "m.msh").unwrap();
+        let named: usize = msg
+            .split("triangle ")
+            .nth(1)
+            .and_then(|s| s.split(' ').next())
+            .and_then(|s| s.parse().ok())
+            .unwrap();
+        assert!(listed_cw[named - 1], "{msg}: {listed_cw:?}");
+    }
+
+    #[test]
+    fn a_triangle_listed_twice_the_same_way_is_a_fold() {
+        let mut mesh = square();
+        mesh.triangles.push([0, 1, 4]);
+        assert!(error(mesh).contains("triangle 9"));
+    }
+
+    #[test]
+    fn degenerate_triangles_are_named() {
+        let mut mesh = square();
+        // On the line from node 2 (0.5, 0) to node 6 (1, 0.5).
+        mesh.nodes[4] = [0.75, 0.25];
+        let msg = error(mesh);
+        assert!(msg.contains("degenerate"), "{msg}");
+    }
+
+    #[test]
+    fn duplicate_nodes_name_both_points() {
+        let mut mesh = square();
+        mesh.nodes.push([0.5, 0.5 + 1e-13]);
+        let t = mesh.triangles.len() - 1;
+        mesh.triangles[t] = [3, 9, 6];
+        let msg = error(mesh);
+        assert!(
+            msg.contains("nodes 5 at (0.5, 0.5) and 10 at (0.5, 0.5000000000001)"),
+            "{msg}"
+        );
+        assert!(msg.contains("Coherence Mesh"), "{msg}");
+        // Just above the tolerance they are two nodes (here an unused one).
+        let mut mesh = square();
+        mesh.nodes.push([0.5, 0.5 + 1e-11]);
+        assert!(error(mesh).contains("belongs to no triangle"));
+    }
+
+    #[test]
+    fn duplicates_are_found_across_column_boundaries() {
+        // Nodes a hair apart in x sit in different columns of the sort.
+        let mut mesh = square();
+        let x = 0.5 + 0.6e-12;
+        mesh.nodes.push([x, 0.0]);
+        mesh.triangles.push([9, 2, 5]);
+        let msg = error(mesh);
+        assert!(msg.contains("nodes 2 at (0.5, 0) and 10"), "{msg}");
+    }
+
+    #[test]
+    fn unused_nodes_are_counted_and_their_group_named() {
+        let mut mesh = square();
+        mesh.nodes.extend([[3.0, 3.0], [4.0, 4.0]]);
+        mesh.point_groups.insert("pin".into(), vec![9]);
+        let msg = error(mesh);
+        assert!(
+            msg.contains(
+                "2 nodes, the first node 10 at (3, 3) (in group \"pin\"), belong to no triangle"
+            ),
+            "{msg}"
+        );
+        assert!(msg.contains("Mesh.SaveAll = 0"), "{msg}");
+    }
+
+    #[test]
+    fn bad_references_are_errors_not_panics() {
+        let mut mesh = square();
+        mesh.triangles[0][2] = 99;
+        assert!(error(mesh).contains("uses node 100"));
+        let mut mesh = square();
+        mesh.point_groups.insert("p".into(), vec![42]);
+        assert!(error(mesh).contains("group \"p\""));
+        let mut mesh = square();
+        mesh.nodes[3][1] = f64::NAN;
+        assert!(error(mesh).contains("not a finite point"));
+        assert!(error(Mesh::default()).contains("no triangles"));
+    }
+
+    #[test]
+    fn parts_are_joined_through_nodes() {
+        let mut mesh = square();
+        let (part, count) = parts(&mesh);
+        assert_eq!((count, part.iter().all(|&p| p == 0)), (1, true));
+        mesh.nodes.extend([[5.0, 0.0], [6.0, 0.0], [5.0, 1.0]]);
+        mesh.triangles.push([9, 10, 11]);
+        let (part, count) = parts(&mesh);
+        assert_eq!(count, 2);
+        assert_eq!(part[10], 1);
+    }
+
+    const X: [f64; 2] = [1.0, 0.0];
+    const Y: [f64; 2] = [0.0, 1.0];
+
+    fn free(holds: &[([f64; 2], [f64; 2])]) -> Option<Free> {
+        let mut h = Holds::new(1e-9);
+        for &(at, dir) in holds {
+            h.add(at, dir);
+        }
+        h.free()
+    }
+
+    #[test]
+    fn rigid_motions_follow_the_lines_of_action() {
+        assert_eq!(free(&[]), Some(Free::Everything));
+        // A clamped edge holds everything.
+        assert_eq!(
+            free(&[([0., 1.], X), ([0., 1.], Y), ([1., 1.], X), ([1., 1.], Y)]),
+            None
+        );
+        // uy along a horizontal edge: vertical lines at two x, the x translation is free.
+        assert_eq!(
+            free(&[([0., 0.], Y), ([1., 0.], Y)]),
+            Some(Free::Slide { along: [-1.0, 0.0] })
+        );
+        // Plus ux anywhere: held.
+        assert_eq!(free(&[([0., 0.], Y), ([1., 0.], Y), ([5., 3.], X)]), None);
+        // A pinned point: both lines through it, the rotation about it is free.
+        assert_eq!(
+            free(&[([2., 3.], X), ([2., 3.], Y)]),
+            Some(Free::Turn { centre: [2.0, 3.0] })
+        );
+        // ux on a horizontal line and uy at a point: rotation about their crossing.
+        assert_eq!(
+            free(&[([0., 1.], X), ([4., 1.], X), ([2., 7.], Y)]),
+            Some(Free::Turn { centre: [2.0, 1.0] })
+        );
+        // ux at one point only: one line.
+        assert!(matches!(
+            free(&[([1., 1.], X)]),
+            Some(Free::SlideAndTurn { .. })
+        ));
+        // An oblique normal through the pin as well: still concurrent.
+        let m = [0.6, 0.8];
+        assert!(matches!(
+            free(&[([2., 3.], X), ([2., 3.], Y), ([2. + 0.6, 3. + 0.8], m)]),
+            Some(Free::Turn { .. })
+        ));
+        // An oblique normal elsewhere: held.
+        assert_eq!(free(&[([2., 3.], X), ([2., 3.], Y), ([0., 0.], m)]), None);
+        // Antiparallel directions are one direction.
+        assert_eq!(
+            free(&[([0., 0.], Y), ([1., 0.], [0.0, -1.0])]),
+            Some(Free::Slide { along: [-1.0, 0.0] })
+        );
+    }
+
+    #[test]
+    fn round_off_is_no_lever_arm() {
+        // ux on a "horizontal" line whose y wobbles by round-off, uy at one point: the
+        // rotation is still free.
+        let held = free(&[([0., 1.0], X), ([4., 1.0 + 1e-15], X), ([2., 7.], Y)]);
+        assert!(matches!(held, Some(Free::Turn { .. })), "{held:?}");
+    }
+}
