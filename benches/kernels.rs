@@ -1,0 +1,408 @@
+//! Criterion benchmarks of the solver's kernels, on the built-in `block` case (Coulomb
+//! friction, so both normal and tangential terms run):
+//!
+//! * `element/stiffness`          one P1 element stiffness matrix
+//! * `assemble/level{2,4}`        A = K + r N'WN + r T'WT on the free dofs (rayon)
+//! * `factor/amd/level{2,4}`      sparse Cholesky with AMD (the `--linear full` factor)
+//! * `factor/boundary_last/...`   `LocalFactor::new`: AMD on the interior, the contact
+//!                                dofs last (the one-rank subdomain of the default path)
+//! * `condense/level{2,4}`        S from the trailing factor block, then H = C S^-1 C'
+//! * `sweep/full/level{2,4}`      one Uzawa sweep with a sparse forward+backward solve
+//! * `sweep/condensed/level{2,4}` one Uzawa sweep on H (u0 + H f, then the node kernels)
+//! * `node_kernels/n{N}`          projection, shrinkage and multiplier updates alone
+//!
+//! A sweep is `contact_par::contact::solve` with a budget of one sweep, through the
+//! public `LinearStep` trait, so it is the loop body the program runs.
+//!
+//! Threads: 1 by default (rayon pool and faer), so the numbers are per core and do not
+//! depend on what else runs on the machine; `CONTACT_PAR_BENCH_THREADS=N` changes it.
+//! The whole run takes about a minute: `cargo bench --bench kernels`.
+
+use contact_par::app::{contact_blocks, load_mesh};
+use contact_par::case::{self, Case};
+use contact_par::contact::kernels::{coulomb_threshold, project_normal, shrink, update_multiplier};
+use contact_par::contact::{self, LinearStep, NoComm, Params};
+use contact_par::dd::condense::Condensed;
+use contact_par::dd::split::ContactDof;
+use contact_par::error::Result;
+use contact_par::fem::{self, assemble, Assembled, DofMap};
+use contact_par::linear::{ContactDofs, DirectStep, LocalFactor, SparseCholesky};
+use contact_par::problem::{self, Problem};
+use criterion::{black_box, criterion_group, criterion_main, Criterion, SamplingMode};
+use faer::sparse::linalg::cholesky::SymmetricOrdering;
+use std::time::Duration;
+
+/// The small and the large mesh of every size-dependent benchmark (block levels 2 and 4:
+/// 6 601 and 103 201 nodes).
+const LEVELS: [u32; 2] = [2, 4];
+
+/// Seconds per iteration at the levels of [`LEVELS`], one thread (for the sample
+/// budgets only): assembly, factorization, condensation.
+const ASSEMBLE_S: [f64; 2] = [0.01, 0.4];
+const FACTOR_S: [f64; 2] = [0.045, 0.7];
+const CONDENSE_S: [f64; 2] = [0.02, 0.5];
+
+/// The built-in block case at one level, with everything the kernels need.
+struct Fixture {
+    level: u32,
+    case: Case,
+    prob: Problem,
+    r: f64,
+    frictional: bool,
+}
+
+impl Fixture {
+    fn new(level: u32) -> Self {
+        let case = case::builtin_case("block", level).expect("built-in case");
+        let (mesh, name) = load_mesh(&case).expect("built-in mesh");
+        let prob = problem::build(&case, mesh, &name).expect("problem");
+        let r = case.solver.r.unwrap_or_else(|| prob.default_r(&case));
+        let frictional = Problem::is_frictional(&case);
+        Fixture {
+            level,
+            case,
+            prob,
+            r,
+            frictional,
+        }
+    }
+
+    fn blocks(&self) -> Vec<(usize, [[f64; 2]; 2])> {
+        contact_blocks(
+            &self.prob.contact_nodes,
+            &self.prob.contact.w,
+            self.r,
+            self.prob.normal,
+            self.frictional,
+        )
+    }
+
+    /// The matrix of the `--linear full` path (free dofs in dof order).
+    fn assemble_plain(&self, dofs: &DofMap) -> Assembled {
+        let m = &self.prob.mesh;
+        assemble(
+            &m.nodes,
+            &m.triangles,
+            &self.case.material,
+            dofs,
+            &self.blocks(),
+        )
+        .expect("assembly")
+    }
+
+    /// Shift of the boundary block, as the program chooses it.
+    fn alpha(&self) -> f64 {
+        let m = &self.case.material;
+        m.young / (1.0 - m.poisson * m.poisson)
+    }
+
+    /// The free dofs of the contact nodes: the boundary of the one-rank subdomain.
+    fn boundary_dofs(&self) -> Vec<usize> {
+        self.prob
+            .contact_nodes
+            .iter()
+            .flat_map(|&v| [2 * v, 2 * v + 1])
+            .filter(|&d| self.prob.fixed[d].is_none())
+            .collect()
+    }
+
+    /// The shifted one-rank matrix with the boundary dofs last, and its right-hand side.
+    fn assemble_boundary_last(&self) -> (DofMap, Assembled, Vec<f64>, usize) {
+        let last = self.boundary_dofs();
+        let dofs = DofMap::with_last(&self.prob.fixed, &last);
+        let mut blocks = self.blocks();
+        let alpha = self.alpha();
+        let mut b_nodes: Vec<usize> = last.iter().map(|d| d / 2).collect();
+        b_nodes.dedup();
+        blocks.extend(b_nodes.iter().map(|&v| (v, [[alpha, 0.0], [0.0, alpha]])));
+        let m = &self.prob.mesh;
+        let a = assemble(&m.nodes, &m.triangles, &self.case.material, &dofs, &blocks)
+            .expect("assembly");
+        let mut base = a.lifting.clone();
+        for (dof, eq) in dofs.eq.iter().enumerate() {
+            if let Some(i) = eq {
+                base[*i] += self.prob.load[dof];
+            }
+        }
+        (dofs, a, base, last.len())
+    }
+
+    fn contact_dofs(&self) -> ContactDofs<'_> {
+        ContactDofs {
+            nodes: &self.prob.contact_nodes,
+            w: &self.prob.contact.w,
+            normal: self.prob.normal,
+            tangent: self.prob.tangent,
+            frictional: self.frictional,
+        }
+    }
+
+    fn direct_step(&self) -> DirectStep {
+        let m = &self.prob.mesh;
+        DirectStep::new(
+            &m.nodes,
+            &m.triangles,
+            &self.case.material,
+            &self.prob.fixed,
+            &self.prob.load,
+            &self.contact_dofs(),
+            self.r,
+        )
+        .expect("direct step")
+        .0
+    }
+
+    /// H and u0 of the one-rank condensed path.
+    fn condensed(&self, factor: &mut LocalFactor, base: &[f64], dofs: &DofMap) -> Condensed {
+        let s = factor.schur();
+        let g = factor.condensed_rhs(base);
+        // One rank: the boundary index of a dof is its place among the last equations.
+        let first = dofs.n_free - factor.n_boundary();
+        let contact: Vec<ContactDof> = self
+            .prob
+            .contact_nodes
+            .iter()
+            .map(|&v| {
+                let b = [0, 1].map(|c| dofs.eq[2 * v + c].map(|e| e - first));
+                let fixed = [0, 1].map(|c| self.prob.fixed[2 * v + c].unwrap_or(0.0));
+                ContactDof { b, fixed }
+            })
+            .collect();
+        Condensed::new(
+            s,
+            g,
+            &contact,
+            &[self.prob.contact_nodes.len()],
+            self.prob.normal,
+            self.prob.tangent,
+            self.frictional,
+        )
+        .expect("condensed operator")
+    }
+
+    /// Parameters for exactly one sweep.
+    fn one_sweep(&self) -> Params {
+        Params {
+            r: self.r,
+            tol: 0.0,
+            max_iter: 1,
+            friction: self.case.contact.friction,
+            coulomb: self.case.solver.coulomb,
+        }
+    }
+
+    fn label(&self) -> String {
+        format!("level{}", self.level)
+    }
+}
+
+/// Step 1 condensed onto the contact dofs, as the program does it on one rank:
+/// (Nu, Tu) = u0 + H f with H dense, row-major, one row per contact value.
+struct HStep {
+    rows: Vec<f64>,
+    u0: Vec<f64>,
+    n: usize,
+    frictional: bool,
+    f: Vec<f64>,
+    y: Vec<f64>,
+}
+
+impl HStep {
+    fn new(c: &Condensed, n: usize, frictional: bool) -> Self {
+        let ncd = c.h.nrows();
+        let rows = (0..ncd)
+            .flat_map(|i| (0..ncd).map(move |j| (i, j)))
+            .map(|(i, j)| c.h[(i, j)])
+            .collect();
+        HStep {
+            rows,
+            u0: c.u0.clone(),
+            n,
+            frictional,
+            f: Vec::with_capacity(ncd),
+            y: vec![0.0; ncd],
+        }
+    }
+}
+
+impl LinearStep for HStep {
+    fn solve(&mut self, fnn: &[f64], ft: &[f64], un: &mut [f64], ut: &mut [f64]) -> Result<()> {
+        use rayon::prelude::*;
+        self.f.clear();
+        self.f.extend_from_slice(fnn);
+        if self.frictional {
+            self.f.extend_from_slice(ft);
+        }
+        let (f, ncd) = (&self.f, self.f.len());
+        self.y
+            .par_iter_mut()
+            .zip(self.rows.par_chunks(ncd))
+            .zip(&self.u0)
+            .for_each(|((y, row), u0)| {
+                *y = u0 + row.iter().zip(f).map(|(h, f)| h * f).sum::<f64>()
+            });
+        un.copy_from_slice(&self.y[..self.n]);
+        if self.frictional {
+            ut.copy_from_slice(&self.y[self.n..]);
+        } else {
+            ut.fill(0.0);
+        }
+        Ok(())
+    }
+}
+
+fn threads() -> usize {
+    std::env::var("CONTACT_PAR_BENCH_THREADS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1)
+        .max(1)
+}
+
+fn set_threads() {
+    let n = threads();
+    let _ = rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build_global();
+    faer::set_global_parallelism(if n == 1 {
+        faer::Par::Seq
+    } else {
+        faer::Par::rayon(n)
+    });
+}
+
+type Group<'a> = criterion::BenchmarkGroup<'a, criterion::measurement::WallTime>;
+
+/// A group for a case whose one iteration takes about `secs` seconds (one thread, as
+/// measured on the development machine): the minimum of 10 samples, flat sampling, and
+/// no longer than needed.
+fn heavy<'a>(c: &'a mut Criterion, name: &str, secs: f64) -> Group<'a> {
+    let mut g = c.benchmark_group(name);
+    g.sample_size(10)
+        .sampling_mode(SamplingMode::Flat)
+        .warm_up_time(Duration::from_secs_f64(secs.clamp(0.2, 1.0)))
+        .measurement_time(Duration::from_secs_f64((12.0 * secs).clamp(1.0, 20.0)));
+    g
+}
+
+fn element(c: &mut Criterion) {
+    set_threads();
+    let d = fem::elasticity_matrix(&case::builtin_case("block", 0).unwrap().material);
+    let p = [[0.0, 0.0], [0.125, 0.0], [0.0, 0.125]];
+    let mut g = c.benchmark_group("element");
+    g.warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2));
+    g.bench_function("stiffness", |b| {
+        b.iter(|| fem::element_stiffness(black_box(&p), black_box(&d)))
+    });
+    g.finish();
+}
+
+fn assembly(c: &mut Criterion) {
+    for (k, level) in LEVELS.into_iter().enumerate() {
+        let fx = Fixture::new(level);
+        let dofs = DofMap::new(&fx.prob.fixed);
+        let mut g = heavy(c, "assemble", ASSEMBLE_S[k]);
+        g.bench_function(fx.label(), |b| {
+            b.iter(|| fx.assemble_plain(black_box(&dofs)))
+        });
+        g.finish();
+    }
+}
+
+fn factorization(c: &mut Criterion) {
+    for (k, level) in LEVELS.into_iter().enumerate() {
+        let fx = Fixture::new(level);
+        let a = fx.assemble_plain(&DofMap::new(&fx.prob.fixed)).matrix;
+        let mut g = heavy(c, "factor", FACTOR_S[k]);
+        g.bench_function(format!("amd/{}", fx.label()), |b| {
+            b.iter(|| SparseCholesky::factor(a.as_ref(), SymmetricOrdering::Amd).unwrap())
+        });
+        let (dofs, shifted, base, nb) = fx.assemble_boundary_last();
+        g.bench_function(format!("boundary_last/{}", fx.label()), |b| {
+            b.iter(|| LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha()).unwrap())
+        });
+        g.finish();
+        let mut factor = LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha()).unwrap();
+        let mut g = heavy(c, "condense", CONDENSE_S[k]);
+        g.bench_function(fx.label(), |b| {
+            b.iter(|| fx.condensed(&mut factor, &base, &dofs))
+        });
+        g.finish();
+    }
+}
+
+fn sweeps(c: &mut Criterion) {
+    for level in LEVELS {
+        let fx = Fixture::new(level);
+        let nodes = &fx.prob.contact;
+        let params = fx.one_sweep();
+        let mut g = c.benchmark_group("sweep");
+        g.sample_size(20)
+            .warm_up_time(Duration::from_millis(300))
+            .measurement_time(Duration::from_secs(2));
+        let mut full = fx.direct_step();
+        g.bench_function(format!("full/{}", fx.label()), |b| {
+            b.iter(|| contact::solve(&mut full, &NoComm, nodes, &params, &mut |_| {}).unwrap())
+        });
+        let (dofs, shifted, base, nb) = fx.assemble_boundary_last();
+        let mut factor = LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha()).unwrap();
+        let cond = fx.condensed(&mut factor, &base, &dofs);
+        let mut step = HStep::new(&cond, fx.prob.contact_nodes.len(), fx.frictional);
+        g.bench_function(format!("condensed/{}", fx.label()), |b| {
+            b.iter(|| contact::solve(&mut step, &NoComm, nodes, &params, &mut |_| {}).unwrap())
+        });
+        g.finish();
+    }
+}
+
+/// Steps 2 and 3 of ALG2 (Coulomb, inner mode) on `n` nodes, without the linear solve.
+fn node_kernels(c: &mut Criterion) {
+    let (r, coef) = (7.0e4, 0.3);
+    let mut g = c.benchmark_group("node_kernels");
+    g.warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_secs(1));
+    // The contact node counts of block levels 4 and 6.
+    for n in [1281usize, 5121] {
+        let x = |i: usize, a: f64| (a * i as f64).sin();
+        let gap: Vec<f64> = (0..n).map(|i| 1e-3 * x(i, 0.7).abs()).collect();
+        let w: Vec<f64> = vec![40.0 / n as f64; n];
+        let un: Vec<f64> = (0..n).map(|i| 2e-3 * x(i, 1.3)).collect();
+        let ut: Vec<f64> = (0..n).map(|i| 1e-3 * x(i, 0.3)).collect();
+        let (mut lambda, mut mu) = (vec![10.0; n], vec![1.0; n]);
+        let (mut p, mut q) = (vec![0.0; n], vec![0.0; n]);
+        g.bench_function(format!("n{n}"), |b| {
+            b.iter(|| {
+                let mut sums = [0.0f64; 4];
+                for i in 0..n {
+                    let pi = project_normal(gap[i], un[i], lambda[i], r);
+                    sums[0] += w[i] * (un[i] - pi).powi(2);
+                    sums[1] += w[i] * (pi - p[i]).powi(2);
+                    let s = coulomb_threshold(coef, lambda[i]);
+                    lambda[i] = update_multiplier(lambda[i], r, un[i], pi);
+                    p[i] = pi;
+                    let qi = shrink(ut[i] + mu[i] / r, s / r);
+                    sums[2] += w[i] * (ut[i] - qi).powi(2);
+                    sums[3] += w[i] * (qi - q[i]).powi(2);
+                    mu[i] = update_multiplier(mu[i], r, ut[i], qi);
+                    q[i] = qi;
+                }
+                // Keep the multipliers bounded across iterations.
+                lambda.iter_mut().for_each(|l| *l = l.clamp(0.0, 100.0));
+                mu.iter_mut().for_each(|m| *m = m.clamp(-30.0, 30.0));
+                black_box(sums)
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(
+    benches,
+    element,
+    assembly,
+    factorization,
+    sweeps,
+    node_kernels
+);
+criterion_main!(benches);
