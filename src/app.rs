@@ -34,6 +34,10 @@ pub struct Options {
     pub acceleration: Option<Acceleration>,
     pub monitor_every: usize,
     pub linear: LinearMode,
+    /// Save the loop state every this many sweeps (0: never).
+    pub checkpoint_every: usize,
+    /// Resume from the checkpoint in `out/checkpoint/`.
+    pub restart: bool,
 }
 
 /// Prints on the first rank only, and not at all with --quiet.
@@ -447,11 +451,23 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
             print.line(monitor_line(s));
         }
     };
+    let ckpt = CheckpointFiles {
+        dir: opts.out.join("checkpoint"),
+        every: opts.checkpoint_every,
+        restart: opts.restart,
+        ranks: mpi.size,
+    };
     let (mut outcome, u_local, phases) = match opts.linear {
-        LinearMode::Condensed => {
-            solve_condensed(mpi, &setup, &sub, root.as_ref(), &params, &mut monitor)?
-        }
-        LinearMode::Full => solve_full(mpi, &setup, &sub, &params, &mut monitor)?,
+        LinearMode::Condensed => solve_condensed(
+            mpi,
+            &setup,
+            &sub,
+            root.as_ref(),
+            &params,
+            &mut monitor,
+            &ckpt,
+        )?,
+        LinearMode::Full => solve_full(mpi, &setup, &sub, &params, &mut monitor, &ckpt)?,
     };
     // Report u_n and u_t of the recovered field (frictionless sweeps do not compute u_t).
     for (k, &node) in sub.contact_nodes.iter().enumerate() {
@@ -563,6 +579,7 @@ fn solve_condensed(
     root: Option<&RootData>,
     params: &contact::Params,
     monitor: &mut dyn FnMut(&Sweep),
+    ckpt: &CheckpointFiles,
 ) -> Result<(contact::Outcome, Vec<[f64; 2]>, Phases)> {
     let frictional = Problem::is_frictional(&setup.case);
     let mut local = mpi.agree(LocalSystem::new(setup, sub))?;
@@ -631,10 +648,11 @@ fn solve_condensed(
         n_own,
         frictional,
         packed_counts: pos_counts,
-        local: Vec::new(),
+        // Sized for the (never expected) case of a loop that solves nothing.
+        local: vec![0.0; if frictional { 2 * n_own } else { n_own }],
         gathered: Vec::new(),
     };
-    let outcome = contact::solve(&mut step, mpi, &sub.contact, params, monitor)?;
+    let outcome = run_loop(&mut step, mpi, sub, params, monitor, ckpt)?;
     let loop_s = t_loop.elapsed().as_secs_f64();
 
     // Recover the displacement from the forces of the last sweep: the first rank solves
@@ -693,6 +711,98 @@ fn solve_condensed(
     ))
 }
 
+/// Where the loop state is saved and whether to resume from it.
+pub struct CheckpointFiles {
+    dir: PathBuf,
+    every: usize,
+    restart: bool,
+    ranks: usize,
+}
+
+#[derive(Serialize, serde::Deserialize)]
+struct CheckpointFile {
+    ranks: usize,
+    rank: usize,
+    contact_nodes: usize,
+    snapshot: contact::Snapshot,
+}
+
+impl CheckpointFiles {
+    fn path(&self, rank: usize) -> PathBuf {
+        self.dir.join(format!("rank_{rank}.bin"))
+    }
+}
+
+/// The Uzawa loop with the checkpoint files of this rank. The snapshots are written
+/// atomically; on restart every rank checks that all ranks resume from the same sweep.
+fn run_loop(
+    step: &mut impl LinearStep,
+    mpi: &Mpi,
+    sub: &SubProblem,
+    params: &contact::Params,
+    monitor: &mut dyn FnMut(&Sweep),
+    files: &CheckpointFiles,
+) -> Result<contact::Outcome> {
+    let resume = if files.restart {
+        let path = files.path(mpi.rank);
+        let read = std::fs::read(&path)
+            .map_err(|e| Error::Input(format!("{}: cannot read the checkpoint: {e}; run without --restart, or with the --out of the interrupted run", path.display())))
+            .and_then(|b| {
+                decode::<CheckpointFile>(&b).map_err(|_| {
+                    Error::Input(format!("{}: not a contact-par checkpoint of this version; run without --restart", path.display()))
+                })
+            })
+            .and_then(|c| {
+                if c.ranks != files.ranks || c.rank != mpi.rank || c.contact_nodes != sub.contact_nodes.len() {
+                    Err(Error::Input(format!(
+                        "{}: written by a run on {} ranks of another case or mesh; restart the same case with mpirun -n {}",
+                        path.display(),
+                        c.ranks,
+                        c.ranks
+                    )))
+                } else {
+                    Ok(c.snapshot)
+                }
+            });
+        let snap = mpi.agree(read)?;
+        let mut sweeps = [snap.history.len() as f64, -(snap.history.len() as f64)];
+        let mine = sweeps;
+        if mpi.size > 1 {
+            use mpi::collective::SystemOperation;
+            use mpi::traits::CommunicatorCollectives;
+            mpi.world
+                .all_reduce_into(&mine[..], &mut sweeps[..], SystemOperation::max());
+        }
+        if sweeps[0] != -sweeps[1] {
+            return mpi.agree(Err(Error::Input(format!(
+                "{}: the ranks' checkpoints are from different sweeps (a crash while saving); run without --restart",
+                files.dir.display()
+            ))));
+        }
+        Some(snap)
+    } else {
+        None
+    };
+    let every = files.every;
+    let mut save = |snap: &contact::Snapshot| -> Result<()> {
+        std::fs::create_dir_all(&files.dir)
+            .map_err(|e| Error::Output(format!("cannot create {}: {e}", files.dir.display())))?;
+        let file = CheckpointFile {
+            ranks: files.ranks,
+            rank: mpi.rank,
+            contact_nodes: sub.contact_nodes.len(),
+            snapshot: snap.clone(),
+        };
+        output::write_atomic(&files.path(mpi.rank), &encode(&file)?)
+    };
+    let mut ckpt = contact::Checkpoints {
+        every,
+        save: &mut save,
+        resume,
+    };
+    contact::solve_with(step, mpi, &sub.contact, params, monitor, &mut ckpt)
+}
+
 /// The uncondensed path (one rank): a sparse forward and backward solve per sweep.
 fn solve_full(
     mpi: &Mpi,
@@ -700,6 +810,7 @@ fn solve_full(
     sub: &SubProblem,
     params: &contact::Params,
     monitor: &mut dyn FnMut(&Sweep),
+    ckpt: &CheckpointFiles,
 ) -> Result<(contact::Outcome, Vec<[f64; 2]>, Phases)> {
     let (mut step, times) = DirectStep::new(
         &sub.nodes,
@@ -717,7 +828,7 @@ fn solve_full(
         setup.r,
     )?;
     let t_loop = Instant::now();
-    let outcome = contact::solve(&mut step, mpi, &sub.contact, params, monitor)?;
+    let outcome = run_loop(&mut step, mpi, sub, params, monitor, ckpt)?;
     let one_solve = t_loop.elapsed().as_secs_f64() / outcome.iterations.max(1) as f64;
     Ok((
         outcome,

@@ -259,6 +259,18 @@ fn explain(msg: &str, header: Option<&str>) -> String {
             };
         }
     }
+    if let Some(rest) = msg.strip_prefix("unknown field `") {
+        // "unknown field `poison`, expected one of `young`, `poisson`, `hypothesis`"
+        let mut quoted = rest.split('`').step_by(2);
+        let unknown = quoted.next().unwrap_or_default();
+        let best = quoted
+            .filter(|k| !k.is_empty())
+            .map(|k| (strsim::levenshtein(unknown, k), k))
+            .min();
+        if let Some((_, k)) = best.filter(|&(d, _)| d <= unknown.len().max(3) / 2 + 1) {
+            return format!("{msg}; did you mean `{k}`? ({SEE})");
+        }
+    }
     if msg.contains("expected a sequence") {
         if let Some(h) = header.filter(|h| !h.starts_with("[[")) {
             return format!(

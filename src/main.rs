@@ -57,6 +57,12 @@ struct Cli {
     /// Override solver.acceleration: anderson (default) or none (plain ALG2).
     #[arg(long, value_parser = parse_acc)]
     acceleration: Option<Acceleration>,
+    /// Save the loop state every N sweeps in OUT/checkpoint/ (atomically).
+    #[arg(long, default_value_t = 0)]
+    checkpoint_every: usize,
+    /// Resume from OUT/checkpoint/ (same case, same number of ranks).
+    #[arg(long)]
+    restart: bool,
     /// Print a monitor line every K sweeps.
     #[arg(long, default_value_t = 10)]
     monitor_every: usize,
@@ -145,6 +151,8 @@ fn run() -> i32 {
         acceleration: cli.acceleration,
         monitor_every: cli.monitor_every,
         linear: cli.linear,
+        checkpoint_every: cli.checkpoint_every,
+        restart: cli.restart,
     };
     let print = Printer {
         enabled: rank == 0 && !opts.quiet,

@@ -4,7 +4,7 @@
 pub mod kernels;
 pub mod uzawa;
 
-pub use uzawa::{solve, Outcome, Params, Sweep};
+pub use uzawa::{solve, solve_with, Checkpoints, Outcome, Params, Snapshot, Sweep};
 
 use crate::error::Result;
 

@@ -50,7 +50,7 @@ pub struct Params {
 }
 
 /// One line of the convergence history (one linear solve).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Sweep {
     pub iter: usize,
     pub primal: f64,
@@ -80,6 +80,34 @@ pub struct Outcome {
     pub threshold: Vec<f64>,
     pub status: Vec<Status>,
     pub history: Vec<Sweep>,
+}
+
+/// Everything this rank needs to resume the loop exactly where it was: resuming from a
+/// snapshot gives the same iterates, bit for bit, as not stopping.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Snapshot {
+    pub history: Vec<Sweep>,
+    pub refused: usize,
+    /// The last accepted state and its evaluation.
+    pub x: Vec<f64>,
+    pub gx: Vec<f64>,
+    pub res: f64,
+    pub gram: Vec<f64>,
+    pub worst: f64,
+    /// Anderson memory.
+    pub df: Vec<Vec<f64>>,
+    pub dg: Vec<Vec<f64>>,
+    pub last: Option<(Vec<f64>, Vec<f64>)>,
+    /// Coulomb outer mode: the frozen thresholds and the outer iteration.
+    pub outer: Option<(Vec<f64>, usize)>,
+}
+
+/// Periodic snapshots of the loop, and an optional one to resume from.
+pub struct Checkpoints<'a> {
+    /// Save every this many sweeps (0: never).
+    pub every: usize,
+    pub save: &'a mut dyn FnMut(&Snapshot) -> Result<()>,
+    pub resume: Option<Snapshot>,
 }
 
 /// The slip thresholds seen by one run of sweeps.
@@ -352,6 +380,24 @@ pub fn solve(
     params: &Params,
     monitor: &mut dyn FnMut(&Sweep),
 ) -> Result<Outcome> {
+    let mut none = |_: &Snapshot| Ok(());
+    let mut ckpt = Checkpoints {
+        every: 0,
+        save: &mut none,
+        resume: None,
+    };
+    solve_with(step, comm, nodes, params, monitor, &mut ckpt)
+}
+
+/// [`solve`] with periodic snapshots and an optional restart.
+pub fn solve_with(
+    step: &mut impl LinearStep,
+    comm: &impl Reduce,
+    nodes: &ContactNodes,
+    params: &Params,
+    monitor: &mut dyn FnMut(&Sweep),
+    ckpt: &mut Checkpoints,
+) -> Result<Outcome> {
     let n = nodes.len();
     let frictional = !matches!(params.friction, Friction::None);
     let mut sweeper = Sweeper {
@@ -368,9 +414,14 @@ pub fn solve(
     if frictional {
         x.resize(2 * n, 0.0);
     }
+    let resume = ckpt.resume.take();
+    let resume_outer = resume.as_ref().and_then(|r| r.outer.clone());
     let mut run = Run {
         history: Vec::new(),
         refused: 0,
+        ckpt,
+        resume,
+        outer: None,
     };
     let mut outer_iterations = 1;
     let (converged, last, threshold) = match (params.friction, params.coulomb) {
@@ -407,10 +458,10 @@ pub fn solve(
             (c, d, s)
         }
         (Friction::Coulomb { coefficient }, CoulombMode::Outer) => {
-            outer_iterations = 0;
-            let mut s: Vec<f64> = vec![0.0; n];
+            let (mut s, mut done_outer) = resume_outer.unwrap_or((vec![0.0; n], 0));
             loop {
-                outer_iterations += 1;
+                outer_iterations = done_outer + 1;
+                run.outer = Some((s.clone(), done_outer));
                 let (inner_ok, d) =
                     run.sweeps(&mut sweeper, comm, params, Law::Fixed(&s), &mut x, monitor)?;
                 let s_new: Vec<f64> = d
@@ -428,6 +479,7 @@ pub fn solve(
                 let done = change <= params.tol;
                 // The tangential state was converged for the old thresholds: keep it.
                 s = s_new;
+                done_outer += 1;
                 if !inner_ok || run.history.len() >= params.max_iter || done {
                     break (inner_ok && done, d, s);
                 }
@@ -468,9 +520,12 @@ fn relative(value: f64, scale: f64) -> f64 {
     }
 }
 
-struct Run {
+struct Run<'c, 'a> {
     history: Vec<Sweep>,
     refused: usize,
+    ckpt: &'c mut Checkpoints<'a>,
+    resume: Option<Snapshot>,
+    outer: Option<(Vec<f64>, usize)>,
 }
 
 /// An evaluation of G after the global reduction.
@@ -484,7 +539,7 @@ struct Evaluated {
     worst: f64,
 }
 
-impl Run {
+impl Run<'_, '_> {
     /// Evaluates G at `x` with one global reduction (statistics and, when accelerating,
     /// the Gram sums of `aa` at the new residual); records the sweep.
     fn evaluate<S: LinearStep>(
@@ -530,6 +585,30 @@ impl Run {
         })
     }
 
+    fn next_checkpoint(&self) -> usize {
+        match self.ckpt.every {
+            0 => usize::MAX,
+            k => (self.history.len() / k + 1) * k,
+        }
+    }
+
+    fn save(&mut self, x: &[f64], cur: &Evaluated, aa: &Anderson) -> Result<()> {
+        let snap = Snapshot {
+            history: self.history.clone(),
+            refused: self.refused,
+            x: x.to_vec(),
+            gx: cur.e.gx.clone(),
+            res: cur.res,
+            gram: cur.gram.clone(),
+            worst: cur.worst,
+            df: aa.df.clone(),
+            dg: aa.dg.clone(),
+            last: aa.last.clone(),
+            outer: self.outer.clone(),
+        };
+        (self.ckpt.save)(&snap)
+    }
+
     /// Iterates from `x` until both residuals are below tol (true) or the budget is
     /// spent (false); returns the quantities derived from the last image G(x).
     fn sweeps<S: LinearStep>(
@@ -548,8 +627,34 @@ impl Run {
         let mut aa = Anderson::new(memory);
         let aa_on = memory > 0;
         // The last accepted point is `x`, `cur` its evaluation.
-        let mut cur = self.evaluate(sweeper, comm, law, x, aa_on.then_some(&aa), monitor)?;
+        let mut cur = match self.resume.take() {
+            Some(snap) => {
+                self.history = snap.history;
+                self.refused = snap.refused;
+                *x = snap.x;
+                (aa.df, aa.dg, aa.last) = (snap.df, snap.dg, snap.last);
+                Evaluated {
+                    e: Eval {
+                        out: derive(&snap.gx, sweeper.nodes, law, sweeper.r),
+                        gx: snap.gx,
+                        sums: [0.0; 10],
+                    },
+                    res: snap.res,
+                    gram: snap.gram,
+                    worst: snap.worst,
+                }
+            }
+            None => self.evaluate(sweeper, comm, law, x, aa_on.then_some(&aa), monitor)?,
+        };
+        let mut next_save = self.next_checkpoint();
         loop {
+            if self.history.len() >= next_save
+                && cur.worst > params.tol
+                && self.history.len() < params.max_iter
+            {
+                self.save(x, &cur, &aa)?;
+                next_save = self.next_checkpoint();
+            }
             if cur.worst <= params.tol || self.history.len() >= params.max_iter {
                 *x = cur.e.gx;
                 return Ok((cur.worst <= params.tol, cur.e.out));

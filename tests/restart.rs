@@ -1,0 +1,248 @@
+//! Nothing lost: a run stopped by its sweep budget resumes from its checkpoint and ends
+//! exactly where an uninterrupted run ends; a rank killed mid-run takes the job down
+//! promptly instead of leaving the others waiting.
+
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_contact-par");
+
+fn mpirun(np: usize) -> Command {
+    let mut c = Command::new("mpirun");
+    c.args(["-n", &np.to_string(), "--oversubscribe", BIN])
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_rmaps_base_oversubscribe", "1");
+    c
+}
+
+fn run(np: usize, args: &[&str], dir: &Path) -> Output {
+    mpirun(np).args(args).current_dir(dir).output().unwrap()
+}
+
+fn numbers(path: &Path) -> Vec<f64> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .flat_map(|l| {
+            l.split(',')
+                .map(|v| v.parse::<f64>().unwrap())
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+fn iterations(dir: &Path) -> i64 {
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    s["iterations"].as_i64().unwrap()
+}
+
+/// Interrupt at sweep 17 (checkpoints every 5: the last at 15), restart, compare with an
+/// uninterrupted run: same iteration count and the same numbers to 1e-12 relative.
+fn check_restart(np: usize, extra: &[&str]) {
+    let tmp = tempfile::tempdir().unwrap();
+    let base = [
+        "--builtin",
+        "block",
+        "--level",
+        "1",
+        "--quiet",
+        "--nodes-csv",
+    ];
+    let args = |out: &str, more: &[&str]| -> Vec<String> {
+        base.iter()
+            .chain(["--out", out].iter())
+            .chain(more)
+            .chain(extra)
+            .map(|s| s.to_string())
+            .collect()
+    };
+    let a = args("stopped", &["--max-iter", "17", "--checkpoint-every", "5"]);
+    let o = run(
+        np,
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        tmp.path(),
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    for r in 0..np {
+        assert!(tmp
+            .path()
+            .join(format!("stopped/checkpoint/rank_{r}.bin"))
+            .exists());
+    }
+    let a = args("stopped", &["--restart"]);
+    let o = run(
+        np,
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        tmp.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let a = args("straight", &[]);
+    let o = run(
+        np,
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        tmp.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    assert_eq!(
+        iterations(&tmp.path().join("stopped")),
+        iterations(&tmp.path().join("straight"))
+    );
+    for file in ["contact.csv", "nodes.csv"] {
+        let x = numbers(&tmp.path().join("stopped").join(file));
+        let y = numbers(&tmp.path().join("straight").join(file));
+        assert_eq!(x.len(), y.len());
+        let scale = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (a, b) in x.iter().zip(&y) {
+            assert!((a - b).abs() <= 1e-12 * scale, "{file}: {a} vs {b}");
+        }
+    }
+}
+
+#[test]
+fn restart_equals_uninterrupted_run_one_rank() {
+    check_restart(1, &[]);
+}
+
+#[test]
+fn restart_equals_uninterrupted_run_two_ranks_coulomb_outer() {
+    check_restart(2, &["--coulomb", "outer"]);
+}
+
+#[test]
+fn restart_with_another_rank_count_is_refused_clearly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = run(
+        2,
+        &[
+            "--builtin",
+            "block",
+            "--level",
+            "0",
+            "--quiet",
+            "--out",
+            "o",
+            "--max-iter",
+            "6",
+            "--checkpoint-every",
+            "3",
+        ],
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(3));
+    let o = run(
+        1,
+        &[
+            "--builtin",
+            "block",
+            "--level",
+            "0",
+            "--quiet",
+            "--out",
+            "o",
+            "--restart",
+        ],
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("mpirun -n 2"), "{err}");
+}
+
+/// The process ids of mpirun's children running the solver.
+fn ranks_of(mpirun_pid: u32) -> Vec<u32> {
+    let mut pids = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+            continue;
+        };
+        // "pid (comm) state ppid ..."; comm may hold spaces, so split after the ')'.
+        let Some(close) = stat.rfind(')') else {
+            continue;
+        };
+        let comm = &stat[stat.find('(').unwrap_or(0) + 1..close];
+        let ppid: u32 = stat[close + 2..]
+            .split_whitespace()
+            .nth(1)
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0);
+        if ppid == mpirun_pid && comm.starts_with("contact-par") {
+            pids.push(pid);
+        }
+    }
+    pids
+}
+
+#[test]
+fn killing_one_rank_ends_the_job_within_ten_seconds() {
+    let tmp = tempfile::tempdir().unwrap();
+    // Plain ALG2 with a far too small r crawls: the loop runs for a minute or more.
+    let mut child = mpirun(2)
+        .args([
+            "--builtin",
+            "block",
+            "--level",
+            "2",
+            "--acceleration",
+            "none",
+            "--r",
+            "1",
+            "--max-iter",
+            "2000000",
+            "--quiet",
+            "--out",
+            "o",
+        ])
+        .current_dir(tmp.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Wait until both ranks exist and have had time to enter the loop.
+    let start = Instant::now();
+    let mut pids = Vec::new();
+    while start.elapsed() < Duration::from_secs(30) {
+        pids = ranks_of(child.id());
+        if pids.len() == 2 {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert_eq!(pids.len(), 2, "did not find the two ranks");
+    std::thread::sleep(Duration::from_secs(2));
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "the run ended before the kill; make it longer"
+    );
+    let victim = pids[1];
+    let killed = Instant::now();
+    Command::new("kill")
+        .args(["-9", &victim.to_string()])
+        .status()
+        .unwrap();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if killed.elapsed() > Duration::from_secs(10) {
+            let _ = child.kill();
+            panic!("mpirun still running 10 s after a rank was killed");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(!status.success());
+    // No half-written outputs under final names.
+    assert!(!tmp.path().join("o/summary.json").exists());
+}
