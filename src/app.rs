@@ -325,18 +325,21 @@ impl LocalSystem {
     }
 }
 
-/// Step 1 condensed onto the contact dofs: (Nu, Tu) = u0 + H f, this rank's rows of H,
-/// the forces of every rank gathered once per sweep.
+/// Step 1 condensed onto the contact dofs: the forces of every rank are gathered on the
+/// first rank, which applies (Nu, Tu) = u0 + C S^-1 C' f with two dense triangular
+/// solves, and scatters each rank its part.
 struct CondensedStep<'a> {
     mpi: &'a Mpi,
-    /// This rank's rows of H, row-major, each `ncd` long.
-    rows: Vec<f64>,
-    u0: Vec<f64>,
+    /// The condensed operator, on the first rank only.
+    op: Option<&'a mut Condensed>,
     n_own: usize,
     frictional: bool,
     packed_counts: Vec<usize>,
     local: Vec<f64>,
+    /// First rank: the packed forces of the last sweep, and the response.
     gathered: Vec<f64>,
+    response: Vec<f64>,
+    mine: Vec<f64>,
 }
 
 impl LinearStep for CondensedStep<'_> {
@@ -347,28 +350,23 @@ impl LinearStep for CondensedStep<'_> {
         un: &mut [f64],
         ut: &mut [f64],
     ) -> Result<()> {
-        use rayon::prelude::*;
         self.local.clear();
         self.local.extend_from_slice(force_n);
         if self.frictional {
             self.local.extend_from_slice(force_t);
         }
         self.mpi
-            .all_gather(&self.local, &self.packed_counts, &mut self.gathered);
-        let ncd = self.gathered.len();
-        let f = &self.gathered;
-        let mut y = vec![0.0; self.u0.len()];
-        if ncd > 0 {
-            y.par_iter_mut()
-                .zip(self.rows.par_chunks(ncd))
-                .zip(&self.u0)
-                .for_each(|((y, row), u0)| {
-                    *y = u0 + row.iter().zip(f).map(|(h, f)| h * f).sum::<f64>()
-                });
+            .gather_to_root(&self.local, &self.packed_counts, &mut self.gathered);
+        if let Some(op) = self.op.as_deref_mut() {
+            self.response.resize(self.gathered.len(), 0.0);
+            op.contact_response(&self.gathered, &mut self.response);
         }
-        un.copy_from_slice(&y[..self.n_own]);
+        self.mine.resize(self.local.len(), 0.0);
+        self.mpi
+            .scatter_from_root(&self.response, &self.packed_counts, &mut self.mine);
+        un.copy_from_slice(&self.mine[..self.n_own]);
         if self.frictional {
-            ut.copy_from_slice(&y[self.n_own..]);
+            ut.copy_from_slice(&self.mine[self.n_own..]);
         } else {
             ut.fill(0.0);
         }
@@ -587,11 +585,10 @@ fn solve_condensed(
     let s_local = local.factor.schur();
     let g_local = local.factor.condensed_rhs(&local.base);
 
-    // 3. First rank: the global condensed operator; every rank gets its rows of H.
-    let (pos_counts, offsets) = {
+    // 3. First rank: the global condensed system, factored once.
+    let pos_counts: Vec<usize> = {
         let (_, off) = packed_layout(&setup.contact_counts, frictional);
-        let counts: Vec<usize> = off.windows(2).map(|w| w[1] - w[0]).collect();
-        (counts, off)
+        off.windows(2).map(|w| w[1] - w[0]).collect()
     };
     let condensed = if let Some(root) = root {
         let mut s = Mat::<f64>::zeros(setup.n_boundary, setup.n_boundary);
@@ -618,39 +615,22 @@ fn solve_condensed(
         mpi.send_bytes(0, &encode(&(&sub.boundary_global, flat, &g_local))?);
         None
     };
-    let condensed = mpi.agree(condensed.transpose())?;
-    let (rows, u0): (Vec<f64>, Vec<f64>) = match &condensed {
-        Some(c) => {
-            let ncd = c.h.nrows();
-            let block = |r: usize| {
-                let (a, b) = (offsets[r], offsets[r + 1]);
-                let rows: Vec<f64> = (a..b)
-                    .flat_map(|i| (0..ncd).map(move |j| (i, j)))
-                    .map(|(i, j)| c.h[(i, j)])
-                    .collect();
-                (rows, c.u0[a..b].to_vec())
-            };
-            for r in 1..mpi.size {
-                mpi.send_bytes(r, &encode(&block(r))?);
-            }
-            block(0)
-        }
-        None => decode(&mpi.recv_bytes(0))?,
-    };
+    let mut condensed = mpi.agree(condensed.transpose())?;
     let condense_s = t_condense.elapsed().as_secs_f64();
 
     let t_loop = Instant::now();
     let n_own = sub.contact_nodes.len();
     let mut step = CondensedStep {
         mpi,
-        rows,
-        u0,
+        op: condensed.as_mut(),
         n_own,
         frictional,
         packed_counts: pos_counts,
         // Sized for the (never expected) case of a loop that solves nothing.
         local: vec![0.0; if frictional { 2 * n_own } else { n_own }],
         gathered: Vec::new(),
+        response: Vec::new(),
+        mine: Vec::new(),
     };
     let outcome = run_loop(&mut step, mpi, sub, params, monitor, ckpt)?;
     let loop_s = t_loop.elapsed().as_secs_f64();
@@ -658,7 +638,7 @@ fn solve_condensed(
     // Recover the displacement from the forces of the last sweep: the first rank solves
     // for the boundary values, every rank then solves for its interior.
     let t_recover = Instant::now();
-    let x_b = condensed.as_ref().map(|c| {
+    let x_b = step.op.as_deref().map(|c| {
         c.boundary_solution(
             &step.gathered,
             &root.map(|r| r.map.contact_dofs.clone()).unwrap_or_default(),

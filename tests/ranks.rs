@@ -7,6 +7,9 @@ use std::process::{Command, Output};
 
 const BIN: &str = env!("CARGO_BIN_EXE_contact-par");
 
+/// Iterations, contact.csv rows and nodes.csv rows of one run.
+type RunResult = (i64, Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 fn mpirun(np: usize, args: &[&str], dir: &Path) -> Output {
     Command::new("mpirun")
         .args(["-n", &np.to_string(), "--oversubscribe", BIN])
@@ -108,7 +111,7 @@ fn compare(
 fn check_rank_independence(name: &str, level: u32, friction: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let case = case_file(tmp.path(), name, level, friction, "[solver]\ntol = 1e-10\n");
-    let mut reference: Option<(i64, Vec<Vec<f64>>, Vec<Vec<f64>>)> = None;
+    let mut reference: Option<RunResult> = None;
     for np in 1..=4 {
         let out = tmp.path().join(format!("out{np}"));
         let o = mpirun(
@@ -209,7 +212,7 @@ fn block_flat_1_to_4_ranks() {
 fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let case = case_file(tmp.path(), name, level, friction, solver);
-    let mut first: Option<(i64, Vec<Vec<f64>>, Vec<Vec<f64>>)> = None;
+    let mut first: Option<RunResult> = None;
     for np in 1..=4 {
         let out = tmp.path().join(format!("out{np}"));
         let o = mpirun(

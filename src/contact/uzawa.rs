@@ -9,6 +9,7 @@
 //!   1. from x: p, lambda, q, mu and the forces w (r p - lambda), w (r q - mu);
 //!   2. the linear step: (Nu, Tu);
 //!   3. G(x) = (Nu + lambda / r, Tu + mu / r).
+//!
 //! Iterating G is exactly ALG2; this form lets an accelerator act on x.
 //!
 //! ## Acceleration
@@ -317,7 +318,8 @@ impl Anderson {
         let mut b: Vec<f64> = sums[idx..idx + k].to_vec();
         // A little Tikhonov regularisation keeps nearly dependent differences harmless.
         let diag = (0..k).map(|i| a[i][i]).fold(0.0, f64::max);
-        if !(diag > 0.0) {
+        // NaN-safe: a NaN diagonal fails this test too.
+        if diag.is_nan() || diag <= 0.0 {
             return None;
         }
         for i in 0..k {
@@ -342,7 +344,7 @@ fn solve_small_spd(mut a: Vec<Vec<f64>>, b: &mut [f64]) -> Option<Vec<f64>> {
         for p in 0..j {
             d -= a[j][p] * a[j][p];
         }
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return None;
         }
         let d = d.sqrt();

@@ -58,6 +58,51 @@ impl Mpi {
         self.world.all_gather_varcount_into(local, &mut part);
     }
 
+    fn counts_displs(counts: &[usize]) -> (Vec<i32>, Vec<i32>) {
+        let c: Vec<i32> = counts.iter().map(|&c| c as i32).collect();
+        let mut d = Vec::with_capacity(c.len());
+        let mut acc = 0;
+        for &x in &c {
+            d.push(acc);
+            acc += x;
+        }
+        (c, d)
+    }
+
+    /// Concatenation over ranks of `local`, on the first rank only.
+    pub fn gather_to_root(&self, local: &[f64], counts: &[usize], out: &mut Vec<f64>) {
+        if self.size == 1 {
+            out.clear();
+            out.extend_from_slice(local);
+            return;
+        }
+        let root = self.world.process_at_rank(0);
+        if self.is_root() {
+            out.resize(counts.iter().sum(), 0.0);
+            let (c, d) = Self::counts_displs(counts);
+            let mut part = PartitionMut::new(&mut out[..], &c[..], &d[..]);
+            root.gather_varcount_into_root(local, &mut part);
+        } else {
+            root.gather_varcount_into(local);
+        }
+    }
+
+    /// The first rank's `all` cut by `counts`: each rank receives its part in `mine`.
+    pub fn scatter_from_root(&self, all: &[f64], counts: &[usize], mine: &mut [f64]) {
+        if self.size == 1 {
+            mine.copy_from_slice(all);
+            return;
+        }
+        let root = self.world.process_at_rank(0);
+        if self.is_root() {
+            let (c, d) = Self::counts_displs(counts);
+            let part = mpi::datatype::Partition::new(all, &c[..], &d[..]);
+            root.scatter_varcount_into_root(&part, mine);
+        } else {
+            root.scatter_varcount_into(mine);
+        }
+    }
+
     pub fn send_bytes(&self, dest: usize, bytes: &[u8]) {
         self.world.process_at_rank(dest as i32).send(bytes);
     }
