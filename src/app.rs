@@ -182,6 +182,10 @@ pub struct RankStats {
     peak_memory_bytes: u64,
     assemble_s: f64,
     factor_s: f64,
+    /// Part of factor_s spent in the nested-dissection ordering.
+    ordering_s: f64,
+    /// Forming S_s = L_BB L_BB' and the condensed right-hand side.
+    schur_s: f64,
     loop_s: f64,
     /// One sparse forward+backward solve with this rank's factor (the cost a sweep
     /// would have without condensation).
@@ -492,6 +496,8 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         peak_memory_bytes: 0,
         assemble_s: phases.assemble,
         factor_s: phases.factor,
+        ordering_s: phases.ordering,
+        schur_s: phases.schur,
         loop_s: phases.uzawa,
         one_solve_s: phases.one_solve,
         output_s: 0.0,
@@ -563,6 +569,8 @@ struct Phases {
     condense: f64,
     uzawa: f64,
     recover: f64,
+    ordering: f64,
+    schur: f64,
     factor_nnz: usize,
     /// One sparse forward+backward solve with this rank's factor.
     one_solve: f64,
@@ -584,6 +592,7 @@ fn solve_condensed(
     let t_condense = Instant::now();
     let s_local = local.factor.schur();
     let g_local = local.factor.condensed_rhs(&local.base);
+    let schur_s = t_condense.elapsed().as_secs_f64();
 
     // 3. First rank: the global condensed system, factored once.
     let pos_counts: Vec<usize> = {
@@ -685,6 +694,8 @@ fn solve_condensed(
             condense: condense_s,
             uzawa: loop_s,
             recover: t_recover.elapsed().as_secs_f64(),
+            ordering: local.factor.ordering_s,
+            schur: schur_s,
             factor_nnz: local.factor.factor_nnz(),
             one_solve,
         },
@@ -819,6 +830,8 @@ fn solve_full(
             condense: 0.0,
             uzawa: t_loop.elapsed().as_secs_f64(),
             recover: 0.0,
+            ordering: 0.0,
+            schur: 0.0,
             factor_nnz: step.factor_nnz(),
             one_solve,
         },

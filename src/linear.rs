@@ -274,6 +274,8 @@ pub struct LocalFactor {
     l_bb: Mat<f64>,
     alpha: f64,
     rhs: Mat<f64>,
+    /// Seconds spent in the fill-reducing ordering (part of the factor phase).
+    pub ordering_s: f64,
 }
 
 impl LocalFactor {
@@ -290,7 +292,9 @@ impl LocalFactor {
     ) -> Result<Self> {
         let n = a.nrows();
         let n_interior = n - n_b;
+        let t0 = Instant::now();
         let perm = interior_nd_then_boundary(a, n_interior, groups)?;
+        let ordering_s = t0.elapsed().as_secs_f64();
         let (fwd, inv) = (&perm.0, &perm.1);
         let chol = SparseCholesky::factor(
             a,
@@ -303,6 +307,7 @@ impl LocalFactor {
             l_bb,
             alpha,
             rhs: Mat::zeros(n, 1),
+            ordering_s,
         })
     }
 
@@ -384,26 +389,44 @@ fn interior_nd_then_boundary(
     }
     let ng = first_eq.len();
     first_eq.push(n_interior);
-    // Symmetric adjacency between groups of the interior block (lower triangle given).
-    let mut edges: Vec<(usize, usize)> = Vec::new();
-    for j in 0..n_interior {
-        for i in a.symbolic().row_idx_of_col(j) {
-            if i < n_interior && group_of[i] != group_of[j] {
-                edges.push((group_of[i], group_of[j]));
-                edges.push((group_of[j], group_of[i]));
+    // Symmetric adjacency between groups of the interior block. The matrix holds its
+    // lower triangle, so a pair of groups shows up in the columns of the group with the
+    // smaller equations; a marker per group skips repeats without sorting (two passes:
+    // count, then fill).
+    let mut marker = vec![usize::MAX; ng];
+    let mut xadj = vec![0usize; ng + 1];
+    let mut for_each_pair = |visit: &mut dyn FnMut(usize, usize)| {
+        marker.fill(usize::MAX);
+        for u in 0..ng {
+            for j in first_eq[u]..first_eq[u + 1] {
+                for i in a.symbolic().row_idx_of_col(j) {
+                    if i >= n_interior {
+                        continue;
+                    }
+                    let v = group_of[i];
+                    if v != u && marker[v] != u {
+                        marker[v] = u;
+                        visit(u, v);
+                    }
+                }
             }
         }
-    }
-    edges.sort_unstable();
-    edges.dedup();
-    let mut xadj = vec![0usize; ng + 1];
-    for &(u, _) in &edges {
+    };
+    for_each_pair(&mut |u, v| {
         xadj[u + 1] += 1;
-    }
+        xadj[v + 1] += 1;
+    });
     for v in 0..ng {
         xadj[v + 1] += xadj[v];
     }
-    let adjncy: Vec<usize> = edges.iter().map(|&(_, v)| v).collect();
+    let mut next = xadj[..ng].to_vec();
+    let mut adjncy = vec![0usize; xadj[ng]];
+    for_each_pair(&mut |u, v| {
+        adjncy[next[u]] = v;
+        next[u] += 1;
+        adjncy[next[v]] = u;
+        next[v] += 1;
+    });
     let group_perm = match partition::nested_dissection(&xadj, &adjncy) {
         Ok(p) => p,
         Err(_) => return interior_amd_then_boundary(a, n_interior),
