@@ -1,32 +1,48 @@
 //! Criterion benchmarks of the solver's kernels, on the built-in `block` case (Coulomb
 //! friction, so both normal and tangential terms run):
 //!
-//! * `element/stiffness`          one P1 element stiffness matrix
-//! * `assemble/level{2,4}`        A = K + r N'WN + r T'WT on the free dofs (rayon)
-//! * `factor/amd/level{2,4}`      sparse Cholesky with AMD (the `--linear full` factor)
-//! * `factor/boundary_last/...`   `LocalFactor::new`: AMD on the interior, the contact
-//!                                dofs last (the one-rank subdomain of the default path)
-//! * `condense/level{2,4}`        S from the trailing factor block, then H = C S^-1 C'
-//! * `sweep/full/level{2,4}`      one Uzawa sweep with a sparse forward+backward solve
-//! * `sweep/condensed/level{2,4}` one Uzawa sweep on H (u0 + H f, then the node kernels)
-//! * `node_kernels/n{N}`          projection, shrinkage and multiplier updates alone
+//! * `element/stiffness`: one P1 element stiffness matrix.
+//! * `assemble/level{2,4}`: A = K + r N'WN + r T'WT on the free dofs (rayon).
+//! * `factor/amd/level{2,4}`: sparse Cholesky with AMD (the `--linear full` factor).
+//! * `factor/boundary_last/level{2,4}`: `LocalFactor::new`, the interior ordered by
+//!   nested dissection on the node graph and the contact dofs last (the one-rank
+//!   subdomain of the default path): ordering, symbolic and numeric factorization, and
+//!   the dense trailing block.
+//! * `factor/nd_graph/level{2,4}`, `factor/nd_metis/level{2,4}`: that ordering alone in
+//!   its two steps, the node graph from the matrix pattern and METIS_NodeND (through
+//!   `partition::nested_dissection`); `factor/nd_numeric/level{2,4}`:
+//!   `SparseCholesky::factor` with it precomputed. Together they separate the ordering
+//!   from the numeric work.
+//! * `condense/level{2,4}`: S from the trailing factor block, the condensed right-hand
+//!   side, the dense factor of S and u0.
+//! * `sweep/full/level{2,4}`: one Uzawa sweep with a sparse forward+backward solve.
+//! * `sweep/condensed/level{2,4}`: one Uzawa sweep as the program does it, two dense
+//!   triangular solves of the contact size (`Condensed::contact_response`), then the
+//!   node kernels.
+//! * `sweep/h_matvec/level{2,4}`: the same sweep with an explicit H = C S^-1 C' (formed
+//!   once here): one dense matrix-vector product instead of the two solves.
+//! * `node_kernels/n{641,2561}`: the node-wise steps 2 and 3 alone (projection,
+//!   shrinkage, multipliers, Coulomb threshold) on the contact node counts of block
+//!   levels 4 and 6.
 //!
-//! A sweep is `contact_par::contact::solve` with a budget of one sweep, through the
-//! public `LinearStep` trait, so it is the loop body the program runs.
+//! A sweep is `contact_par::contact::solve` with a budget of one plain (unaccelerated)
+//! sweep, through the public `LinearStep` trait, so it is the loop body the program
+//! runs, residual norms included.
 //!
 //! Threads: 1 by default (rayon pool and faer), so the numbers are per core and do not
 //! depend on what else runs on the machine; `CONTACT_PAR_BENCH_THREADS=N` changes it.
-//! The whole run takes about a minute: `cargo bench --bench kernels`.
+//! The whole run takes about 90 s on a 2-core machine: `cargo bench --bench kernels`
+//! (`cargo bench --bench kernels -- sweep/` runs one group).
 
 use contact_par::app::{contact_blocks, load_mesh};
-use contact_par::case::{self, Case};
-use contact_par::contact::kernels::{coulomb_threshold, project_normal, shrink, update_multiplier};
+use contact_par::case::{self, Acceleration, Case};
+use contact_par::contact::kernels::{coulomb_threshold, normal_from_state, tangential_from_state};
 use contact_par::contact::{self, LinearStep, NoComm, Params};
 use contact_par::dd::condense::Condensed;
 use contact_par::dd::split::ContactDof;
 use contact_par::error::Result;
 use contact_par::fem::{self, assemble, Assembled, DofMap};
-use contact_par::linear::{ContactDofs, DirectStep, LocalFactor, SparseCholesky};
+use contact_par::linear::{interior_groups, ContactDofs, DirectStep, LocalFactor, SparseCholesky};
 use contact_par::problem::{self, Problem};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, SamplingMode};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
@@ -36,11 +52,15 @@ use std::time::Duration;
 /// 6 601 and 103 201 nodes).
 const LEVELS: [u32; 2] = [2, 4];
 
-/// Seconds per iteration at the levels of [`LEVELS`], one thread (for the sample
-/// budgets only): assembly, factorization, condensation.
-const ASSEMBLE_S: [f64; 2] = [0.01, 0.4];
-const FACTOR_S: [f64; 2] = [0.045, 0.7];
-const CONDENSE_S: [f64; 2] = [0.02, 0.5];
+/// Seconds per iteration at the levels of [`LEVELS`], one thread, as measured on the
+/// development machine (for the sample budgets only).
+const ASSEMBLE_S: [f64; 2] = [0.01, 0.3];
+const AMD_S: [f64; 2] = [0.03, 0.45];
+const ND_GRAPH_S: [f64; 2] = [0.004, 0.1];
+const ND_METIS_S: [f64; 2] = [0.015, 0.35];
+const ND_NUMERIC_S: [f64; 2] = [0.015, 0.45];
+const LOCAL_FACTOR_S: [f64; 2] = [0.035, 1.0];
+const CONDENSE_S: [f64; 2] = [0.01, 0.25];
 
 /// The built-in block case at one level, with everything the kernels need.
 struct Fixture {
@@ -152,7 +172,7 @@ impl Fixture {
         .0
     }
 
-    /// H and u0 of the one-rank condensed path.
+    /// The condensed operator of the one-rank path (factor of S, u0).
     fn condensed(&self, factor: &mut LocalFactor, base: &[f64], dofs: &DofMap) -> Condensed {
         let s = factor.schur();
         let g = factor.condensed_rhs(base);
@@ -188,6 +208,7 @@ impl Fixture {
             max_iter: 1,
             friction: self.case.contact.friction,
             coulomb: self.case.solver.coulomb,
+            acceleration: Acceleration::None,
         }
     }
 
@@ -196,8 +217,61 @@ impl Fixture {
     }
 }
 
+/// Packs the forces as the program's gather does on one rank: normal values, then
+/// (with friction) tangential ones.
+fn pack(f: &mut Vec<f64>, fnn: &[f64], ft: &[f64], frictional: bool) {
+    f.clear();
+    f.extend_from_slice(fnn);
+    if frictional {
+        f.extend_from_slice(ft);
+    }
+}
+
+/// Unpacks (Nu, Tu).
+fn unpack(y: &[f64], n: usize, frictional: bool, un: &mut [f64], ut: &mut [f64]) {
+    un.copy_from_slice(&y[..n]);
+    if frictional {
+        ut.copy_from_slice(&y[n..]);
+    } else {
+        ut.fill(0.0);
+    }
+}
+
 /// Step 1 condensed onto the contact dofs, as the program does it on one rank:
-/// (Nu, Tu) = u0 + H f with H dense, row-major, one row per contact value.
+/// (Nu, Tu) = u0 + C S^-1 C' f by two triangular solves with the contact block of the
+/// factor of S.
+struct CondensedStep {
+    cond: Condensed,
+    n: usize,
+    frictional: bool,
+    f: Vec<f64>,
+    y: Vec<f64>,
+}
+
+impl CondensedStep {
+    fn new(cond: Condensed, n: usize, frictional: bool) -> Self {
+        let ncd = cond.u0.len();
+        CondensedStep {
+            cond,
+            n,
+            frictional,
+            f: Vec::with_capacity(ncd),
+            y: vec![0.0; ncd],
+        }
+    }
+}
+
+impl LinearStep for CondensedStep {
+    fn solve(&mut self, fnn: &[f64], ft: &[f64], un: &mut [f64], ut: &mut [f64]) -> Result<()> {
+        pack(&mut self.f, fnn, ft, self.frictional);
+        self.cond.contact_response(&self.f, &mut self.y);
+        unpack(&self.y, self.n, self.frictional, un, ut);
+        Ok(())
+    }
+}
+
+/// The same step with H = C S^-1 C' formed explicitly (dense, row-major, one row per
+/// contact value): (Nu, Tu) = u0 + H f, rows in parallel with rayon.
 struct HStep {
     rows: Vec<f64>,
     u0: Vec<f64>,
@@ -208,15 +282,23 @@ struct HStep {
 }
 
 impl HStep {
-    fn new(c: &Condensed, n: usize, frictional: bool) -> Self {
-        let ncd = c.h.nrows();
-        let rows = (0..ncd)
-            .flat_map(|i| (0..ncd).map(move |j| (i, j)))
-            .map(|(i, j)| c.h[(i, j)])
-            .collect();
+    /// H column by column from the program's contact response (n_H solves, once).
+    fn new(cond: &mut Condensed, n: usize, frictional: bool) -> Self {
+        let u0 = cond.u0.clone();
+        let ncd = u0.len();
+        let mut rows = vec![0.0; ncd * ncd];
+        let (mut e, mut col) = (vec![0.0; ncd], vec![0.0; ncd]);
+        for j in 0..ncd {
+            e[j] = 1.0;
+            cond.contact_response(&e, &mut col);
+            e[j] = 0.0;
+            for i in 0..ncd {
+                rows[i * ncd + j] = col[i] - u0[i];
+            }
+        }
         HStep {
             rows,
-            u0: c.u0.clone(),
+            u0,
             n,
             frictional,
             f: Vec::with_capacity(ncd),
@@ -228,11 +310,7 @@ impl HStep {
 impl LinearStep for HStep {
     fn solve(&mut self, fnn: &[f64], ft: &[f64], un: &mut [f64], ut: &mut [f64]) -> Result<()> {
         use rayon::prelude::*;
-        self.f.clear();
-        self.f.extend_from_slice(fnn);
-        if self.frictional {
-            self.f.extend_from_slice(ft);
-        }
+        pack(&mut self.f, fnn, ft, self.frictional);
         let (f, ncd) = (&self.f, self.f.len());
         self.y
             .par_iter_mut()
@@ -241,14 +319,68 @@ impl LinearStep for HStep {
             .for_each(|((y, row), u0)| {
                 *y = u0 + row.iter().zip(f).map(|(h, f)| h * f).sum::<f64>()
             });
-        un.copy_from_slice(&self.y[..self.n]);
-        if self.frictional {
-            ut.copy_from_slice(&self.y[self.n..]);
-        } else {
-            ut.fill(0.0);
-        }
+        unpack(&self.y, self.n, self.frictional, un, ut);
         Ok(())
     }
+}
+
+/// The node graph of a matrix (`groups[eq]` = node of equation `eq`, the equations of a
+/// node consecutive) in CSR form, built as `LocalFactor::new` builds it, and the first
+/// equation of each node.
+fn node_graph(
+    a: faer::sparse::SparseColMatRef<'_, usize, f64>,
+    groups: &[usize],
+) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
+    let n = a.nrows();
+    let mut group_of = vec![0usize; n];
+    let mut first_eq = Vec::new();
+    for i in 0..n {
+        if i == 0 || groups[i] != groups[i - 1] {
+            first_eq.push(i);
+        }
+        group_of[i] = first_eq.len() - 1;
+    }
+    let ng = first_eq.len();
+    first_eq.push(n);
+    let mut edges: Vec<(usize, usize)> = Vec::new();
+    for j in 0..n {
+        for i in a.symbolic().row_idx_of_col(j) {
+            if group_of[i] != group_of[j] {
+                edges.push((group_of[i], group_of[j]));
+                edges.push((group_of[j], group_of[i]));
+            }
+        }
+    }
+    edges.sort_unstable();
+    edges.dedup();
+    let mut xadj = vec![0usize; ng + 1];
+    for &(u, _) in &edges {
+        xadj[u + 1] += 1;
+    }
+    for v in 0..ng {
+        xadj[v + 1] += xadj[v];
+    }
+    let adjncy: Vec<usize> = edges.iter().map(|&(_, v)| v).collect();
+    (xadj, adjncy, first_eq)
+}
+
+/// Nested dissection of the node graph expanded to the equations: (perm[new] = old,
+/// its inverse).
+fn nd_permutation(
+    xadj: &[usize],
+    adjncy: &[usize],
+    first_eq: &[usize],
+) -> (Vec<usize>, Vec<usize>) {
+    let group_perm = partition::nested_dissection(xadj, adjncy).expect("METIS_NodeND");
+    let fwd: Vec<usize> = group_perm
+        .iter()
+        .flat_map(|&g| first_eq[g]..first_eq[g + 1])
+        .collect();
+    let mut inv = vec![0usize; fwd.len()];
+    for (new, &old) in fwd.iter().enumerate() {
+        inv[old] = new;
+    }
+    (fwd, inv)
 }
 
 fn threads() -> usize {
@@ -273,16 +405,19 @@ fn set_threads() {
 
 type Group<'a> = criterion::BenchmarkGroup<'a, criterion::measurement::WallTime>;
 
-/// A group for a case whose one iteration takes about `secs` seconds (one thread, as
-/// measured on the development machine): the minimum of 10 samples, flat sampling, and
-/// no longer than needed.
+/// A group for cases whose one iteration takes about `secs` seconds: the minimum of 10
+/// samples, flat sampling, and no longer than needed.
 fn heavy<'a>(c: &'a mut Criterion, name: &str, secs: f64) -> Group<'a> {
     let mut g = c.benchmark_group(name);
-    g.sample_size(10)
-        .sampling_mode(SamplingMode::Flat)
-        .warm_up_time(Duration::from_secs_f64(secs.clamp(0.2, 1.0)))
-        .measurement_time(Duration::from_secs_f64((12.0 * secs).clamp(1.0, 20.0)));
+    g.sample_size(10).sampling_mode(SamplingMode::Flat);
+    budget(&mut g, secs);
     g
+}
+
+/// Sets the time budget of the next benchmarks of a group to about 12 iterations.
+fn budget(g: &mut Group<'_>, secs: f64) {
+    g.warm_up_time(Duration::from_secs_f64(secs.clamp(0.1, 1.0)))
+        .measurement_time(Duration::from_secs_f64((12.0 * secs).clamp(0.5, 20.0)));
 }
 
 fn element(c: &mut Criterion) {
@@ -314,16 +449,38 @@ fn factorization(c: &mut Criterion) {
     for (k, level) in LEVELS.into_iter().enumerate() {
         let fx = Fixture::new(level);
         let a = fx.assemble_plain(&DofMap::new(&fx.prob.fixed)).matrix;
-        let mut g = heavy(c, "factor", FACTOR_S[k]);
+        let mut g = heavy(c, "factor", AMD_S[k]);
         g.bench_function(format!("amd/{}", fx.label()), |b| {
             b.iter(|| SparseCholesky::factor(a.as_ref(), SymmetricOrdering::Amd).unwrap())
         });
+        let plain_groups = interior_groups(&DofMap::new(&fx.prob.fixed));
+        budget(&mut g, ND_GRAPH_S[k]);
+        g.bench_function(format!("nd_graph/{}", fx.label()), |b| {
+            b.iter(|| node_graph(a.as_ref(), &plain_groups))
+        });
+        let (xadj, adjncy, first_eq) = node_graph(a.as_ref(), &plain_groups);
+        budget(&mut g, ND_METIS_S[k]);
+        g.bench_function(format!("nd_metis/{}", fx.label()), |b| {
+            b.iter(|| nd_permutation(&xadj, &adjncy, &first_eq))
+        });
+        let (fwd, inv) = nd_permutation(&xadj, &adjncy, &first_eq);
+        let n = a.nrows();
+        budget(&mut g, ND_NUMERIC_S[k]);
+        g.bench_function(format!("nd_numeric/{}", fx.label()), |b| {
+            b.iter(|| {
+                let perm = faer::perm::PermRef::new_checked(&fwd, &inv, n);
+                SparseCholesky::factor(a.as_ref(), SymmetricOrdering::Custom(perm)).unwrap()
+            })
+        });
         let (dofs, shifted, base, nb) = fx.assemble_boundary_last();
+        let groups = interior_groups(&dofs);
+        budget(&mut g, LOCAL_FACTOR_S[k]);
         g.bench_function(format!("boundary_last/{}", fx.label()), |b| {
-            b.iter(|| LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha()).unwrap())
+            b.iter(|| LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha(), &groups).unwrap())
         });
         g.finish();
-        let mut factor = LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha()).unwrap();
+        let mut factor =
+            LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha(), &groups).unwrap();
         let mut g = heavy(c, "condense", CONDENSE_S[k]);
         g.bench_function(fx.label(), |b| {
             b.iter(|| fx.condensed(&mut factor, &base, &dofs))
@@ -346,24 +503,33 @@ fn sweeps(c: &mut Criterion) {
             b.iter(|| contact::solve(&mut full, &NoComm, nodes, &params, &mut |_| {}).unwrap())
         });
         let (dofs, shifted, base, nb) = fx.assemble_boundary_last();
-        let mut factor = LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha()).unwrap();
+        let groups = interior_groups(&dofs);
+        let mut factor =
+            LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha(), &groups).unwrap();
         let cond = fx.condensed(&mut factor, &base, &dofs);
-        let mut step = HStep::new(&cond, fx.prob.contact_nodes.len(), fx.frictional);
+        let n = fx.prob.contact_nodes.len();
+        let mut step = CondensedStep::new(cond, n, fx.frictional);
         g.bench_function(format!("condensed/{}", fx.label()), |b| {
             b.iter(|| contact::solve(&mut step, &NoComm, nodes, &params, &mut |_| {}).unwrap())
+        });
+        let mut h_step = HStep::new(&mut step.cond, n, fx.frictional);
+        g.bench_function(format!("h_matvec/{}", fx.label()), |b| {
+            b.iter(|| contact::solve(&mut h_step, &NoComm, nodes, &params, &mut |_| {}).unwrap())
         });
         g.finish();
     }
 }
 
-/// Steps 2 and 3 of ALG2 (Coulomb, inner mode) on `n` nodes, without the linear solve.
+/// Steps 2 and 3 of ALG2 (Coulomb, inner mode) on `n` nodes, without the linear solve,
+/// in the state form the loop uses: from s = Nu + lambda / r and z = Tu + mu / r to the
+/// auxiliary variables and multipliers, with the residual sums.
 fn node_kernels(c: &mut Criterion) {
     let (r, coef) = (7.0e4, 0.3);
     let mut g = c.benchmark_group("node_kernels");
     g.warm_up_time(Duration::from_millis(300))
         .measurement_time(Duration::from_secs(1));
     // The contact node counts of block levels 4 and 6.
-    for n in [1281usize, 5121] {
+    for n in [641usize, 2561] {
         let x = |i: usize, a: f64| (a * i as f64).sin();
         let gap: Vec<f64> = (0..n).map(|i| 1e-3 * x(i, 0.7).abs()).collect();
         let w: Vec<f64> = vec![40.0 / n as f64; n];
@@ -375,21 +541,15 @@ fn node_kernels(c: &mut Criterion) {
             b.iter(|| {
                 let mut sums = [0.0f64; 4];
                 for i in 0..n {
-                    let pi = project_normal(gap[i], un[i], lambda[i], r);
-                    sums[0] += w[i] * (un[i] - pi).powi(2);
-                    sums[1] += w[i] * (pi - p[i]).powi(2);
-                    let s = coulomb_threshold(coef, lambda[i]);
-                    lambda[i] = update_multiplier(lambda[i], r, un[i], pi);
-                    p[i] = pi;
-                    let qi = shrink(ut[i] + mu[i] / r, s / r);
-                    sums[2] += w[i] * (ut[i] - qi).powi(2);
-                    sums[3] += w[i] * (qi - q[i]).powi(2);
-                    mu[i] = update_multiplier(mu[i], r, ut[i], qi);
-                    q[i] = qi;
+                    let threshold = coulomb_threshold(coef, lambda[i]);
+                    let (pi, li) = normal_from_state(un[i] + lambda[i] / r, gap[i], r);
+                    let (qi, mi) = tangential_from_state(ut[i] + mu[i] / r, threshold, r);
+                    sums[0] += w[i] * ((li - lambda[i]).powi(2) + (mi - mu[i]).powi(2));
+                    sums[1] += w[i] * ((pi - p[i]).powi(2) + (qi - q[i]).powi(2));
+                    sums[2] += w[i] * (li * li + mi * mi);
+                    sums[3] += w[i] * (un[i] * un[i] + ut[i] * ut[i]);
+                    (p[i], lambda[i], q[i], mu[i]) = (pi, li.min(100.0), qi, mi);
                 }
-                // Keep the multipliers bounded across iterations.
-                lambda.iter_mut().for_each(|l| *l = l.clamp(0.0, 100.0));
-                mu.iter_mut().for_each(|m| *m = m.clamp(-30.0, 30.0));
                 black_box(sums)
             })
         });

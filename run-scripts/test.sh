@@ -8,6 +8,8 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 export OMPI_MCA_rmaps_base_oversubscribe=1
 cargo fmt --all -- --check
 cargo clippy --release --workspace --all-targets -- -D warnings
+# The scaling study's smoke mode: the scripts of run-scripts/ keep working (seconds).
+bash run-scripts/scaling.sh --smoke --out "$(mktemp -d)/smoke"
 if cargo nextest --version >/dev/null 2>&1; then
   cargo nextest run --release --workspace --no-fail-fast
 else

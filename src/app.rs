@@ -8,7 +8,9 @@ use crate::dd::condense::{add_piece, packed_layout, Condensed};
 use crate::dd::split::{split, GlobalMap, SubProblem};
 use crate::error::{Error, Result};
 use crate::fem::{self, assemble, DofMap};
-use crate::linear::{add_contact_forces, interior_groups, ContactDofs, DirectStep, LocalFactor};
+use crate::linear::{
+    add_contact_forces, interior_groups, ContactDofs, DirectStep, LocalFactor, Ordering,
+};
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::{self, ContactRow, HistoryRow};
 use crate::problem::{self, Problem};
@@ -38,6 +40,8 @@ pub struct Options {
     pub checkpoint_every: usize,
     /// Resume from the checkpoint in `out/checkpoint/`.
     pub restart: bool,
+    /// Fill-reducing ordering of the subdomain interiors.
+    pub ordering: Ordering,
 }
 
 /// Prints on the first rank only, and not at all with --quiet.
@@ -160,6 +164,7 @@ struct Setup {
     free_dofs: usize,
     contact_nodes: usize,
     partition: String,
+    ordering: Ordering,
     read_s: f64,
     partition_s: f64,
 }
@@ -238,6 +243,7 @@ fn prepare(opts: &Options, nparts: usize) -> Result<(Setup, Vec<SubProblem>, Roo
         free_dofs: prob.fixed.iter().filter(|f| f.is_none()).count(),
         contact_nodes: prob.contact_nodes.len(),
         partition: part.quality.to_string(),
+        ordering: opts.ordering,
         read_s,
         partition_s,
         case,
@@ -313,11 +319,12 @@ impl LocalSystem {
         }
         let assemble_s = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let factor = LocalFactor::new(
+        let factor = LocalFactor::with_ordering(
             assembled.matrix.as_ref(),
             sub.boundary_dofs.len(),
             setup.alpha,
             &interior_groups(&dofs),
+            setup.ordering,
         )?;
         Ok(LocalSystem {
             dofs,

@@ -529,27 +529,15 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
 
     let mut solver = Solver::default();
     let s = raw.solver;
+    let key = |k: &str| format!("{origin}: solver.{k}");
     if let Some(r) = s.r {
-        if !(r.is_finite() && r > 0.0) {
-            return input(format!(
-                "{origin}: solver.r = {r} must be a positive number (or leave it out for the automatic choice)"
-            ));
-        }
-        solver.r = Some(r);
+        solver.r = Some(check_r(&key("r"), r)?);
     }
     if let Some(tol) = s.tol {
-        if !(tol.is_finite() && tol > 0.0 && tol < 1.0) {
-            return input(format!(
-                "{origin}: solver.tol = {tol} must lie in (0, 1), e.g. 1e-8"
-            ));
-        }
-        solver.tol = tol;
+        solver.tol = check_tol(&key("tol"), tol)?;
     }
     if let Some(max_iter) = s.max_iter {
-        if max_iter == 0 {
-            return input(format!("{origin}: solver.max_iter must be at least 1"));
-        }
-        solver.max_iter = max_iter;
+        solver.max_iter = check_max_iter(&key("max_iter"), max_iter)?;
     }
     if let Some(mode) = s.coulomb {
         solver.coulomb = parse_coulomb_mode(&mode).ok_or_else(|| {
@@ -602,6 +590,60 @@ pub fn parse_acceleration(s: &str, memory: usize) -> Option<Acceleration> {
         "anderson" => Some(Acceleration::Anderson { memory }),
         _ => None,
     }
+}
+
+// The [solver] values, checked alike in the case file and on the command line; `key` names
+// the value and where it was given ("case.toml: solver.r" or "command line: --r").
+
+fn check_r(key: &str, r: f64) -> Result<f64> {
+    if r.is_finite() && r > 0.0 {
+        Ok(r)
+    } else {
+        input(format!(
+            "{key} = {r} must be a positive number (or leave it out for the automatic choice)"
+        ))
+    }
+}
+
+fn check_tol(key: &str, tol: f64) -> Result<f64> {
+    if tol.is_finite() && tol > 0.0 && tol < 1.0 {
+        Ok(tol)
+    } else {
+        input(format!("{key} = {tol} must lie in (0, 1), e.g. 1e-8"))
+    }
+}
+
+fn check_max_iter(key: &str, max_iter: usize) -> Result<usize> {
+    if max_iter >= 1 {
+        Ok(max_iter)
+    } else {
+        input(format!("{key} = 0: it must be at least 1"))
+    }
+}
+
+/// Applies the command-line overrides of [solver] (`--r`, `--tol`, `--max-iter`,
+/// `--coulomb`) to a validated case, with the checks of the case file: an override must
+/// not let in what the file would refuse (a negative or NaN r, a zero budget).
+pub fn override_solver(
+    case: &mut Case,
+    r: Option<f64>,
+    tol: Option<f64>,
+    max_iter: Option<usize>,
+    coulomb: Option<CoulombMode>,
+) -> Result<()> {
+    if let Some(r) = r {
+        case.solver.r = Some(check_r("command line: --r", r)?);
+    }
+    if let Some(tol) = tol {
+        case.solver.tol = check_tol("command line: --tol", tol)?;
+    }
+    if let Some(max_iter) = max_iter {
+        case.solver.max_iter = check_max_iter("command line: --max-iter", max_iter)?;
+    }
+    if let Some(mode) = coulomb {
+        case.solver.coulomb = mode;
+    }
+    Ok(())
 }
 
 pub fn parse_coulomb_mode(s: &str) -> Option<CoulombMode> {
@@ -789,6 +831,40 @@ max_iter = 50
         assert!(err(&GOOD.replace("coefficient = 0.3\n", "")).contains("coefficient"));
         assert!(err(&GOOD.replace("young = 200.0", "young = nan")).contains("finite"));
         assert!(err(&GOOD.replace("\"coulomb\"", "\"colomb\"")).contains("\"none\""));
+    }
+
+    #[test]
+    fn command_line_overrides_are_checked_like_the_file() {
+        let mut c = parse(GOOD).unwrap();
+        override_solver(
+            &mut c,
+            Some(5.0),
+            Some(1e-6),
+            Some(7),
+            Some(CoulombMode::Outer),
+        )
+        .unwrap();
+        assert_eq!(
+            (
+                c.solver.r,
+                c.solver.tol,
+                c.solver.max_iter,
+                c.solver.coulomb
+            ),
+            (Some(5.0), 1e-6, 7, CoulombMode::Outer)
+        );
+        let e = |r, tol, max_iter| {
+            let mut c = parse(GOOD).unwrap();
+            override_solver(&mut c, r, tol, max_iter, None)
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(e(Some(-1.0), None, None).starts_with("command line: --r = -1 must be a positive"));
+        assert!(e(Some(f64::NAN), None, None).contains("--r = NaN"));
+        assert!(e(None, Some(2.0), None).contains("--tol = 2 must lie in (0, 1)"));
+        assert!(e(None, None, Some(0)).contains("--max-iter = 0: it must be at least 1"));
+        assert!(err(&GOOD.replace("max_iter = 50", "max_iter = 0"))
+            .contains("case.toml: solver.max_iter = 0"));
     }
 
     #[test]

@@ -13,6 +13,7 @@ use contact_par::app::{self, LinearMode, Options, Printer};
 use contact_par::case::{self, Acceleration, CoulombMode};
 use contact_par::dd::comm::Mpi;
 use contact_par::error::Error;
+use contact_par::linear::Ordering;
 use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
@@ -57,6 +58,10 @@ struct Cli {
     /// Override solver.acceleration: anderson (default) or none (plain ALG2).
     #[arg(long, value_parser = parse_acc)]
     acceleration: Option<Acceleration>,
+    /// Fill-reducing ordering of each subdomain: amd (default) or nd (METIS nested
+    /// dissection: less fill, worth it on very large subdomains).
+    #[arg(long, default_value = "amd", value_parser = parse_ordering)]
+    ordering: Ordering,
     /// Save the loop state every N sweeps in OUT/checkpoint/ (atomically).
     #[arg(long, default_value_t = 0)]
     checkpoint_every: usize,
@@ -80,6 +85,14 @@ fn parse_linear(s: &str) -> Result<LinearMode, String> {
         "condensed" => Ok(LinearMode::Condensed),
         "full" => Ok(LinearMode::Full),
         _ => Err(format!("\"{s}\" is not condensed or full")),
+    }
+}
+
+fn parse_ordering(s: &str) -> Result<Ordering, String> {
+    match s {
+        "amd" => Ok(Ordering::Amd),
+        "nd" => Ok(Ordering::NestedDissection),
+        _ => Err(format!("\"{s}\" is not amd or nd")),
     }
 }
 
@@ -153,6 +166,7 @@ fn run() -> i32 {
         linear: cli.linear,
         checkpoint_every: cli.checkpoint_every,
         restart: cli.restart,
+        ordering: cli.ordering,
     };
     let print = Printer {
         enabled: rank == 0 && !opts.quiet,

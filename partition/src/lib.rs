@@ -725,6 +725,56 @@ fn quality(
     }
 }
 
+/// Fill-reducing nested-dissection ordering of a symmetric graph (METIS_NodeND).
+///
+/// `xadj`/`adjncy` is the graph in CSR form without self loops (e.g. the pattern of a
+/// sparse matrix minus its diagonal). Returns `perm` with `perm[new] = old`. For the
+/// matrices of 2D meshes this orders for roughly half the fill of minimum degree.
+pub fn nested_dissection(xadj: &[usize], adjncy: &[usize]) -> Result<Vec<usize>, PartitionError> {
+    let n = xadj.len().saturating_sub(1);
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    let too_large = || PartitionError::TooLarge;
+    let mut nv: metis_sys::idx_t = n.try_into().map_err(|_| too_large())?;
+    let mut xa: Vec<metis_sys::idx_t> = xadj
+        .iter()
+        .map(|&v| v.try_into().map_err(|_| too_large()))
+        .collect::<Result<_, _>>()?;
+    let mut adj: Vec<metis_sys::idx_t> = adjncy
+        .iter()
+        .map(|&v| v.try_into().map_err(|_| too_large()))
+        .collect::<Result<_, _>>()?;
+    let mut perm = vec![0 as metis_sys::idx_t; n];
+    let mut iperm = vec![0 as metis_sys::idx_t; n];
+    let mut options = [0 as metis_sys::idx_t; metis_sys::METIS_NOPTIONS as usize];
+    let status = {
+        let _guard = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+        // SAFETY: the arrays have the sizes METIS_NodeND expects (n + 1, xadj[n], n, n,
+        // NOPTIONS) and outlive the call; a null vwgt means unit weights.
+        unsafe {
+            metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr());
+            options[metis_sys::moptions_et_METIS_OPTION_SEED as usize] =
+                METIS_SEED as metis_sys::idx_t;
+            metis_sys::METIS_NodeND(
+                &mut nv,
+                xa.as_mut_ptr(),
+                adj.as_mut_ptr(),
+                std::ptr::null_mut(),
+                options.as_mut_ptr(),
+                perm.as_mut_ptr(),
+                iperm.as_mut_ptr(),
+            )
+        }
+    };
+    if status != metis_sys::rstatus_et_METIS_OK {
+        return Err(PartitionError::Metis(format!(
+            "METIS_NodeND returned status {status}"
+        )));
+    }
+    Ok(perm.into_iter().map(|p| p as usize).collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -797,54 +847,32 @@ mod tests {
         assert_eq!(o[Contig::INDEX], 0);
         assert_eq!(metis_options(true)[Contig::INDEX], 1);
     }
-}
 
-/// Fill-reducing nested-dissection ordering of a symmetric graph (METIS_NodeND).
-///
-/// `xadj`/`adjncy` is the graph in CSR form without self loops (e.g. the pattern of a
-/// sparse matrix minus its diagonal). Returns `perm` with `perm[new] = old`. For the
-/// matrices of 2D meshes this orders for roughly half the fill of minimum degree.
-pub fn nested_dissection(xadj: &[usize], adjncy: &[usize]) -> Result<Vec<usize>, PartitionError> {
-    let n = xadj.len().saturating_sub(1);
-    if n == 0 {
-        return Ok(Vec::new());
-    }
-    let too_large = || PartitionError::TooLarge;
-    let mut nv: metis_sys::idx_t = n.try_into().map_err(|_| too_large())?;
-    let mut xa: Vec<metis_sys::idx_t> = xadj
-        .iter()
-        .map(|&v| v.try_into().map_err(|_| too_large()))
-        .collect::<Result<_, _>>()?;
-    let mut adj: Vec<metis_sys::idx_t> = adjncy
-        .iter()
-        .map(|&v| v.try_into().map_err(|_| too_large()))
-        .collect::<Result<_, _>>()?;
-    let mut perm = vec![0 as metis_sys::idx_t; n];
-    let mut iperm = vec![0 as metis_sys::idx_t; n];
-    let mut options = [0 as metis_sys::idx_t; metis_sys::METIS_NOPTIONS as usize];
-    let status = {
-        let _guard = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
-        // SAFETY: the arrays have the sizes METIS_NodeND expects (n + 1, xadj[n], n, n,
-        // NOPTIONS) and outlive the call; a null vwgt means unit weights.
-        unsafe {
-            metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr());
-            options[metis_sys::moptions_et_METIS_OPTION_SEED as usize] =
-                METIS_SEED as metis_sys::idx_t;
-            metis_sys::METIS_NodeND(
-                &mut nv,
-                xa.as_mut_ptr(),
-                adj.as_mut_ptr(),
-                std::ptr::null_mut(),
-                options.as_mut_ptr(),
-                perm.as_mut_ptr(),
-                iperm.as_mut_ptr(),
-            )
+    #[test]
+    fn nested_dissection_is_a_permutation() {
+        // A 30 x 30 grid graph (5-point stencil).
+        let n = 30;
+        let mut xadj = vec![0];
+        let mut adjncy = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                for (di, dj) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                    let (a, b) = (i as i64 + di, j as i64 + dj);
+                    if a >= 0 && b >= 0 && a < n as i64 && b < n as i64 {
+                        adjncy.push(a as usize * n + b as usize);
+                    }
+                }
+                xadj.push(adjncy.len());
+            }
         }
-    };
-    if status != metis_sys::rstatus_et_METIS_OK {
-        return Err(PartitionError::Metis(format!(
-            "METIS_NodeND returned status {status}"
-        )));
+        let perm = nested_dissection(&xadj, &adjncy).unwrap();
+        let mut seen = perm.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..n * n).collect::<Vec<_>>());
+        assert_eq!(
+            perm,
+            nested_dissection(&xadj, &adjncy).unwrap(),
+            "deterministic"
+        );
     }
-    Ok(perm.into_iter().map(|p| p as usize).collect())
 }

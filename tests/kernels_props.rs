@@ -1,0 +1,154 @@
+//! Properties of the node-wise kernels of ALG2 (steps 2 and 3 of ALGORITHM.md), checked
+//! on random inputs: the projection, the shrinkage, the multiplier updates and the
+//! Coulomb threshold.
+//!
+//! Where a property is an identity of real numbers evaluated along two different float
+//! paths, it holds to a few ulps of the magnitudes involved (`close`); where both sides
+//! take the same path (oddness, |shrink|, idempotence), it holds exactly.
+
+use contact_par::contact::kernels::{coulomb_threshold, project_normal, shrink, update_multiplier};
+use proptest::prelude::*;
+
+/// Values on every scale the solver meets (displacements of 1e-9 to forces of 1e6), both
+/// signs, and exact zeros.
+fn value() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        Just(0.0),
+        -1.0..1.0f64,
+        -1e6..1e6f64,
+        (-9.0..3.0f64, any::<bool>()).prop_map(|(e, neg)| {
+            let v = 10f64.powf(e);
+            if neg {
+                -v
+            } else {
+                v
+            }
+        }),
+    ]
+}
+
+/// An augmentation parameter r > 0 (from soft rubber to steel on a fine mesh).
+fn augmentation() -> impl Strategy<Value = f64> {
+    (-3.0..9.0f64).prop_map(|e| 10f64.powf(e))
+}
+
+/// A threshold or slip bound s >= 0.
+fn threshold() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        Just(0.0),
+        0.0..1e6f64,
+        (-9.0..3.0f64).prop_map(|e| 10f64.powf(e))
+    ]
+}
+
+/// `a` and `b` agree to a few ulps of `scale` (the largest magnitude in the computation).
+fn close(a: f64, b: f64, scale: f64) -> bool {
+    (a - b).abs() <= 8.0 * f64::EPSILON * scale.max(f64::MIN_POSITIVE)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    /// p = min(g, un + lambda / r) never exceeds the gap.
+    #[test]
+    fn projection_stays_below_the_gap(g in value(), un in value(), lambda in value(), r in augmentation()) {
+        prop_assert!(project_normal(g, un, lambda, r) <= g);
+    }
+
+    /// Projecting a projected value changes nothing.
+    #[test]
+    fn projection_is_idempotent(g in value(), un in value(), lambda in value(), r in augmentation()) {
+        let p = project_normal(g, un, lambda, r);
+        prop_assert_eq!(project_normal(g, p, 0.0, r), p);
+    }
+
+    /// Below the gap, the projection is the identity.
+    #[test]
+    fn projection_keeps_admissible_values(un in value(), lambda in value(), r in augmentation(), room in 0.0..1e3f64) {
+        let s = un + lambda / r;
+        prop_assert_eq!(project_normal(s + room, un, lambda, r), s);
+    }
+
+    /// lambda + r (un - p) with p the projection is max(0, lambda + r (un - g)): the
+    /// normal multiplier is the positive part, so it stays >= 0 (up to the round-off of
+    /// the difference it is computed as; the Coulomb threshold clips that, see below).
+    #[test]
+    fn normal_update_is_the_positive_part(g in value(), un in value(), lambda in value(), r in augmentation()) {
+        let p = project_normal(g, un, lambda, r);
+        let updated = update_multiplier(lambda, r, un, p);
+        let expected = (lambda + r * (un - g)).max(0.0);
+        let scale = lambda.abs() + r * (un.abs() + g.abs());
+        prop_assert!(close(updated, expected, scale), "{} vs {}", updated, expected);
+        prop_assert!(updated >= -8.0 * f64::EPSILON * scale, "{}", updated);
+    }
+
+    /// A node pressed past its gap (un >= g) with a multiplier >= 0 is active: p = g, and
+    /// the update, a sum of non-negative terms, stays >= 0 exactly.
+    #[test]
+    fn normal_update_of_an_active_node(g in value(), past in 0.0..1e3f64, lambda in 0.0..1e6f64, r in augmentation()) {
+        let un = g + past;
+        let p = project_normal(g, un, lambda, r);
+        prop_assert_eq!(p, g);
+        prop_assert!(update_multiplier(lambda, r, un, p) >= 0.0);
+    }
+
+    /// Shrinkage is odd: shrink(-z, a) = -shrink(z, a).
+    #[test]
+    fn shrink_is_odd(z in value(), a in threshold()) {
+        prop_assert_eq!(shrink(-z, a), -shrink(z, a));
+    }
+
+    /// |shrink(z, a)| = max(|z| - a, 0), with the sign of z when it is not zero.
+    #[test]
+    fn shrink_has_the_soft_threshold_magnitude(z in value(), a in threshold()) {
+        let q = shrink(z, a);
+        prop_assert_eq!(q.abs(), (z.abs() - a).max(0.0));
+        prop_assert!(q == 0.0 || q.signum() == z.signum());
+        prop_assert_eq!(q == 0.0, z.abs() <= a);
+    }
+
+    /// Shrinkage never moves two points apart (it is a proximal map, so 1-Lipschitz).
+    #[test]
+    fn shrink_is_non_expansive(z1 in value(), z2 in value(), a in threshold()) {
+        let d = (shrink(z1, a) - shrink(z2, a)).abs();
+        prop_assert!(d <= (z1 - z2).abs() * (1.0 + 4.0 * f64::EPSILON) + 4.0 * f64::EPSILON * a,
+            "{} > {}", d, (z1 - z2).abs());
+    }
+
+    /// Moreau's decomposition: z = shrink(z, a) + clamp(z, -a, a).
+    #[test]
+    fn shrink_plus_clamp_is_the_identity(z in value(), a in threshold()) {
+        let sum = shrink(z, a) + z.clamp(-a, a);
+        prop_assert!(close(sum, z, z.abs() + a), "{} vs {}", sum, z);
+    }
+
+    /// Shrinking by zero is the identity; shrinking twice by a and b is shrinking by a + b.
+    #[test]
+    fn shrink_composes(z in value(), a in threshold(), b in threshold()) {
+        prop_assert_eq!(shrink(z, 0.0), z);
+        let twice = shrink(shrink(z, a), b);
+        prop_assert!(close(twice, shrink(z, a + b), z.abs() + a + b), "{} vs {}", twice, shrink(z, a + b));
+    }
+
+    /// mu + r (ut - shrink(ut + mu / r, s / r)) is the clamp of mu + r ut onto [-s, s]:
+    /// the tangential multiplier never leaves the friction interval.
+    #[test]
+    fn tangential_update_is_the_clamp(ut in value(), mu in value(), s in threshold(), r in augmentation()) {
+        let q = shrink(ut + mu / r, s / r);
+        let updated = update_multiplier(mu, r, ut, q);
+        let expected = (mu + r * ut).clamp(-s, s);
+        let scale = mu.abs() + r * ut.abs() + s;
+        prop_assert!(close(updated, expected, scale), "{} vs {}", updated, expected);
+        prop_assert!(updated.abs() <= s + 8.0 * f64::EPSILON * scale);
+    }
+
+    /// s = coefficient * max(lambda, 0): never negative, linear in the pressure, and zero
+    /// for a node that pulls away.
+    #[test]
+    fn coulomb_threshold_is_the_clipped_pressure(c in 0.0..2.0f64, lambda in value(), extra in 0.0..1e6f64) {
+        let s = coulomb_threshold(c, lambda);
+        prop_assert!(s >= 0.0);
+        prop_assert_eq!(s, c * lambda.max(0.0));
+        prop_assert!(coulomb_threshold(c, lambda + extra) >= s * (1.0 - 4.0 * f64::EPSILON));
+    }
+}
