@@ -85,18 +85,7 @@ pub fn load_case(opts: &Options) -> Result<Case> {
         Some(path) => case::read_case(path)?,
         None => case::builtin_case(&opts.builtin, opts.level)?,
     };
-    if let Some(r) = opts.r {
-        case.solver.r = Some(r);
-    }
-    if let Some(tol) = opts.tol {
-        case.solver.tol = tol;
-    }
-    if let Some(m) = opts.max_iter {
-        case.solver.max_iter = m;
-    }
-    if let Some(c) = opts.coulomb {
-        case.solver.coulomb = c;
-    }
+    case::override_solver(&mut case, opts.r, opts.tol, opts.max_iter, opts.coulomb)?;
     if let Some(acc) = opts.acceleration {
         case.solver.acceleration = acc;
     }

@@ -1,12 +1,15 @@
 //! Properties of the node-wise kernels of ALG2 (steps 2 and 3 of ALGORITHM.md), checked
-//! on random inputs: the projection, the shrinkage, the multiplier updates and the
-//! Coulomb threshold.
+//! on random inputs: the projection, the shrinkage, the multiplier updates, the Coulomb
+//! threshold, and the state form of the updates that the loop uses.
 //!
 //! Where a property is an identity of real numbers evaluated along two different float
 //! paths, it holds to a few ulps of the magnitudes involved (`close`); where both sides
 //! take the same path (oddness, |shrink|, idempotence), it holds exactly.
 
-use contact_par::contact::kernels::{coulomb_threshold, project_normal, shrink, update_multiplier};
+use contact_par::contact::kernels::{
+    coulomb_threshold, normal_from_state, project_normal, shrink, tangential_from_state,
+    update_multiplier,
+};
 use proptest::prelude::*;
 
 /// Values on every scale the solver meets (displacements of 1e-9 to forces of 1e6), both
@@ -70,8 +73,10 @@ proptest! {
     }
 
     /// lambda + r (un - p) with p the projection is max(0, lambda + r (un - g)): the
-    /// normal multiplier is the positive part, so it stays >= 0 (up to the round-off of
-    /// the difference it is computed as; the Coulomb threshold clips that, see below).
+    /// normal multiplier is the positive part, so it stays >= 0, but only up to the
+    /// round-off of the difference it is computed as: on a free node it often comes out
+    /// as a tiny negative, of order -r eps |un| (about one random draw in seven), which is
+    /// why the loop uses the state form below and the Coulomb threshold clips the pressure.
     #[test]
     fn normal_update_is_the_positive_part(g in value(), un in value(), lambda in value(), r in augmentation()) {
         let p = project_normal(g, un, lambda, r);
@@ -150,5 +155,37 @@ proptest! {
         prop_assert!(s >= 0.0);
         prop_assert_eq!(s, c * lambda.max(0.0));
         prop_assert!(coulomb_threshold(c, lambda + extra) >= s * (1.0 - 4.0 * f64::EPSILON));
+    }
+
+    /// State form, normal: from s = un + lambda / r, p = min(g, s) <= g and
+    /// lambda = r (s - p), which is >= 0 exactly (s - min(g, s) is never negative in
+    /// floating point) and is r max(s - g, 0).
+    #[test]
+    fn normal_state_form_is_exactly_non_negative(s in value(), g in value(), r in augmentation()) {
+        let (p, lambda) = normal_from_state(s, g, r);
+        prop_assert!(p <= g);
+        prop_assert!(lambda >= 0.0);
+        prop_assert_eq!(lambda == 0.0, s <= g);
+        prop_assert!(close(lambda, r * (s - g).max(0.0), r * (s.abs() + g.abs())));
+    }
+
+    /// The state form gives the sweep form's p and, to round-off, its multiplier.
+    #[test]
+    fn normal_state_form_equals_the_sweep_form(g in value(), un in value(), lambda in value(), r in augmentation()) {
+        let (p, updated) = normal_from_state(un + lambda / r, g, r);
+        prop_assert_eq!(p, project_normal(g, un, lambda, r));
+        let sweep = update_multiplier(lambda, r, un, p);
+        prop_assert!(close(updated, sweep, lambda.abs() + r * (un.abs() + g.abs())), "{} vs {}", updated, sweep);
+    }
+
+    /// State form, tangential: q = shrink(z, s / r) and mu = r (z - q), the clamp of r z
+    /// onto [-s, s] (to round-off).
+    #[test]
+    fn tangential_state_form_is_the_clamp(z in value(), s in threshold(), r in augmentation()) {
+        let (q, mu) = tangential_from_state(z, s, r);
+        prop_assert_eq!(q, shrink(z, s / r));
+        let scale = r * z.abs() + s;
+        prop_assert!(close(mu, (r * z).clamp(-s, s), scale), "{} vs {}", mu, (r * z).clamp(-s, s));
+        prop_assert!(mu.abs() <= s + 8.0 * f64::EPSILON * scale);
     }
 }
