@@ -42,7 +42,9 @@ use contact_par::dd::condense::Condensed;
 use contact_par::dd::split::ContactDof;
 use contact_par::error::Result;
 use contact_par::fem::{self, assemble, Assembled, DofMap};
-use contact_par::linear::{interior_groups, ContactDofs, DirectStep, LocalFactor, SparseCholesky};
+use contact_par::linear::{
+    interior_groups, ContactDofs, DirectStep, LocalFactor, NodeGraph, SparseCholesky,
+};
 use contact_par::problem::{self, Problem};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, SamplingMode};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
@@ -324,58 +326,11 @@ impl LinearStep for HStep {
     }
 }
 
-/// The node graph of a matrix (`groups[eq]` = node of equation `eq`, the equations of a
-/// node consecutive) in CSR form, built as `LocalFactor::new` builds it, and the first
-/// equation of each node.
-fn node_graph(
-    a: faer::sparse::SparseColMatRef<'_, usize, f64>,
-    groups: &[usize],
-) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
-    let n = a.nrows();
-    let mut group_of = vec![0usize; n];
-    let mut first_eq = Vec::new();
-    for i in 0..n {
-        if i == 0 || groups[i] != groups[i - 1] {
-            first_eq.push(i);
-        }
-        group_of[i] = first_eq.len() - 1;
-    }
-    let ng = first_eq.len();
-    first_eq.push(n);
-    let mut edges: Vec<(usize, usize)> = Vec::new();
-    for j in 0..n {
-        for i in a.symbolic().row_idx_of_col(j) {
-            if group_of[i] != group_of[j] {
-                edges.push((group_of[i], group_of[j]));
-                edges.push((group_of[j], group_of[i]));
-            }
-        }
-    }
-    edges.sort_unstable();
-    edges.dedup();
-    let mut xadj = vec![0usize; ng + 1];
-    for &(u, _) in &edges {
-        xadj[u + 1] += 1;
-    }
-    for v in 0..ng {
-        xadj[v + 1] += xadj[v];
-    }
-    let adjncy: Vec<usize> = edges.iter().map(|&(_, v)| v).collect();
-    (xadj, adjncy, first_eq)
-}
-
 /// Nested dissection of the node graph expanded to the equations: (perm[new] = old,
 /// its inverse).
-fn nd_permutation(
-    xadj: &[usize],
-    adjncy: &[usize],
-    first_eq: &[usize],
-) -> (Vec<usize>, Vec<usize>) {
-    let group_perm = partition::nested_dissection(xadj, adjncy).expect("METIS_NodeND");
-    let fwd: Vec<usize> = group_perm
-        .iter()
-        .flat_map(|&g| first_eq[g]..first_eq[g + 1])
-        .collect();
+fn nd_permutation(graph: &NodeGraph) -> (Vec<usize>, Vec<usize>) {
+    let node_perm = partition::nested_dissection(&graph.xadj, &graph.adjncy).expect("METIS_NodeND");
+    let fwd = graph.expand(&node_perm);
     let mut inv = vec![0usize; fwd.len()];
     for (new, &old) in fwd.iter().enumerate() {
         inv[old] = new;
@@ -456,14 +411,14 @@ fn factorization(c: &mut Criterion) {
         let plain_groups = interior_groups(&DofMap::new(&fx.prob.fixed));
         budget(&mut g, ND_GRAPH_S[k]);
         g.bench_function(format!("nd_graph/{}", fx.label()), |b| {
-            b.iter(|| node_graph(a.as_ref(), &plain_groups))
+            b.iter(|| NodeGraph::new(a.as_ref(), a.nrows(), &plain_groups))
         });
-        let (xadj, adjncy, first_eq) = node_graph(a.as_ref(), &plain_groups);
+        let graph = NodeGraph::new(a.as_ref(), a.nrows(), &plain_groups);
         budget(&mut g, ND_METIS_S[k]);
         g.bench_function(format!("nd_metis/{}", fx.label()), |b| {
-            b.iter(|| nd_permutation(&xadj, &adjncy, &first_eq))
+            b.iter(|| nd_permutation(&graph))
         });
-        let (fwd, inv) = nd_permutation(&xadj, &adjncy, &first_eq);
+        let (fwd, inv) = nd_permutation(&graph);
         let n = a.nrows();
         budget(&mut g, ND_NUMERIC_S[k]);
         g.bench_function(format!("nd_numeric/{}", fx.label()), |b| {

@@ -393,6 +393,81 @@ impl LocalFactor {
     }
 }
 
+/// The graph between the nodes of the interior block of a matrix (in CSR form), the
+/// input of the nested-dissection ordering.
+pub struct NodeGraph {
+    pub xadj: Vec<usize>,
+    pub adjncy: Vec<usize>,
+    /// First equation of each node (and the end), equations of a node consecutive.
+    pub first_eq: Vec<usize>,
+}
+
+impl NodeGraph {
+    /// From the LOWER triangle `a`, its first `n_interior` equations and `groups[eq]`,
+    /// the node of each equation. A pair of nodes shows up in the columns of the node
+    /// with the smaller equations; a marker per node skips repeats without sorting (two
+    /// passes: count, then fill).
+    pub fn new(a: SparseColMatRef<'_, usize, f64>, n_interior: usize, groups: &[usize]) -> Self {
+        let mut group_of = vec![0usize; n_interior];
+        let mut first_eq = Vec::new();
+        for i in 0..n_interior {
+            if i == 0 || groups[i] != groups[i - 1] {
+                first_eq.push(i);
+            }
+            group_of[i] = first_eq.len() - 1;
+        }
+        let ng = first_eq.len();
+        first_eq.push(n_interior);
+        let mut marker = vec![usize::MAX; ng];
+        let mut for_each_pair = |visit: &mut dyn FnMut(usize, usize)| {
+            marker.fill(usize::MAX);
+            for u in 0..ng {
+                for j in first_eq[u]..first_eq[u + 1] {
+                    for i in a.symbolic().row_idx_of_col(j) {
+                        if i >= n_interior {
+                            continue;
+                        }
+                        let v = group_of[i];
+                        if v != u && marker[v] != u {
+                            marker[v] = u;
+                            visit(u, v);
+                        }
+                    }
+                }
+            }
+        };
+        let mut xadj = vec![0usize; ng + 1];
+        for_each_pair(&mut |u, v| {
+            xadj[u + 1] += 1;
+            xadj[v + 1] += 1;
+        });
+        for v in 0..ng {
+            xadj[v + 1] += xadj[v];
+        }
+        let mut next = xadj[..ng].to_vec();
+        let mut adjncy = vec![0usize; xadj[ng]];
+        for_each_pair(&mut |u, v| {
+            adjncy[next[u]] = v;
+            next[u] += 1;
+            adjncy[next[v]] = u;
+            next[v] += 1;
+        });
+        NodeGraph {
+            xadj,
+            adjncy,
+            first_eq,
+        }
+    }
+
+    /// Equation permutation (perm[new] = old) from a node permutation.
+    pub fn expand(&self, node_perm: &[usize]) -> Vec<usize> {
+        node_perm
+            .iter()
+            .flat_map(|&g| self.first_eq[g]..self.first_eq[g + 1])
+            .collect()
+    }
+}
+
 /// Nested dissection (METIS) of the interior block on the node graph, the boundary
 /// equations kept last in their order; AMD is the fallback if METIS fails.
 fn interior_nd_then_boundary(
@@ -401,63 +476,12 @@ fn interior_nd_then_boundary(
     groups: &[usize],
 ) -> Result<(Vec<usize>, Vec<usize>)> {
     let n = a.nrows();
-    // Group index of each interior equation: runs of equal node ids.
-    let mut group_of = vec![0usize; n_interior];
-    let mut first_eq = Vec::new();
-    for i in 0..n_interior {
-        if i == 0 || groups[i] != groups[i - 1] {
-            first_eq.push(i);
-        }
-        group_of[i] = first_eq.len() - 1;
-    }
-    let ng = first_eq.len();
-    first_eq.push(n_interior);
-    // Symmetric adjacency between groups of the interior block. The matrix holds its
-    // lower triangle, so a pair of groups shows up in the columns of the group with the
-    // smaller equations; a marker per group skips repeats without sorting (two passes:
-    // count, then fill).
-    let mut marker = vec![usize::MAX; ng];
-    let mut xadj = vec![0usize; ng + 1];
-    let mut for_each_pair = |visit: &mut dyn FnMut(usize, usize)| {
-        marker.fill(usize::MAX);
-        for u in 0..ng {
-            for j in first_eq[u]..first_eq[u + 1] {
-                for i in a.symbolic().row_idx_of_col(j) {
-                    if i >= n_interior {
-                        continue;
-                    }
-                    let v = group_of[i];
-                    if v != u && marker[v] != u {
-                        marker[v] = u;
-                        visit(u, v);
-                    }
-                }
-            }
-        }
-    };
-    for_each_pair(&mut |u, v| {
-        xadj[u + 1] += 1;
-        xadj[v + 1] += 1;
-    });
-    for v in 0..ng {
-        xadj[v + 1] += xadj[v];
-    }
-    let mut next = xadj[..ng].to_vec();
-    let mut adjncy = vec![0usize; xadj[ng]];
-    for_each_pair(&mut |u, v| {
-        adjncy[next[u]] = v;
-        next[u] += 1;
-        adjncy[next[v]] = u;
-        next[v] += 1;
-    });
-    let group_perm = match partition::nested_dissection(&xadj, &adjncy) {
+    let graph = NodeGraph::new(a, n_interior, groups);
+    let node_perm = match partition::nested_dissection(&graph.xadj, &graph.adjncy) {
         Ok(p) => p,
         Err(_) => return interior_amd_then_boundary(a, n_interior),
     };
-    let mut fwd: Vec<usize> = group_perm
-        .iter()
-        .flat_map(|&g| first_eq[g]..first_eq[g + 1])
-        .collect();
+    let mut fwd = graph.expand(&node_perm);
     fwd.extend(n_interior..n);
     let mut inv = vec![0usize; n];
     for (new, &old) in fwd.iter().enumerate() {

@@ -62,24 +62,6 @@ fn compare(case: &str, what: &str) {
     assert!(ia < ip, "{what}: anderson {ia} sweeps, plain {ip}");
 }
 
-fn with_friction(name: &str, level: u32, friction: &str) -> String {
-    let text = print_case(name, level);
-    let mut out = String::new();
-    for line in text.lines() {
-        let key = line.split('=').next().unwrap_or("").trim();
-        if ["friction", "threshold", "coefficient"].contains(&key) {
-            continue;
-        }
-        out.push_str(line);
-        out.push('\n');
-        if line.starts_with("obstacle_normal") {
-            out.push_str(friction);
-            out.push('\n');
-        }
-    }
-    out
-}
-
 #[test]
 fn hertz_every_law() {
     for f in [
@@ -87,7 +69,7 @@ fn hertz_every_law() {
         "friction = \"tresca\"\nthreshold = 500.0",
         "friction = \"coulomb\"\ncoefficient = 0.2",
     ] {
-        compare(&with_friction("hertz", 1, f), &format!("hertz {f}"));
+        compare(&builtin_with_friction("hertz", 1, f), &format!("hertz {f}"));
     }
 }
 
@@ -99,14 +81,14 @@ fn block_every_law() {
         "friction = \"coulomb\"\ncoefficient = 0.3",
         "friction = \"coulomb\"\ncoefficient = 0.3\n[solver]\ncoulomb = \"outer\"",
     ] {
-        compare(&with_friction("block", 1, f), &format!("block {f}"));
+        compare(&builtin_with_friction("block", 1, f), &format!("block {f}"));
     }
 }
 
 #[test]
 fn block_flat() {
     // Converges in a handful of sweeps either way; only the answer is compared.
-    let case = with_friction("block_flat", 1, "friction = \"none\"");
+    let case = builtin_with_friction("block_flat", 1, "friction = \"none\"");
     let plain = run_case(&case, &["--acceleration", "none", "--tol", "1e-12"]);
     let fast = run_case(&case, &["--acceleration", "anderson", "--tol", "1e-12"]);
     plain.expect_code(0);

@@ -2,6 +2,8 @@
 //! law on 1, 2, 3 and 4 ranks (oversubscribed), compared node by node. Also the
 //! condensed sweep against the full sparse solve, and clean failures under mpirun.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -37,23 +39,9 @@ fn summary(dir: &Path) -> serde_json::Value {
 /// The built-in case `name` at `level` with its friction law replaced by `friction`
 /// (TOML lines for the [contact] table), written to `dir/case.toml`.
 fn case_file(dir: &Path, name: &str, level: u32, friction: &str, extra: &str) -> PathBuf {
-    let text = contact_par::case::builtin_case_text(name, level).unwrap();
-    let mut out = String::new();
-    for line in text.lines() {
-        let key = line.split('=').next().unwrap_or("").trim();
-        if ["friction", "threshold", "coefficient"].contains(&key) {
-            continue;
-        }
-        out.push_str(line);
-        out.push('\n');
-        if line.starts_with("obstacle_normal") {
-            out.push_str(friction);
-            out.push('\n');
-        }
-    }
-    out.push_str(extra);
+    let text = common::builtin_with_friction(name, level, friction) + extra;
     let path = dir.join("case.toml");
-    std::fs::write(&path, out).unwrap();
+    std::fs::write(&path, text).unwrap();
     path
 }
 
@@ -109,8 +97,19 @@ fn compare(
 /// nodes.csv (1e-8 relative per column; u_n is compared through the gap column's scale
 /// because it sits at round-off level on flat contact).
 fn check_rank_independence(name: &str, level: u32, friction: &str) {
+    check_rank_independence_with(name, level, friction, "");
+}
+
+/// As [`check_rank_independence`], with extra `[solver]` lines.
+fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: &str) {
     let tmp = tempfile::tempdir().unwrap();
-    let case = case_file(tmp.path(), name, level, friction, "[solver]\ntol = 1e-10\n");
+    let case = case_file(
+        tmp.path(),
+        name,
+        level,
+        friction,
+        &format!("[solver]\ntol = 1e-10\n{solver}"),
+    );
     let mut reference: Option<RunResult> = None;
     for np in 1..=4 {
         let out = tmp.path().join(format!("out{np}"));
@@ -196,55 +195,12 @@ fn block_coulomb_1_to_4_ranks() {
 #[test]
 fn block_coulomb_outer_1_to_4_ranks() {
     let f = "friction = \"coulomb\"\ncoefficient = 0.3";
-    check_rank_independence_with(
-        "block",
-        0,
-        f,
-        "[solver]\ntol = 1e-10\ncoulomb = \"outer\"\n",
-    );
+    check_rank_independence_with("block", 0, f, "coulomb = \"outer\"\n");
 }
 
 #[test]
 fn block_flat_1_to_4_ranks() {
     check_rank_independence("block_flat", 0, "friction = \"none\"");
-}
-
-fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: &str) {
-    let tmp = tempfile::tempdir().unwrap();
-    let case = case_file(tmp.path(), name, level, friction, solver);
-    let mut first: Option<RunResult> = None;
-    for np in 1..=4 {
-        let out = tmp.path().join(format!("out{np}"));
-        let o = mpirun(
-            np,
-            &[
-                case.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--nodes-csv",
-                "--quiet",
-            ],
-            tmp.path(),
-        );
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let it = summary(&out)["iterations"].as_i64().unwrap();
-        let nodes = read_csv(&out.join("nodes.csv"));
-        let contact = read_csv(&out.join("contact.csv"));
-        match &first {
-            None => first = Some((it, contact, nodes)),
-            Some((it1, c1, n1)) => {
-                assert!((it - it1).abs() <= 1, "{it} vs {it1} iterations");
-                compare(
-                    c1,
-                    n1,
-                    &contact,
-                    &nodes,
-                    1e-8,
-                    &format!("{name} {solver} on {np} ranks"),
-                );
-            }
-        }
-    }
 }
 
 /// The condensed sweep and the full sparse solve give the same iterates: same

@@ -401,3 +401,23 @@ tol = 1e-10
         normal[0], normal[1]
     )
 }
+
+/// The TOML of built-in case `name` at `level` with its friction lines (friction,
+/// threshold, coefficient) replaced by `friction`.
+pub fn builtin_with_friction(name: &str, level: u32, friction: &str) -> String {
+    let text = contact_par::case::builtin_case_text(name, level).expect("a built-in case");
+    let mut out = String::new();
+    for line in text.lines() {
+        let key = line.split('=').next().unwrap_or("").trim();
+        if ["friction", "threshold", "coefficient"].contains(&key) {
+            continue;
+        }
+        out.push_str(line);
+        out.push('\n');
+        if line.starts_with("obstacle_normal") {
+            out.push_str(friction);
+            out.push('\n');
+        }
+    }
+    out
+}
