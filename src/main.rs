@@ -97,7 +97,8 @@ fn parse_ordering(s: &str) -> Result<Ordering, String> {
 }
 
 fn parse_acc(s: &str) -> Result<Acceleration, String> {
-    case::parse_acceleration(s, 5).ok_or_else(|| format!("\"{s}\" is not anderson or none"))
+    case::parse_acceleration(s, case::DEFAULT_ANDERSON_MEMORY)
+        .ok_or_else(|| format!("\"{s}\" is not anderson or none"))
 }
 
 fn parse_coulomb(s: &str) -> Result<CoulombMode, String> {
