@@ -16,7 +16,7 @@ use crate::output::{self, ContactRow, HistoryRow};
 use crate::problem::{self, Problem};
 use faer::Mat;
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// What the command line asks for, after parsing.
@@ -514,9 +514,6 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
     );
     mpi.agree(result)?;
 
-    if let Some(last) = outcome.history.last() {
-        let _ = last;
-    }
     let sums = {
         let mut v = [
             sub.contact
@@ -1089,9 +1086,4 @@ fn write_outputs(
         .map_err(|e| Error::Output(format!("cannot format summary.json: {e}")))?;
     output::write_atomic(&dir.join("summary.json"), json.as_bytes())?;
     Ok(())
-}
-
-/// For messages: a path relative to where the user ran the program when possible.
-pub fn display_path(p: &Path) -> String {
-    p.display().to_string()
 }
