@@ -346,9 +346,26 @@ impl LocalFactor {
 
     /// The subdomain's Schur complement onto its boundary dofs (dense, symmetric).
     pub fn schur(&self) -> Mat<f64> {
-        let mut s = &self.l_bb * self.l_bb.transpose();
-        for i in 0..s.nrows() {
-            s[(i, i)] -= self.alpha;
+        use faer::linalg::matmul::triangular::{matmul, BlockStructure};
+        let n = self.l_bb.nrows();
+        let mut s = Mat::<f64>::zeros(n, n);
+        // Only the lower half of L L' (L lower triangular): a sixth of a full product.
+        matmul(
+            s.as_mut(),
+            BlockStructure::TriangularLower,
+            faer::Accum::Replace,
+            &self.l_bb,
+            BlockStructure::TriangularLower,
+            self.l_bb.transpose(),
+            BlockStructure::TriangularUpper,
+            1.0,
+            faer::get_global_parallelism(),
+        );
+        for j in 0..n {
+            s[(j, j)] -= self.alpha;
+            for i in j + 1..n {
+                s[(j, i)] = s[(i, j)];
+            }
         }
         s
     }
