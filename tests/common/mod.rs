@@ -144,11 +144,14 @@ impl Row {
 
 pub const COLUMNS: [&str; 7] = ["x", "y", "u_n", "u_t", "p_n", "p_t", "gap"];
 
-pub fn read_contact(path: &Path) -> Vec<Row> {
+/// The numeric rows of a CSV file with exactly `header`, each of `header`'s width and
+/// every value finite (NaN or infinities would slip through max-based comparisons).
+fn read_rows(path: &Path, header: &str) -> Vec<Vec<f64>> {
     let text = std::fs::read_to_string(path)
         .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("x,y,u_n,u_t,p_n,p_t,gap"));
+    assert_eq!(lines.next(), Some(header));
+    let width = header.split(',').count();
     lines
         .map(|l| {
             let v: Vec<f64> = l
@@ -158,41 +161,33 @@ pub fn read_contact(path: &Path) -> Vec<Row> {
                         .unwrap_or_else(|_| panic!("bad number {f:?} in {l:?}"))
                 })
                 .collect();
-            assert_eq!(v.len(), 7, "row {l:?}");
-            // NaN or infinities would slip through the max-based comparisons.
+            assert_eq!(v.len(), width, "row {l:?}");
             assert!(v.iter().all(|x| x.is_finite()), "non-finite value in {l:?}");
-            Row {
-                x: v[0],
-                y: v[1],
-                u_n: v[2],
-                u_t: v[3],
-                p_n: v[4],
-                p_t: v[5],
-                gap: v[6],
-            }
+            v
+        })
+        .collect()
+}
+
+pub fn read_contact(path: &Path) -> Vec<Row> {
+    read_rows(path, "x,y,u_n,u_t,p_n,p_t,gap")
+        .into_iter()
+        .map(|v| Row {
+            x: v[0],
+            y: v[1],
+            u_n: v[2],
+            u_t: v[3],
+            p_n: v[4],
+            p_t: v[5],
+            gap: v[6],
         })
         .collect()
 }
 
 /// nodes.csv: (x, y, ux, uy) per node, every value finite.
 pub fn read_nodes(path: &Path) -> Vec<[f64; 4]> {
-    let text = std::fs::read_to_string(path)
-        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
-    let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("x,y,ux,uy"));
-    lines
-        .map(|l| {
-            let v: Vec<f64> = l
-                .split(',')
-                .map(|f| {
-                    f.parse()
-                        .unwrap_or_else(|_| panic!("bad number {f:?} in {l:?}"))
-                })
-                .collect();
-            assert_eq!(v.len(), 4, "row {l:?}");
-            assert!(v.iter().all(|x| x.is_finite()), "non-finite value in {l:?}");
-            [v[0], v[1], v[2], v[3]]
-        })
+    read_rows(path, "x,y,ux,uy")
+        .into_iter()
+        .map(|v| [v[0], v[1], v[2], v[3]])
         .collect()
 }
 
