@@ -5,20 +5,20 @@
 //! * `assemble/level{2,4}`: A = K + r N'WN + r T'WT on the free dofs (rayon).
 //! * `factor/amd/level{2,4}`: sparse Cholesky with AMD (the `--linear full` factor).
 //! * `factor/boundary_last/level{2,4}`: `LocalFactor::new`, the interior ordered by
-//!   nested dissection on the node graph and the contact dofs last (the one-rank
+//!   approximate minimum degree and the contact dofs last (the one-rank
 //!   subdomain of the default path): ordering, symbolic and numeric factorization, and
 //!   the dense trailing block.
-//! * `factor/nd_graph/level{2,4}`, `factor/nd_metis/level{2,4}`: that ordering alone in
+//! * `factor/nd_graph/level{2,4}`, `factor/nd_metis/level{2,4}`: the nested-dissection ordering (`--ordering nd`) alone in
 //!   its two steps, the node graph from the matrix pattern and METIS_NodeND (through
 //!   `partition::nested_dissection`); `factor/nd_numeric/level{2,4}`:
 //!   `SparseCholesky::factor` with it precomputed. Together they separate the ordering
 //!   from the numeric work.
-//! * `condense/level{2,4}`: S from the trailing factor block, the condensed right-hand
-//!   side, the dense factor of S and u0.
+//! * `condense/level{2,4}`: what the one-rank path adds to the factor before the loop:
+//!   the condensed right-hand side (one sparse solve) and the contact rows.
 //! * `sweep/full/level{2,4}`: one Uzawa sweep with a sparse forward+backward solve.
 //! * `sweep/condensed/level{2,4}`: one Uzawa sweep as the program does it, two dense
-//!   triangular solves of the contact size (`Condensed::contact_response`), then the
-//!   node kernels.
+//!   triangular solves of the contact size with the trailing block of the sparse factor
+//!   (`LocalResponse::forward` / `backward`), then the node kernels.
 //! * `sweep/h_matvec/level{2,4}`: the same sweep with an explicit H = C S^-1 C' (formed
 //!   once here): one dense matrix-vector product instead of the two solves.
 //! * `node_kernels/n{641,2561}`: the node-wise steps 2 and 3 alone (projection,
@@ -38,8 +38,7 @@ use contact_par::app::{contact_blocks, load_mesh};
 use contact_par::case::{self, Acceleration, Case};
 use contact_par::contact::kernels::{coulomb_threshold, normal_from_state, tangential_from_state};
 use contact_par::contact::{self, LinearStep, NoComm, Params};
-use contact_par::dd::condense::Condensed;
-use contact_par::dd::split::ContactDof;
+use contact_par::dd::condense::{ContactRows, LocalResponse};
 use contact_par::error::Result;
 use contact_par::fem::{self, assemble, Assembled, DofMap};
 use contact_par::linear::{
@@ -128,15 +127,12 @@ impl Fixture {
             .collect()
     }
 
-    /// The shifted one-rank matrix with the boundary dofs last, and its right-hand side.
+    /// The one-rank matrix with the boundary dofs last, and its right-hand side.
     fn assemble_boundary_last(&self) -> (DofMap, Assembled, Vec<f64>, usize) {
         let last = self.boundary_dofs();
         let dofs = DofMap::with_last(&self.prob.fixed, &last);
-        let mut blocks = self.blocks();
-        let alpha = self.alpha();
-        let mut b_nodes: Vec<usize> = last.iter().map(|d| d / 2).collect();
-        b_nodes.dedup();
-        blocks.extend(b_nodes.iter().map(|&v| (v, [[alpha, 0.0], [0.0, alpha]])));
+        // One rank: every boundary dof is a contact dof, none is shifted.
+        let blocks = self.blocks();
         let m = &self.prob.mesh;
         let a = assemble(&m.nodes, &m.triangles, &self.case.material, &dofs, &blocks)
             .expect("assembly");
@@ -174,32 +170,20 @@ impl Fixture {
         .0
     }
 
-    /// The condensed operator of the one-rank path (factor of S, u0).
-    fn condensed(&self, factor: &mut LocalFactor, base: &[f64], dofs: &DofMap) -> Condensed {
-        let s = factor.schur();
+    /// The condensed contact response of the one-rank path: the condensed loads and the
+    /// contact rows against the trailing block of the factor.
+    fn condensed(&self, factor: &mut LocalFactor, base: &[f64]) -> LocalResponse {
         let g = factor.condensed_rhs(base);
-        // One rank: the boundary index of a dof is its place among the last equations.
-        let first = dofs.n_free - factor.n_boundary();
-        let contact: Vec<ContactDof> = self
-            .prob
-            .contact_nodes
-            .iter()
-            .map(|&v| {
-                let b = [0, 1].map(|c| dofs.eq[2 * v + c].map(|e| e - first));
-                let fixed = [0, 1].map(|c| self.prob.fixed[2 * v + c].unwrap_or(0.0));
-                ContactDof { b, fixed }
-            })
-            .collect();
-        Condensed::new(
-            s,
-            g,
-            &contact,
-            &[self.prob.contact_nodes.len()],
+        let rows = ContactRows::new(
+            &self.prob.contact_nodes,
+            &self.prob.fixed,
+            &self.boundary_dofs(),
             self.prob.normal,
             self.prob.tangent,
             self.frictional,
         )
-        .expect("condensed operator")
+        .expect("contact rows");
+        LocalResponse::new(rows, g)
     }
 
     /// Parameters for exactly one sweep.
@@ -240,33 +224,43 @@ fn unpack(y: &[f64], n: usize, frictional: bool, un: &mut [f64], ut: &mut [f64])
 }
 
 /// Step 1 condensed onto the contact dofs, as the program does it on one rank:
-/// (Nu, Tu) = u0 + C S^-1 C' f by two triangular solves with the contact block of the
-/// factor of S.
-struct CondensedStep {
-    cond: Condensed,
+/// (Nu, Tu) = C S^-1 (g + C' f) + c0 by two triangular solves with the trailing block
+/// of the sparse factor (no interface).
+struct CondensedStep<'a> {
+    factor: &'a LocalFactor,
+    response: LocalResponse,
     n: usize,
     frictional: bool,
     f: Vec<f64>,
     y: Vec<f64>,
 }
 
-impl CondensedStep {
-    fn new(cond: Condensed, n: usize, frictional: bool) -> Self {
-        let ncd = cond.u0.len();
+impl<'a> CondensedStep<'a> {
+    fn new(factor: &'a LocalFactor, response: LocalResponse, n: usize, frictional: bool) -> Self {
+        let ncd = if frictional { 2 * n } else { n };
         CondensedStep {
-            cond,
+            factor,
+            response,
             n,
             frictional,
             f: Vec::with_capacity(ncd),
             y: vec![0.0; ncd],
         }
     }
+
+    fn respond(&mut self, f: &[f64], out: &mut [f64]) {
+        self.response.forward(self.factor, f);
+        self.response.backward(self.factor, &[], out);
+    }
 }
 
-impl LinearStep for CondensedStep {
+impl LinearStep for CondensedStep<'_> {
     fn solve(&mut self, fnn: &[f64], ft: &[f64], un: &mut [f64], ut: &mut [f64]) -> Result<()> {
         pack(&mut self.f, fnn, ft, self.frictional);
-        self.cond.contact_response(&self.f, &mut self.y);
+        let f = std::mem::take(&mut self.f);
+        let mut y = std::mem::take(&mut self.y);
+        self.respond(&f, &mut y);
+        (self.f, self.y) = (f, y);
         unpack(&self.y, self.n, self.frictional, un, ut);
         Ok(())
     }
@@ -285,14 +279,15 @@ struct HStep {
 
 impl HStep {
     /// H column by column from the program's contact response (n_H solves, once).
-    fn new(cond: &mut Condensed, n: usize, frictional: bool) -> Self {
-        let u0 = cond.u0.clone();
-        let ncd = u0.len();
+    fn new(cond: &mut CondensedStep, n: usize, frictional: bool) -> Self {
+        let ncd = if frictional { 2 * n } else { n };
+        let mut u0 = vec![0.0; ncd];
         let mut rows = vec![0.0; ncd * ncd];
         let (mut e, mut col) = (vec![0.0; ncd], vec![0.0; ncd]);
+        cond.respond(&e, &mut u0);
         for j in 0..ncd {
             e[j] = 1.0;
-            cond.contact_response(&e, &mut col);
+            cond.respond(&e, &mut col);
             e[j] = 0.0;
             for i in 0..ncd {
                 rows[i * ncd + j] = col[i] - u0[i];
@@ -431,15 +426,15 @@ fn factorization(c: &mut Criterion) {
         let groups = interior_groups(&dofs);
         budget(&mut g, LOCAL_FACTOR_S[k]);
         g.bench_function(format!("boundary_last/{}", fx.label()), |b| {
-            b.iter(|| LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha(), &groups).unwrap())
+            b.iter(|| {
+                LocalFactor::new(shifted.matrix.as_ref(), nb, nb, fx.alpha(), &groups).unwrap()
+            })
         });
         g.finish();
         let mut factor =
-            LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha(), &groups).unwrap();
+            LocalFactor::new(shifted.matrix.as_ref(), nb, nb, fx.alpha(), &groups).unwrap();
         let mut g = heavy(c, "condense", CONDENSE_S[k]);
-        g.bench_function(fx.label(), |b| {
-            b.iter(|| fx.condensed(&mut factor, &base, &dofs))
-        });
+        g.bench_function(fx.label(), |b| b.iter(|| fx.condensed(&mut factor, &base)));
         g.finish();
     }
 }
@@ -460,14 +455,14 @@ fn sweeps(c: &mut Criterion) {
         let (dofs, shifted, base, nb) = fx.assemble_boundary_last();
         let groups = interior_groups(&dofs);
         let mut factor =
-            LocalFactor::new(shifted.matrix.as_ref(), nb, fx.alpha(), &groups).unwrap();
-        let cond = fx.condensed(&mut factor, &base, &dofs);
+            LocalFactor::new(shifted.matrix.as_ref(), nb, nb, fx.alpha(), &groups).unwrap();
+        let cond = fx.condensed(&mut factor, &base);
         let n = fx.prob.contact_nodes.len();
-        let mut step = CondensedStep::new(cond, n, fx.frictional);
+        let mut step = CondensedStep::new(&factor, cond, n, fx.frictional);
         g.bench_function(format!("condensed/{}", fx.label()), |b| {
             b.iter(|| contact::solve(&mut step, &NoComm, nodes, &params, &mut |_| {}).unwrap())
         });
-        let mut h_step = HStep::new(&mut step.cond, n, fx.frictional);
+        let mut h_step = HStep::new(&mut step, n, fx.frictional);
         g.bench_function(format!("h_matvec/{}", fx.label()), |b| {
             b.iter(|| contact::solve(&mut h_step, &NoComm, nodes, &params, &mut |_| {}).unwrap())
         });

@@ -4,8 +4,8 @@
 use crate::case::{self, Acceleration, BuiltinMesh, Case, CoulombMode, Friction, MeshSource};
 use crate::contact::{self, LinearStep, Reduce, Status, Sweep};
 use crate::dd::comm::{decode, encode, Mpi};
-use crate::dd::condense::{add_piece, packed_layout, Condensed};
-use crate::dd::split::{split, GlobalMap, SubProblem};
+use crate::dd::condense::{ContactRows, InterfaceSystem, LocalResponse};
+use crate::dd::split::{split, SubProblem};
 use crate::error::{Error, Result};
 use crate::fem::{self, assemble, DofMap};
 use crate::linear::{
@@ -142,9 +142,10 @@ fn monitor_line(s: &Sweep) -> String {
 struct Setup {
     case: Case,
     r: f64,
-    /// Shift of the boundary block of every local matrix (see `LocalFactor`).
+    /// Shift of the interface block of every local matrix (see `LocalFactor`).
     alpha: f64,
     n_boundary: usize,
+    n_interface: usize,
     contact_counts: Vec<usize>,
     normal: [f64; 2],
     tangent: [f64; 2],
@@ -156,11 +157,6 @@ struct Setup {
     ordering: Ordering,
     read_s: f64,
     partition_s: f64,
-}
-
-/// Kept by the first rank only: the global numbering.
-struct RootData {
-    map: GlobalMap,
 }
 
 /// Per-rank figures, gathered for summary.json.
@@ -196,7 +192,7 @@ pub enum LinearMode {
     Full,
 }
 
-fn prepare(opts: &Options, nparts: usize) -> Result<(Setup, Vec<SubProblem>, RootData)> {
+fn prepare(opts: &Options, nparts: usize) -> Result<(Setup, Vec<SubProblem>)> {
     let t0 = Instant::now();
     let case = load_case(opts)?;
     let (mesh, mesh_name) = load_mesh(&case)?;
@@ -224,6 +220,7 @@ fn prepare(opts: &Options, nparts: usize) -> Result<(Setup, Vec<SubProblem>, Roo
         r,
         alpha: m.young / (1.0 - m.poisson * m.poisson),
         n_boundary: map.n_boundary,
+        n_interface: map.n_interface,
         contact_counts: map.contact_counts.clone(),
         normal: prob.normal,
         tangent: prob.tangent,
@@ -237,17 +234,17 @@ fn prepare(opts: &Options, nparts: usize) -> Result<(Setup, Vec<SubProblem>, Roo
         partition_s,
         case,
     };
-    Ok((setup, subs, RootData { map }))
+    Ok((setup, subs))
 }
 
 /// The first rank sends every rank its subproblem; every rank returns its own.
 fn distribute(
     mpi: &Mpi,
-    prepared: Option<(Setup, Vec<SubProblem>, RootData)>,
-) -> Result<(Setup, SubProblem, Option<RootData>)> {
-    let (setup, subs, root) = match prepared {
-        Some((s, subs, root)) => (Some(s), Some(subs), Some(root)),
-        None => (None, None, None),
+    prepared: Option<(Setup, Vec<SubProblem>)>,
+) -> Result<(Setup, SubProblem)> {
+    let (setup, subs) = match prepared {
+        Some((s, subs)) => (Some(s), Some(subs)),
+        None => (None, None),
     };
     let setup = mpi.broadcast(setup)?;
     let mine = match subs {
@@ -261,7 +258,7 @@ fn distribute(
         }
         None => decode(&mpi.recv_bytes(0))?,
     };
-    Ok((setup, mine, root))
+    Ok((setup, mine))
 }
 
 /// This rank's factored subdomain and its condensed contribution.
@@ -286,10 +283,13 @@ impl LocalSystem {
             setup.normal,
             frictional,
         );
-        let mut b_nodes: Vec<usize> = sub.boundary_dofs.iter().map(|d| d / 2).collect();
-        b_nodes.dedup();
+        let mut g_nodes: Vec<usize> = sub.boundary_dofs[sub.n_contact_dofs..]
+            .iter()
+            .map(|d| d / 2)
+            .collect();
+        g_nodes.dedup();
         blocks.extend(
-            b_nodes
+            g_nodes
                 .iter()
                 .map(|&v| (v, [[setup.alpha, 0.0], [0.0, setup.alpha]])),
         );
@@ -311,6 +311,7 @@ impl LocalSystem {
         let factor = LocalFactor::with_ordering(
             assembled.matrix.as_ref(),
             sub.boundary_dofs.len(),
+            sub.n_contact_dofs,
             setup.alpha,
             &interior_groups(&dofs),
             setup.ordering,
@@ -325,21 +326,26 @@ impl LocalSystem {
     }
 }
 
-/// Step 1 condensed onto the contact dofs: the forces of every rank are gathered on the
-/// first rank, which applies (Nu, Tu) = u0 + C S^-1 C' f with two dense triangular
-/// solves, and scatters each rank its part.
+/// Step 1 on the condensed boundary system: each rank eliminates its own contact dofs,
+/// the first rank solves the interface system (one MPI_Gatherv of the ranks' interface
+/// right-hand sides, one MPI_Scatterv of the interface values), each rank back-substitutes
+/// and reads (Nu, Tu) on its own contact nodes. No communication without an interface.
 struct CondensedStep<'a> {
     mpi: &'a Mpi,
-    /// The condensed operator, on the first rank only.
-    op: Option<&'a mut Condensed>,
+    factor: &'a LocalFactor,
+    response: LocalResponse,
+    /// The interface system, on the first rank only.
+    interface: Option<InterfaceSystem>,
+    has_interface: bool,
+    interface_counts: Vec<usize>,
     n_own: usize,
     frictional: bool,
-    packed_counts: Vec<usize>,
-    local: Vec<f64>,
-    /// First rank: the packed forces of the last sweep, and the response.
+    /// The packed own forces of the last sweep.
+    forces: Vec<f64>,
     gathered: Vec<f64>,
-    response: Vec<f64>,
-    mine: Vec<f64>,
+    solved: Vec<f64>,
+    x_g: Vec<f64>,
+    out: Vec<f64>,
 }
 
 impl LinearStep for CondensedStep<'_> {
@@ -350,23 +356,28 @@ impl LinearStep for CondensedStep<'_> {
         un: &mut [f64],
         ut: &mut [f64],
     ) -> Result<()> {
-        self.local.clear();
-        self.local.extend_from_slice(force_n);
+        self.forces.clear();
+        self.forces.extend_from_slice(force_n);
         if self.frictional {
-            self.local.extend_from_slice(force_t);
+            self.forces.extend_from_slice(force_t);
         }
-        self.mpi
-            .gather_to_root(&self.local, &self.packed_counts, &mut self.gathered);
-        if let Some(op) = self.op.as_deref_mut() {
-            self.response.resize(self.gathered.len(), 0.0);
-            op.contact_response(&self.gathered, &mut self.response);
+        let z = self.response.forward(self.factor, &self.forces);
+        self.x_g.resize(z.len(), 0.0);
+        if self.has_interface {
+            self.mpi
+                .gather_to_root(z, &self.interface_counts, &mut self.gathered);
+            if let Some(sys) = self.interface.as_mut() {
+                sys.solve_packed(&self.gathered, &mut self.solved);
+            }
+            self.mpi
+                .scatter_from_root(&self.solved, &self.interface_counts, &mut self.x_g);
         }
-        self.mine.resize(self.local.len(), 0.0);
-        self.mpi
-            .scatter_from_root(&self.response, &self.packed_counts, &mut self.mine);
-        un.copy_from_slice(&self.mine[..self.n_own]);
+        self.out.resize(self.forces.len(), 0.0);
+        self.response
+            .backward(self.factor, &self.x_g, &mut self.out);
+        un.copy_from_slice(&self.out[..self.n_own]);
         if self.frictional {
-            ut.copy_from_slice(&self.mine[self.n_own..]);
+            ut.copy_from_slice(&self.out[self.n_own..]);
         } else {
             ut.fill(0.0);
         }
@@ -416,7 +427,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         None
     };
     let prepared = mpi.agree(prepared.transpose())?;
-    let (setup, sub, root) = distribute(mpi, prepared)?;
+    let (setup, sub) = distribute(mpi, prepared)?;
     let case = &setup.case;
     print.line(format!(
         "contact-par: {} | {} nodes, {} triangles, {} contact nodes | friction {} | r = {:e}, tol = {:e} | {} rank(s) x {} thread(s)",
@@ -456,15 +467,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         ranks: mpi.size,
     };
     let (mut outcome, u_local, phases) = match opts.linear {
-        LinearMode::Condensed => solve_condensed(
-            mpi,
-            &setup,
-            &sub,
-            root.as_ref(),
-            &params,
-            &mut monitor,
-            &ckpt,
-        )?,
+        LinearMode::Condensed => solve_condensed(mpi, &setup, &sub, &params, &mut monitor, &ckpt)?,
         LinearMode::Full => solve_full(mpi, &setup, &sub, &params, &mut monitor, &ckpt)?,
     };
     // Report u_n and u_t of the recovered field (frictionless sweeps do not compute u_t).
@@ -570,12 +573,12 @@ struct Phases {
 }
 
 /// The default path: each rank factors its subdomain with its boundary dofs last and
-/// condenses onto them; the first rank forms the contact operator H; the loop sweeps on H.
+/// eliminates its own contact dofs with that factor; the first rank factors the summed
+/// interface system; the loop sweeps on the boundary system.
 fn solve_condensed(
     mpi: &Mpi,
     setup: &Setup,
     sub: &SubProblem,
-    root: Option<&RootData>,
     params: &contact::Params,
     monitor: &mut dyn FnMut(&Sweep),
     ckpt: &CheckpointFiles,
@@ -583,76 +586,97 @@ fn solve_condensed(
     let frictional = Problem::is_frictional(&setup.case);
     let mut local = mpi.agree(LocalSystem::new(setup, sub))?;
     let t_condense = Instant::now();
-    let s_local = local.factor.schur();
     let g_local = local.factor.condensed_rhs(&local.base);
+    let s_local = local.factor.interface_schur();
+    let rows = mpi.agree(ContactRows::new(
+        &sub.contact_nodes,
+        &sub.fixed,
+        &sub.boundary_dofs,
+        setup.normal,
+        setup.tangent,
+        frictional,
+    ))?;
     let schur_s = t_condense.elapsed().as_secs_f64();
 
-    // 3. First rank: the global condensed system, factored once.
-    let pos_counts: Vec<usize> = {
-        let (_, off) = packed_layout(&setup.contact_counts, frictional);
-        off.windows(2).map(|w| w[1] - w[0]).collect()
-    };
-    let condensed = if let Some(root) = root {
-        let mut s = Mat::<f64>::zeros(setup.n_boundary, setup.n_boundary);
-        let mut g = vec![0.0; setup.n_boundary];
-        add_piece(&mut s, &mut g, &sub.boundary_global, &s_local, &g_local);
+    // 3. First rank: the interface system, summed and factored once.
+    let has_interface = setup.n_interface > 0;
+    let interface = if !has_interface {
+        None
+    } else if mpi.is_root() {
+        let mut pieces = vec![(sub.interface_global.clone(), s_local)];
         for r in 1..mpi.size {
-            let (index, flat, gr): (Vec<usize>, Vec<f64>, Vec<f64>) = decode(&mpi.recv_bytes(r))?;
-            let nb = index.len();
-            let sr = Mat::<f64>::from_fn(nb, nb, |i, j| flat[i + nb * j]);
-            add_piece(&mut s, &mut g, &index, &sr, &gr);
+            let (index, flat): (Vec<usize>, Vec<f64>) = decode(&mpi.recv_bytes(r))?;
+            let n = index.len();
+            pieces.push((index, Mat::<f64>::from_fn(n, n, |i, j| flat[i + n * j])));
         }
-        Some(Condensed::new(
-            s,
-            g,
-            &root.map.contact_dofs,
-            &setup.contact_counts,
-            setup.normal,
-            setup.tangent,
-            frictional,
-        ))
+        Some(InterfaceSystem::new(setup.n_interface, pieces))
     } else {
-        let nb = s_local.nrows();
-        let flat: Vec<f64> = (0..nb * nb).map(|k| s_local[(k % nb, k / nb)]).collect();
-        mpi.send_bytes(0, &encode(&(&sub.boundary_global, flat, &g_local))?);
+        let n = s_local.nrows();
+        let flat: Vec<f64> = (0..n * n).map(|k| s_local[(k % n, k / n)]).collect();
+        drop(s_local);
+        mpi.send_bytes(0, &encode(&(&sub.interface_global, flat))?);
         None
     };
-    let mut condensed = mpi.agree(condensed.transpose())?;
+    let interface = mpi.agree(interface.transpose())?;
+    let interface_counts = if has_interface {
+        let mut counts = Vec::new();
+        mpi.all_gather(
+            &[sub.interface_global.len() as f64],
+            &vec![1; mpi.size],
+            &mut counts,
+        );
+        counts.iter().map(|&c| c as usize).collect()
+    } else {
+        vec![0; mpi.size]
+    };
     let condense_s = t_condense.elapsed().as_secs_f64();
 
     let t_loop = Instant::now();
     let n_own = sub.contact_nodes.len();
     let mut step = CondensedStep {
         mpi,
-        op: condensed.as_mut(),
+        factor: &local.factor,
+        response: LocalResponse::new(rows, g_local),
+        interface,
+        has_interface,
+        interface_counts,
         n_own,
         frictional,
-        packed_counts: pos_counts,
         // Sized for the (never expected) case of a loop that solves nothing.
-        local: vec![0.0; if frictional { 2 * n_own } else { n_own }],
+        forces: vec![0.0; if frictional { 2 * n_own } else { n_own }],
         gathered: Vec::new(),
-        response: Vec::new(),
-        mine: Vec::new(),
+        solved: Vec::new(),
+        x_g: Vec::new(),
+        out: Vec::new(),
     };
     let outcome = run_loop(&mut step, mpi, sub, params, monitor, ckpt)?;
     let loop_s = t_loop.elapsed().as_secs_f64();
 
-    // Recover the displacement from the forces of the last sweep: the first rank solves
-    // for the boundary values, every rank then solves for its interior.
+    // Recover the displacement from the forces of the last sweep, whose boundary values
+    // every rank holds: one sparse solve for the interior.
     let t_recover = Instant::now();
-    let x_b = step.op.as_deref().map(|c| {
-        c.boundary_solution(
-            &step.gathered,
-            &root.map(|r| r.map.contact_dofs.clone()).unwrap_or_default(),
-            &setup.contact_counts,
-            setup.normal,
-            setup.tangent,
-            frictional,
-        )
-    });
-    let x_b: Vec<f64> = mpi.broadcast(x_b)?;
+    if outcome.iterations == 0 {
+        // A loop that never solved: the boundary values of zero forces.
+        step.forces.fill(0.0);
+        let z = step.response.forward(step.factor, &step.forces).to_vec();
+        step.x_g.resize(z.len(), 0.0);
+        if step.has_interface {
+            mpi.gather_to_root(&z, &step.interface_counts, &mut step.gathered);
+            if let Some(sys) = step.interface.as_mut() {
+                sys.solve_packed(&step.gathered, &mut step.solved);
+            }
+            mpi.scatter_from_root(&step.solved, &step.interface_counts, &mut step.x_g);
+        }
+        step.out.resize(step.forces.len(), 0.0);
+        step.response
+            .backward(step.factor, &step.x_g, &mut step.out);
+    }
+    let x_b = step.response.boundary_values();
+    let mut g = step.response.constant_rhs().to_vec();
+    let forces = std::mem::take(&mut step.forces);
+    drop(step);
     let mut f = local.base.clone();
-    let (fn_, ft) = step.local.split_at(n_own);
+    let (fn_, ft) = forces.split_at(n_own);
     let ft = if frictional {
         ft.to_vec()
     } else {
@@ -667,11 +691,14 @@ fn solve_condensed(
         &ft,
         &mut f,
     );
-    let xb_local: Vec<f64> = sub.boundary_global.iter().map(|&b| x_b[b]).collect();
+    // The contact forces sit on B dofs, where they add to the condensed right-hand side.
+    let n_interior = f.len() - g.len();
+    for (k, gk) in g.iter_mut().enumerate() {
+        *gk += f[n_interior + k] - local.base[n_interior + k];
+    }
     let t_solves = Instant::now();
-    let u_free = local.factor.recover(&f, &xb_local);
-    // recover() is two forward+backward solves with the local factor.
-    let one_solve = 0.5 * t_solves.elapsed().as_secs_f64();
+    let u_free = local.factor.recover_with(&f, &g, &x_b);
+    let one_solve = t_solves.elapsed().as_secs_f64();
     let u_local: Vec<[f64; 2]> = local
         .dofs
         .expand(&u_free)

@@ -7,6 +7,9 @@ use crate::error::{Error, Result};
 use crate::fem::{assemble, DofMap};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
@@ -262,16 +265,25 @@ impl LinearStep for DirectStep {
 /// ordered last, so that the Schur complement onto them comes out of the same
 /// factorization: with A = L L', the trailing block gives S = L_BB L_BB'.
 ///
-/// The boundary block is shifted by `alpha` I before factoring. A subdomain without
-/// Dirichlet conditions ("floating") has a singular local matrix whose Schur complement
-/// is only semi-definite; the shift makes the factorization exist, and since it touches
-/// only the boundary block, S = L_BB L_BB' - alpha I exactly, while the condensed
-/// right-hand side and the interior recovery do not depend on it.
+/// The boundary dofs are the subdomain's own contact dofs c (first) and its interface
+/// dofs g (last). The interface block is shifted by `alpha` I before factoring. A
+/// subdomain without Dirichlet conditions ("floating") has a singular local matrix; with
+/// its interface held, it is not, so the shift on g alone makes the factorization exist.
+/// Since it touches only the boundary block, S = L_BB L_BB' - alpha E_g exactly, while
+/// the condensed right-hand side and the interior recovery do not depend on it.
+///
+/// With L_BB = [L_cc 0; L_gc L_gg], L_cc L_cc' = S_cc and L_gc L_cc' = S_gc are the
+/// unshifted blocks, so the contact dofs are eliminated from the boundary system with
+/// the same factor: the remaining interface system is L_gg L_gg' - alpha I
+/// ([`LocalFactor::interface_schur`]), and [`LocalFactor::forward`] /
+/// [`LocalFactor::backward`] are the two halves of a boundary solve around it.
 pub struct LocalFactor {
     chol: SparseCholesky,
     n_interior: usize,
     /// L_BB, dense lower triangle (n_b x n_b).
     l_bb: Mat<f64>,
+    /// Number of contact dofs, first in B (not shifted).
+    n_contact: usize,
     alpha: f64,
     rhs: Mat<f64>,
     /// Seconds spent in the fill-reducing ordering (part of the factor phase).
@@ -294,20 +306,23 @@ impl LocalFactor {
     pub fn new(
         a: SparseColMatRef<'_, usize, f64>,
         n_b: usize,
+        n_contact: usize,
         alpha: f64,
         groups: &[usize],
     ) -> Result<Self> {
-        Self::with_ordering(a, n_b, alpha, groups, Ordering::Amd)
+        Self::with_ordering(a, n_b, n_contact, alpha, groups, Ordering::Amd)
     }
 
-    /// `a` is the LOWER triangle of the shifted matrix A + alpha E_B, in an equation
-    /// order where the last `n_b` equations are the boundary dofs. `groups` gives, for
+    /// `a` is the LOWER triangle of the shifted matrix A + alpha E_g, in an equation
+    /// order where the last `n_b` equations are the boundary dofs, the first `n_contact`
+    /// of them the unshifted contact dofs. `groups` gives, for
     /// each interior equation, its node: the equations of a node are consecutive and
     /// are ordered together, so the fill-reducing ordering works on the 4x smaller
     /// node graph.
     pub fn with_ordering(
         a: SparseColMatRef<'_, usize, f64>,
         n_b: usize,
+        n_contact: usize,
         alpha: f64,
         groups: &[usize],
         ordering: Ordering,
@@ -330,6 +345,7 @@ impl LocalFactor {
             chol,
             n_interior,
             l_bb,
+            n_contact,
             alpha,
             rhs: Mat::zeros(n, 1),
             ordering_s,
@@ -362,12 +378,84 @@ impl LocalFactor {
             faer::get_global_parallelism(),
         );
         for j in 0..n {
-            s[(j, j)] -= self.alpha;
+            if j >= self.n_contact {
+                s[(j, j)] -= self.alpha;
+            }
             for i in j + 1..n {
                 s[(j, i)] = s[(i, j)];
             }
         }
         s
+    }
+
+    /// Number of interface dofs (the tail of B).
+    pub fn n_interface(&self) -> usize {
+        self.l_bb.nrows() - self.n_contact
+    }
+
+    /// This subdomain's part of the interface system left once the contact dofs are
+    /// eliminated, S_gg - S_gc S_cc^-1 S_cg = L_gg L_gg' - alpha I (dense, symmetric).
+    pub fn interface_schur(&self) -> Mat<f64> {
+        use faer::linalg::matmul::triangular::{matmul, BlockStructure};
+        let (nc, ng) = (self.n_contact, self.n_interface());
+        let l_gg = self.l_bb.submatrix(nc, nc, ng, ng);
+        let mut s = Mat::<f64>::zeros(ng, ng);
+        matmul(
+            s.as_mut(),
+            BlockStructure::TriangularLower,
+            faer::Accum::Replace,
+            l_gg,
+            BlockStructure::TriangularLower,
+            l_gg.transpose(),
+            BlockStructure::TriangularUpper,
+            1.0,
+            faer::get_global_parallelism(),
+        );
+        for j in 0..ng {
+            s[(j, j)] -= self.alpha;
+            for i in j + 1..ng {
+                s[(j, i)] = s[(i, j)];
+            }
+        }
+        s
+    }
+
+    /// First half of a solve of S x = b on B, in place on `b` (n_b x 1):
+    /// b_c <- L_cc^-1 b_c, b_g <- b_g - L_gc b_c. The tail is then this subdomain's part
+    /// of the interface right-hand side.
+    pub fn forward(&self, b: MatMut<'_, f64>) {
+        let (nc, ng) = (self.n_contact, self.n_interface());
+        let par = faer::get_global_parallelism();
+        let (mut b_c, b_g) = b.split_at_row_mut(nc);
+        solve_lower_triangular_in_place(self.l_bb.submatrix(0, 0, nc, nc), b_c.as_mut(), par);
+        faer::linalg::matmul::matmul(
+            b_g,
+            faer::Accum::Add,
+            self.l_bb.submatrix(nc, 0, ng, nc),
+            b_c.as_ref(),
+            -1.0,
+            par,
+        );
+    }
+
+    /// Second half: given the interface values x_g, b_c <- L_cc^-T (b_c - L_gc' x_g) and
+    /// b_g <- x_g, so that `b` holds x_B.
+    pub fn backward(&self, b: MatMut<'_, f64>, x_g: &[f64]) {
+        let (nc, ng) = (self.n_contact, self.n_interface());
+        let par = faer::get_global_parallelism();
+        let (mut b_c, mut b_g) = b.split_at_row_mut(nc);
+        for (i, v) in x_g.iter().enumerate() {
+            b_g[(i, 0)] = *v;
+        }
+        faer::linalg::matmul::matmul(
+            b_c.as_mut(),
+            faer::Accum::Add,
+            self.l_bb.submatrix(nc, 0, ng, nc).transpose(),
+            b_g.as_ref(),
+            -1.0,
+            par,
+        );
+        solve_upper_triangular_in_place(self.l_bb.submatrix(0, 0, nc, nc).transpose(), b_c, par);
     }
 
     /// Full solve with the shifted matrix; the solution stays in `self.rhs`.
@@ -400,6 +488,12 @@ impl LocalFactor {
     /// Solves A~ u = f + [0; z] with z = S~ x_B - g, which pins u_B = x_B.
     pub fn recover(&mut self, f: &[f64], x_b: &[f64]) -> Vec<f64> {
         let g = self.condensed_rhs(f);
+        self.recover_with(f, &g, x_b)
+    }
+
+    /// [`LocalFactor::recover`] with g = condensed_rhs(f) known: one sparse solve. (Forces
+    /// on B dofs only add to g, so g is known from that of the forces without them.)
+    pub fn recover_with(&mut self, f: &[f64], g: &[f64], x_b: &[f64]) -> Vec<f64> {
         let sx = self.shifted_schur_times(x_b);
         let mut f2 = f.to_vec();
         for k in 0..x_b.len() {
@@ -647,21 +741,31 @@ mod tests {
                 fixed[2 * node + 1] = Some(1e-3);
             }
         }
-        // Boundary: the free dofs of the top and right sides.
-        let mut last: Vec<usize> = mesh.group_nodes("top").unwrap();
-        last.extend(mesh.group_nodes("right").unwrap());
-        last.sort_unstable();
-        last.dedup();
-        let last_dofs: Vec<usize> = last
-            .iter()
-            .flat_map(|&v| [2 * v, 2 * v + 1])
-            .filter(|&d| fixed[d].is_none())
+        // Boundary: the free dofs of the top side ("contact", not shifted) and then of
+        // the right side ("interface", shifted).
+        let right: Vec<usize> = mesh.group_nodes("right").unwrap();
+        let top: Vec<usize> = mesh
+            .group_nodes("top")
+            .unwrap()
+            .into_iter()
+            .filter(|v| !right.contains(v))
             .collect();
+        let free_dofs = |nodes: &[usize]| -> Vec<usize> {
+            nodes
+                .iter()
+                .flat_map(|&v| [2 * v, 2 * v + 1])
+                .filter(|&d| fixed[d].is_none())
+                .collect()
+        };
+        let mut last_dofs = free_dofs(&top);
+        let nc = last_dofs.len();
+        last_dofs.extend(free_dofs(&right));
         let dofs = DofMap::with_last(&fixed, &last_dofs);
         let nb = last_dofs.len();
+        let ng = nb - nc;
         let alpha = 1000.0;
         let plain = assemble(&mesh.nodes, &mesh.triangles, &material(), &dofs, &[]).unwrap();
-        let shift: Vec<(usize, [[f64; 2]; 2])> = last
+        let shift: Vec<(usize, [[f64; 2]; 2])> = right
             .iter()
             .map(|&v| (v, [[alpha, 0.0], [0.0, alpha]]))
             .collect();
@@ -670,12 +774,13 @@ mod tests {
         let nd = LocalFactor::with_ordering(
             shifted.matrix.as_ref(),
             nb,
+            nc,
             alpha,
             &groups,
             Ordering::NestedDissection,
         )
         .unwrap();
-        let mut lf = LocalFactor::new(shifted.matrix.as_ref(), nb, alpha, &groups).unwrap();
+        let mut lf = LocalFactor::new(shifted.matrix.as_ref(), nb, nc, alpha, &groups).unwrap();
         // Both orderings give the same Schur complement.
         assert!((&nd.schur() - &lf.schur()).norm_max() < 1e-10 * lf.schur().norm_max());
 
@@ -694,6 +799,26 @@ mod tests {
             "{}",
             (&s - &s_ref).norm_max()
         );
+
+        // The interface system left after eliminating the contact dofs, and a boundary
+        // solve through forward, a dense interface solve and backward.
+        let s_cc = s_ref.submatrix(0, 0, nc, nc).to_owned();
+        let s_gc = s_ref.submatrix(nc, 0, ng, nc).to_owned();
+        let s_gg = s_ref.submatrix(nc, nc, ng, ng).to_owned();
+        let s_int_ref = &s_gg - &s_gc * s_cc.llt(Side::Lower).unwrap().solve(s_gc.transpose());
+        let s_int = lf.interface_schur();
+        assert!((&s_int - &s_int_ref).norm_max() < 1e-10 * scale);
+        // (S may be singular here, floating: check the halves on a consistent b = S x.)
+        let x_true = Mat::<f64>::from_fn(nb, 1, |i, _| 1e-3 * (((3 * i) % 7) as f64 - 3.0));
+        let mut b = &s_ref * &x_true;
+        lf.forward(b.as_mut());
+        let x_g_true = x_true.submatrix(nc, 0, ng, 1).to_owned();
+        let z_ref = &s_int_ref * &x_g_true;
+        let z = b.submatrix(nc, 0, ng, 1).to_owned();
+        assert!((&z - &z_ref).norm_max() < 1e-9 * z_ref.norm_max());
+        let x_g: Vec<f64> = (0..ng).map(|i| x_g_true[(i, 0)]).collect();
+        lf.backward(b.as_mut(), &x_g);
+        assert!((&b - &x_true).norm_max() < 1e-9 * x_true.norm_max());
 
         let f: Vec<f64> = (0..dofs.n_free)
             .map(|i| ((i * 7919) % 13) as f64 - 6.0)

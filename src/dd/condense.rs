@@ -1,216 +1,213 @@
-//! The global condensed operator, pure dense linear algebra (no MPI).
+//! The contact response of the condensed system, pure dense linear algebra (no MPI).
 //!
-//! S = sum_s R_s' S_s R_s on the boundary dofs B, g = sum_s R_s' g_s. The sweep needs
-//! only the normal and tangential displacements of the contact nodes,
-//!   (Nu, Tu) = C S^-1 (g + C' f) + c0 = u0 + C S^-1 C' f,
-//! with u0 = C S^-1 g + c0 (c0: prescribed components). With the contact dofs ordered
-//! last in S = L L', C' f is zero on the interface rows, so S^-1 C' f restricted to the
-//! contact dofs is L_cc^-T L_cc^-1 (C_c' f): two dense triangular solves with the
-//! trailing n_c x n_c triangle, 2 n_c^2 flops a sweep, whatever the interface size.
-//! (Forming H = C S^-1 C' explicitly would cost n_c^3 more flops once for about the
-//! same per-sweep traffic; with the accelerated loop's ~100 sweeps it does not pay.)
+//! The boundary system S x = b lives on B = the contact dofs of every rank (dofs of own
+//! contact nodes that no other part touches) and the interface dofs. A contact dof
+//! belongs to one subdomain only, so S_cc is block diagonal by rank and each rank
+//! eliminates its own contact dofs with the dense trailing block of its sparse factor
+//! (`LocalFactor::forward` / `backward`). What is left is the interface system
+//! S' = sum_s (L_gg L_gg' - alpha I)_s, summed and factored once on the first rank.
 //!
-//! Contact values are laid out "packed": rank by rank, each rank's normal values then
-//! (with friction) its tangential values, the layout of the per-sweep gather.
+//! A sweep needs (Nu, Tu) = C x + c0 on the contact nodes, with b = g + C' f (g: the
+//! condensed constant loads, f: the contact forces):
+//! 1. each rank: b_s = g_s + C_s' f_s, then `forward` (n_c^2 + 2 n_c n_g flops);
+//! 2. first rank: sums the interface tails into the global interface vector, solves with
+//!    S' (2 n_G^2 flops) and hands each rank its interface values;
+//! 3. each rank: `backward` (the same flops as 1), then reads C_s x_s + c0.
+//!
+//! On one rank there is no interface and the sweep is two dense triangular solves with
+//! the trailing block of the sparse factor. The first rank's dense work is set by the
+//! interface alone (n_G^3 / 3 once, 2 n_G^2 a sweep), not by the contact boundary.
 
-use super::split::ContactDof;
 use crate::error::{Error, Result};
+use crate::linear::LocalFactor;
 use faer::linalg::solvers::Solve;
-use faer::linalg::triangular_solve::{
-    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
-};
 use faer::{Mat, Side};
 
-/// Packed position of the normal (and tangential) value of each contact node in sweep
-/// order, and the packed offset of each rank's block.
-pub fn packed_layout(counts: &[usize], frictional: bool) -> (Vec<[usize; 2]>, Vec<usize>) {
-    let per = if frictional { 2 } else { 1 };
-    let mut pos = Vec::new();
-    let mut offsets = Vec::with_capacity(counts.len() + 1);
-    let mut off = 0;
-    for &c in counts {
-        offsets.push(off);
-        for i in 0..c {
-            pos.push([off + i, off + c + i]);
-        }
-        off += per * c;
-    }
-    offsets.push(off);
-    (pos, offsets)
+/// C restricted to one rank's own contact nodes: packed rows (the normal value of each
+/// own contact node, then, with friction, the tangential ones) against positions in B.
+#[derive(Debug, Clone)]
+pub struct ContactRows {
+    /// (packed row, B position, coefficient).
+    entries: Vec<(usize, usize, f64)>,
+    /// The prescribed part of each packed row.
+    c0: Vec<f64>,
 }
 
-/// Adds one subdomain's Schur complement and condensed right-hand side into the global
-/// ones, through its global boundary indices.
-pub fn add_piece(
-    s: &mut Mat<f64>,
-    g: &mut [f64],
-    index: &[usize],
-    s_local: &Mat<f64>,
-    g_local: &[f64],
-) {
-    for (a, &ia) in index.iter().enumerate() {
-        g[ia] += g_local[a];
-        for (b, &ib) in index.iter().enumerate() {
-            s[(ia, ib)] += s_local[(a, b)];
-        }
-    }
-}
-
-/// The dense factor of S (contact dofs ordered last) and what a sweep needs.
-pub struct Condensed {
-    llt: faer::linalg::solvers::Llt<f64>,
-    /// perm[new] = old boundary index: the non-contact (interface) dofs first.
-    perm: Vec<usize>,
-    /// Number of interface (non-contact) boundary dofs, first in `perm`.
-    n_first: usize,
-    /// C restricted to the contact dofs: (packed row, trailing index, coefficient).
-    c: Vec<(usize, usize, f64)>,
-    pub g: Vec<f64>,
-    /// C S^-1 g + c0, packed.
-    pub u0: Vec<f64>,
-    work: faer::Mat<f64>,
-}
-
-/// C as (packed row, B index, coefficient) triples, and c0 as (packed row, value).
-type ContactMatrix = (Vec<(usize, usize, f64)>, Vec<(usize, f64)>);
-
-/// C as a list of (packed row, B index, coefficient) triples, and c0 per packed row.
-fn contact_rows(
-    dofs: &[ContactDof],
-    pos: &[[usize; 2]],
-    normal: [f64; 2],
-    tangent: [f64; 2],
-    frictional: bool,
-) -> ContactMatrix {
-    let mut c = Vec::new();
-    let mut c0 = Vec::new();
-    for (k, d) in dofs.iter().enumerate() {
-        // u_n = -m.u, u_t = t.u.
-        let kinds: &[(usize, [f64; 2])] = if frictional {
-            &[(0, [-normal[0], -normal[1]]), (1, tangent)]
-        } else {
-            &[(0, [-normal[0], -normal[1]])]
-        };
-        for &(kind, coef) in kinds {
-            let row = pos[k][kind];
-            let mut fixed_part = 0.0;
-            for comp in 0..2 {
-                match d.b[comp] {
-                    Some(b) => c.push((row, b, coef[comp])),
-                    None => fixed_part += coef[comp] * d.fixed[comp],
-                }
-            }
-            c0.push((row, fixed_part));
-        }
-    }
-    (c, c0)
-}
-
-impl Condensed {
-    /// Factors S (n_B^3 / 3 flops, n_B^2 doubles) and computes u0.
+impl ContactRows {
+    /// `contact_nodes` are local node ids, `fixed` the prescribed value of each local dof,
+    /// `boundary_dofs` the local dof of each position in B.
     pub fn new(
-        s: Mat<f64>,
-        g: Vec<f64>,
-        dofs: &[ContactDof],
-        counts: &[usize],
+        contact_nodes: &[usize],
+        fixed: &[Option<f64>],
+        boundary_dofs: &[usize],
         normal: [f64; 2],
         tangent: [f64; 2],
         frictional: bool,
     ) -> Result<Self> {
-        let nb = s.nrows();
-        let (pos, offsets) = packed_layout(counts, frictional);
-        let ncd = *offsets.last().unwrap_or(&0);
-        let (c, c0) = contact_rows(dofs, &pos, normal, tangent, frictional);
-        let mut on_contact = vec![false; nb];
-        for &(_, b, _) in &c {
-            on_contact[b] = true;
+        let mut position = std::collections::HashMap::with_capacity(boundary_dofs.len());
+        for (k, &d) in boundary_dofs.iter().enumerate() {
+            position.insert(d, k);
         }
-        let mut perm: Vec<usize> = (0..nb).filter(|&b| !on_contact[b]).collect();
-        let n_first = perm.len();
-        perm.extend((0..nb).filter(|&b| on_contact[b]));
-        let mut inv = vec![0; nb];
-        for (new, &old) in perm.iter().enumerate() {
-            inv[old] = new;
+        let n = contact_nodes.len();
+        let per = if frictional { 2 } else { 1 };
+        let mut entries = Vec::with_capacity(2 * per * n);
+        let mut c0 = vec![0.0; per * n];
+        for (k, &v) in contact_nodes.iter().enumerate() {
+            // u_n = -m.u, u_t = t.u.
+            let kinds: &[(usize, [f64; 2])] = if frictional {
+                &[(k, [-normal[0], -normal[1]]), (n + k, tangent)]
+            } else {
+                &[(k, [-normal[0], -normal[1]])]
+            };
+            for &(row, coef) in kinds {
+                for comp in 0..2 {
+                    let dof = 2 * v + comp;
+                    match fixed[dof] {
+                        Some(value) => c0[row] += coef[comp] * value,
+                        None => {
+                            let b = *position.get(&dof).ok_or_else(|| {
+                                Error::Numerical(format!(
+                                    "internal: contact dof {dof} is not a boundary dof"
+                                ))
+                            })?;
+                            entries.push((row, b, coef[comp]));
+                        }
+                    }
+                }
+            }
         }
-        let sp = Mat::<f64>::from_fn(nb, nb, |i, j| s[(perm[i], perm[j])]);
-        drop(s);
-        let llt = sp.llt(Side::Lower).map_err(|_| {
-            Error::Numerical(
-                "the condensed stiffness matrix is singular: the body can still move rigidly; add Dirichlet conditions that fix the rigid motions (with frictionless contact, also the sliding along the foundation)".into(),
-            )
-        })?;
-        drop(sp);
-        let c_trailing: Vec<(usize, usize, f64)> = c
-            .iter()
-            .map(|&(row, b, v)| (row, inv[b] - n_first, v))
-            .collect();
-        let mut cond = Condensed {
-            llt,
-            perm,
-            n_first,
-            c: c_trailing,
+        Ok(ContactRows { entries, c0 })
+    }
+
+    /// Number of packed rows.
+    pub fn len(&self) -> usize {
+        self.c0.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.c0.is_empty()
+    }
+}
+
+/// One rank's part of the boundary solve of every sweep.
+pub struct LocalResponse {
+    rows: ContactRows,
+    /// Condensed constant loads on B.
+    g: Vec<f64>,
+    /// Work column; after `backward`, x_B.
+    b: Mat<f64>,
+    interface: Vec<f64>,
+}
+
+impl LocalResponse {
+    pub fn new(rows: ContactRows, g: Vec<f64>) -> Self {
+        let n = g.len();
+        LocalResponse {
+            rows,
             g,
-            u0: vec![0.0; ncd],
-            work: Mat::zeros(nb - n_first, 1),
+            b: Mat::zeros(n, 1),
+            interface: Vec::new(),
+        }
+    }
+
+    /// b = g + C' f (packed own forces f), then the forward elimination of the contact
+    /// dofs; returns this rank's part of the interface right-hand side.
+    pub fn forward(&mut self, factor: &LocalFactor, f: &[f64]) -> &[f64] {
+        for (i, v) in self.g.iter().enumerate() {
+            self.b[(i, 0)] = *v;
+        }
+        for &(row, k, c) in &self.rows.entries {
+            self.b[(k, 0)] += c * f[row];
+        }
+        factor.forward(self.b.as_mut());
+        let nc = self.g.len() - factor.n_interface();
+        self.interface.clear();
+        self.interface
+            .extend((nc..self.g.len()).map(|i| self.b[(i, 0)]));
+        &self.interface
+    }
+
+    /// Back substitution with the interface values x_g; writes (Nu, Tu) packed in `out`.
+    pub fn backward(&mut self, factor: &LocalFactor, x_g: &[f64], out: &mut [f64]) {
+        factor.backward(self.b.as_mut(), x_g);
+        out.copy_from_slice(&self.rows.c0);
+        for &(row, k, c) in &self.rows.entries {
+            out[row] += c * self.b[(k, 0)];
+        }
+    }
+
+    /// x_B of the last `backward`.
+    pub fn boundary_values(&self) -> Vec<f64> {
+        (0..self.b.nrows()).map(|i| self.b[(i, 0)]).collect()
+    }
+
+    /// The condensed constant loads on B.
+    pub fn constant_rhs(&self) -> &[f64] {
+        &self.g
+    }
+}
+
+/// The interface system of all ranks, summed and factored once on the first rank.
+pub struct InterfaceSystem {
+    llt: Option<faer::linalg::solvers::Llt<f64>>,
+    /// Global interface index of each rank's interface dofs, rank by rank.
+    index: Vec<Vec<usize>>,
+    x: Mat<f64>,
+}
+
+impl InterfaceSystem {
+    /// Sums the pieces (one per rank, in rank order: global indices and the dense
+    /// interface Schur complement) and factors the sum (n^3 / 3 flops, n^2 doubles).
+    pub fn new(n: usize, pieces: impl IntoIterator<Item = (Vec<usize>, Mat<f64>)>) -> Result<Self> {
+        let mut s = Mat::<f64>::zeros(n, n);
+        let mut index = Vec::new();
+        for (idx, piece) in pieces {
+            for (a, &ia) in idx.iter().enumerate() {
+                for (b, &ib) in idx.iter().enumerate() {
+                    s[(ia, ib)] += piece[(a, b)];
+                }
+            }
+            index.push(idx);
+        }
+        let llt = if n == 0 {
+            None
+        } else {
+            Some(s.llt(Side::Lower).map_err(|_| {
+                Error::Numerical(
+                    "the condensed stiffness matrix is singular: the body can still move rigidly; add Dirichlet conditions that fix the rigid motions (with frictionless contact, also the sliding along the foundation)".into(),
+                )
+            })?)
         };
-        let w = cond.solve_s(&cond.g.clone());
-        for &(row, b, v) in &c {
-            cond.u0[row] += v * w[b];
-        }
-        for (row, v) in c0 {
-            cond.u0[row] += v;
-        }
-        Ok(cond)
+        Ok(InterfaceSystem {
+            llt,
+            index,
+            x: Mat::zeros(n, 1),
+        })
     }
 
-    /// (Nu, Tu) = u0 + C S^-1 C' f for packed contact forces f, into `out` (packed):
-    /// two triangular solves with the trailing block of the factor.
-    pub fn contact_response(&mut self, f: &[f64], out: &mut [f64]) {
-        let ncc = self.work.nrows();
-        self.work.fill(0.0);
-        for &(row, k, v) in &self.c {
-            self.work[(k, 0)] += v * f[row];
-        }
-        let par = faer::get_global_parallelism();
-        let l = self.llt.L();
-        let l_cc = l.submatrix(self.n_first, self.n_first, ncc, ncc);
-        solve_lower_triangular_in_place(l_cc, self.work.as_mut(), par);
-        solve_upper_triangular_in_place(l_cc.transpose(), self.work.as_mut(), par);
-        out.copy_from_slice(&self.u0);
-        for &(row, k, v) in &self.c {
-            out[row] += v * self.work[(k, 0)];
-        }
+    /// Number of interface dofs of each rank (the counts of the per-sweep gather).
+    pub fn counts(&self) -> Vec<usize> {
+        self.index.iter().map(Vec::len).collect()
     }
 
-    /// S^-1 x, in the original boundary numbering.
-    fn solve_s(&self, x: &[f64]) -> Vec<f64> {
-        let n = self.perm.len();
-        let xp = faer::Col::<f64>::from_fn(n, |i| x[self.perm[i]]);
-        let yp = self.llt.solve(xp.as_mat());
-        let mut y = vec![0.0; n];
-        for i in 0..n {
-            y[self.perm[i]] = yp[(i, 0)];
+    /// From the ranks' interface right-hand sides, concatenated in rank order, to their
+    /// interface values, in the same layout.
+    pub fn solve_packed(&mut self, z: &[f64], out: &mut Vec<f64>) {
+        self.x.fill(0.0);
+        let mut k = 0;
+        for idx in &self.index {
+            for &i in idx {
+                self.x[(i, 0)] += z[k];
+                k += 1;
+            }
         }
-        y
-    }
-
-    /// x_B = S^-1 (g + C' f) for packed contact forces f.
-    pub fn boundary_solution(
-        &self,
-        f: &[f64],
-        dofs: &[ContactDof],
-        counts: &[usize],
-        normal: [f64; 2],
-        tangent: [f64; 2],
-        frictional: bool,
-    ) -> Vec<f64> {
-        let (pos, _) = packed_layout(counts, frictional);
-        let (c, _) = contact_rows(dofs, &pos, normal, tangent, frictional);
-        let mut rhs = self.g.clone();
-        for &(row, b, v) in &c {
-            rhs[b] += v * f[row];
+        if let Some(llt) = &self.llt {
+            llt.solve_in_place(self.x.as_mut());
         }
-        self.solve_s(&rhs)
+        out.clear();
+        for idx in &self.index {
+            out.extend(idx.iter().map(|&i| self.x[(i, 0)]));
+        }
     }
 }
 
@@ -219,70 +216,48 @@ mod tests {
     use super::*;
 
     #[test]
-    fn packed_layout_groups_each_rank() {
-        let (pos, off) = packed_layout(&[2, 1], true);
-        assert_eq!(pos, vec![[0, 2], [1, 3], [4, 5]]);
-        assert_eq!(off, vec![0, 4, 6]);
-        let (pos, off) = packed_layout(&[2, 1], false);
-        assert_eq!(pos[2][0], 2);
-        assert_eq!(off, vec![0, 2, 3]);
+    fn contact_rows_read_normal_and_tangential_parts() {
+        // Node 0: both dofs free; node 1: x prescribed to 0.5.
+        let fixed = vec![None, None, Some(0.5), None];
+        let boundary = vec![3, 0, 1];
+        let (m, t) = ([0.0, -1.0], [1.0, 0.0]);
+        let rows = ContactRows::new(&[0, 1], &fixed, &boundary, m, t, true).unwrap();
+        assert_eq!(rows.len(), 4);
+        // u_n = -m.u = u_y, u_t = u_x.
+        let mut e = rows.entries.clone();
+        e.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        let expected = vec![(0, 2, 1.0), (1, 0, 1.0), (2, 1, 1.0)];
+        let nonzero: Vec<_> = e.into_iter().filter(|x| x.2 != 0.0).collect();
+        assert_eq!(nonzero, expected);
+        assert_eq!(rows.c0, vec![0.0, 0.0, 0.0, 0.5]);
+        // A contact dof that is not in B is an internal error, not a panic.
+        assert!(ContactRows::new(&[0], &fixed, &[3], m, t, false).is_err());
     }
 
     #[test]
-    fn contact_operator_matches_direct_solves() {
-        // S = a small SPD matrix on 5 boundary dofs: two contact nodes (x, y each) and,
-        // between them, one interface dof (exercises the contact-last reordering).
-        let s = Mat::<f64>::from_fn(5, 5, |i, j| {
-            if i == j {
-                4.0
-            } else {
-                1.0 / (1.0 + (i + j) as f64)
-            }
+    fn interface_system_sums_overlapping_pieces() {
+        // Pieces on global dofs {0, 1} and {1, 2}: the sum is tridiagonal [2 -1 0; ...].
+        let p = Mat::from_fn(2, 2, |i, j| if i == j { 1.5 } else { -1.0 });
+        let mut sys = InterfaceSystem::new(3, [(vec![0, 1], p.clone()), (vec![1, 2], p)]).unwrap();
+        assert_eq!(sys.counts(), vec![2, 2]);
+        // Right-hand sides split between the ranks on the shared dof 1.
+        let mut out = Vec::new();
+        sys.solve_packed(&[1.0, 0.25, 0.75, 1.0], &mut out);
+        let s = Mat::from_fn(3, 3, |i, j| match (i, j) {
+            (1, 1) => 3.0,
+            (i, j) if i == j => 1.5,
+            (i, j) if i.abs_diff(j) == 1 => -1.0,
+            _ => 0.0,
         });
-        let g = vec![1.0, -2.0, 0.7, 0.5, 3.0];
-        let dofs = [
-            ContactDof {
-                b: [Some(0), Some(1)],
-                fixed: [0.0; 2],
-            },
-            ContactDof {
-                b: [Some(3), Some(4)],
-                fixed: [0.0; 2],
-            },
-        ];
-        let (m, t) = ([0.6, 0.8], [0.8, -0.6]);
-        let cond = Condensed::new(s.clone(), g.clone(), &dofs, &[2], m, t, true).unwrap();
-        let f = [0.3, -0.1, 0.7, 0.2];
-        // Direct: x = S^-1 (g + C' f), then (Nu, Tu).
-        let x = cond.boundary_solution(&f, &dofs, &[2], m, t, true);
-        let mut cond = cond;
-        let mut via_h = vec![0.0; 4];
-        cond.contact_response(&f, &mut via_h);
-        let xy = |k: usize| if k == 0 { [x[0], x[1]] } else { [x[3], x[4]] };
-        let un = |k: usize| -(m[0] * xy(k)[0] + m[1] * xy(k)[1]);
-        let ut = |k: usize| t[0] * xy(k)[0] + t[1] * xy(k)[1];
-        let direct = [un(0), un(1), ut(0), ut(1)];
-        for i in 0..4 {
-            assert!(
-                (via_h[i] - direct[i]).abs() < 1e-12,
-                "{i}: {} {}",
-                via_h[i],
-                direct[i]
-            );
+        let x = [out[0], out[1], out[3]];
+        assert_eq!(out[1], out[2]);
+        let rhs = [1.0, 1.0, 1.0];
+        for i in 0..3 {
+            let r: f64 = (0..3).map(|j| s[(i, j)] * x[j]).sum();
+            assert!((r - rhs[i]).abs() < 1e-14, "{r}");
         }
-        // The response is linear and symmetric in f (C S^-1 C' is): <e_i, R e_j> = <e_j, R e_i>.
-        let resp = |cond: &mut Condensed, k: usize| {
-            let mut e = [0.0; 4];
-            e[k] = 1.0;
-            let mut out = vec![0.0; 4];
-            cond.contact_response(&e, &mut out);
-            (0..4).map(|i| out[i] - cond.u0[i]).collect::<Vec<f64>>()
-        };
-        let cols: Vec<Vec<f64>> = (0..4).map(|k| resp(&mut cond, k)).collect();
-        for i in 0..4 {
-            for j in 0..4 {
-                assert!((cols[j][i] - cols[i][j]).abs() < 1e-13);
-            }
-        }
+        // A singular sum is reported.
+        let z = Mat::<f64>::zeros(1, 1);
+        assert!(InterfaceSystem::new(1, [(vec![0], z)]).is_err());
     }
 }

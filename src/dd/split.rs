@@ -1,8 +1,10 @@
 //! Splitting the global problem into one subproblem per rank (pure: no MPI).
 //!
-//! The boundary dofs B are the free dofs of every interface node (touched by several
-//! parts) and of every contact node. They are numbered globally in increasing
-//! (node, component) order; every rank orders its own boundary dofs last, in that order.
+//! The boundary dofs B of a rank are the free dofs of its own contact nodes that no other
+//! part touches (its "contact" dofs, eliminated locally) followed by the free dofs of its
+//! interface nodes (touched by several parts; a contact node on the interface is one of
+//! them). Only the interface dofs have a global number, in increasing (node, component)
+//! order; every rank orders its boundary dofs last: contact, then interface.
 
 use crate::contact::ContactNodes;
 use crate::error::{Error, Result};
@@ -29,33 +31,28 @@ pub struct SubProblem {
     /// Own contact nodes (local ids), in the global sweep order.
     pub contact_nodes: Vec<usize>,
     pub contact: ContactNodes,
-    /// Local dofs (2 * local node + c) in B, by increasing global B index.
+    /// Local dofs (2 * local node + c) in B: the `n_contact_dofs` contact dofs first, then
+    /// the interface dofs by increasing global interface index.
     pub boundary_dofs: Vec<usize>,
-    /// Global B index of each of `boundary_dofs`.
-    pub boundary_global: Vec<usize>,
+    /// Number of contact (not interface) dofs at the head of `boundary_dofs`.
+    pub n_contact_dofs: usize,
+    /// Global interface index of each interface dof (the tail of `boundary_dofs`).
+    pub interface_global: Vec<usize>,
     /// Local nodes shared with another part.
     pub interface_nodes: usize,
-}
-
-/// How a contact node's normal and tangential displacements read the boundary vector.
-#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
-pub struct ContactDof {
-    /// Global B index of the x and y dofs, `None` when prescribed.
-    pub b: [Option<usize>; 2],
-    /// Prescribed x and y values (0 when free).
-    pub fixed: [f64; 2],
 }
 
 /// The global numbering shared by all ranks, known in full on the first rank only.
 #[derive(Debug, Clone)]
 pub struct GlobalMap {
-    /// Number of boundary dofs.
+    /// Number of interface dofs (the size of the dense interface system).
+    pub n_interface: usize,
+    /// Number of boundary dofs, contact and interface, over all ranks.
     pub n_boundary: usize,
     /// Contact nodes in sweep order: by owning rank, then by global node id.
     pub contact_order: Vec<usize>,
     /// Index into `Problem::contact_nodes` of each entry of `contact_order`.
     pub contact_index: Vec<usize>,
-    pub contact_dofs: Vec<ContactDof>,
     /// Own contact nodes per rank (the counts of the per-sweep all-gather).
     pub contact_counts: Vec<usize>,
 }
@@ -68,21 +65,25 @@ pub fn split(prob: &Problem, part: &Partition) -> Result<(Vec<SubProblem>, Globa
     for &c in &prob.contact_nodes {
         is_contact[c] = true;
     }
-    let mut in_b = is_contact.clone();
+    let mut on_interface = vec![false; n];
     for p in &part.parts {
         for &v in &p.interface {
-            in_b[v] = true;
+            on_interface[v] = true;
         }
     }
-    let mut b_index: Vec<[Option<usize>; 2]> = vec![[None; 2]; n];
+    let mut interface_index: Vec<[Option<usize>; 2]> = vec![[None; 2]; n];
+    let mut n_interface = 0;
     let mut n_boundary = 0;
     for v in 0..n {
-        if !in_b[v] {
-            continue;
-        }
         for c in 0..2 {
-            if prob.fixed[2 * v + c].is_none() {
-                b_index[v][c] = Some(n_boundary);
+            if prob.fixed[2 * v + c].is_some() {
+                continue;
+            }
+            if on_interface[v] {
+                interface_index[v][c] = Some(n_interface);
+                n_interface += 1;
+                n_boundary += 1;
+            } else if is_contact[v] {
                 n_boundary += 1;
             }
         }
@@ -97,16 +98,6 @@ pub fn split(prob: &Problem, part: &Partition) -> Result<(Vec<SubProblem>, Globa
     let contact_order: Vec<usize> = contact_index
         .iter()
         .map(|&k| prob.contact_nodes[k])
-        .collect();
-    let contact_dofs = contact_order
-        .iter()
-        .map(|&v| ContactDof {
-            b: b_index[v],
-            fixed: [
-                prob.fixed[2 * v].unwrap_or(0.0),
-                prob.fixed[2 * v + 1].unwrap_or(0.0),
-            ],
-        })
         .collect();
 
     let mut local_of = vec![usize::MAX; n];
@@ -124,17 +115,22 @@ pub fn split(prob: &Problem, part: &Partition) -> Result<(Vec<SubProblem>, Globa
         let mut fixed = Vec::with_capacity(2 * p.nodes.len());
         let mut load = Vec::with_capacity(2 * p.nodes.len());
         let mut boundary_dofs = Vec::new();
-        let mut boundary_global = Vec::new();
+        let mut interface_dofs = Vec::new();
+        let mut interface_global = Vec::new();
         for (l, &g) in p.nodes.iter().enumerate() {
             for c in 0..2 {
                 fixed.push(prob.fixed[2 * g + c]);
                 load.push(if owned[l] { prob.load[2 * g + c] } else { 0.0 });
-                if let Some(b) = b_index[g][c] {
+                if let Some(b) = interface_index[g][c] {
+                    interface_dofs.push(2 * l + c);
+                    interface_global.push(b);
+                } else if is_contact[g] && prob.fixed[2 * g + c].is_none() {
                     boundary_dofs.push(2 * l + c);
-                    boundary_global.push(b);
                 }
             }
         }
+        let n_contact_dofs = boundary_dofs.len();
+        boundary_dofs.extend(interface_dofs);
         let mine = &contact_by_rank[r];
         let sub = SubProblem {
             rank: r,
@@ -153,7 +149,8 @@ pub fn split(prob: &Problem, part: &Partition) -> Result<(Vec<SubProblem>, Globa
                 g: mine.iter().map(|&k| prob.contact.g[k]).collect(),
             },
             boundary_dofs,
-            boundary_global,
+            n_contact_dofs,
+            interface_global,
             interface_nodes: p.interface.len(),
         };
         if sub.contact_nodes.contains(&usize::MAX) {
@@ -169,10 +166,10 @@ pub fn split(prob: &Problem, part: &Partition) -> Result<(Vec<SubProblem>, Globa
     Ok((
         subs,
         GlobalMap {
+            n_interface,
             n_boundary,
             contact_order,
             contact_index,
-            contact_dofs,
             contact_counts: contact_by_rank.iter().map(Vec::len).collect(),
         },
     ))
