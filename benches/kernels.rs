@@ -195,6 +195,7 @@ impl Fixture {
             friction: self.case.contact.friction,
             coulomb: self.case.solver.coulomb,
             acceleration: Acceleration::None,
+            adapt_r: false,
         }
     }
 

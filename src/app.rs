@@ -4,7 +4,7 @@
 use crate::case::{self, Acceleration, BuiltinMesh, Case, CoulombMode, Friction, MeshSource};
 use crate::contact::{self, LinearStep, Reduce, Status, Sweep};
 use crate::dd::comm::{decode, encode, Mpi};
-use crate::dd::condense::{ContactRows, InterfaceSystem, LocalResponse};
+use crate::dd::condense::{boundary_entries, ContactRows, InterfaceSystem, LocalResponse};
 use crate::dd::split::{split, SubProblem};
 use crate::error::{Error, Result};
 use crate::fem::{self, assemble, DofMap};
@@ -332,7 +332,9 @@ impl LocalSystem {
 /// and reads (Nu, Tu) on its own contact nodes. No communication without an interface.
 struct CondensedStep<'a> {
     mpi: &'a Mpi,
-    factor: &'a LocalFactor,
+    setup: &'a Setup,
+    sub: &'a SubProblem,
+    factor: &'a mut LocalFactor,
     response: LocalResponse,
     /// The interface system, on the first rank only.
     interface: Option<InterfaceSystem>,
@@ -349,6 +351,31 @@ struct CondensedStep<'a> {
 }
 
 impl LinearStep for CondensedStep<'_> {
+    /// Each rank refactors the dense trailing block of its factor with the new
+    /// augmentation on its contact dofs; the first rank rebuilds the interface system.
+    fn set_r(&mut self, r: f64) -> Result<bool> {
+        let frictional = Problem::is_frictional(&self.setup.case);
+        let blocks = contact_blocks(
+            &self.sub.contact_nodes,
+            &self.sub.contact.w,
+            r - self.setup.r,
+            self.setup.normal,
+            frictional,
+        );
+        let updated = boundary_entries(&blocks, &self.sub.fixed, &self.sub.boundary_dofs)
+            .and_then(|delta| self.factor.update_boundary(&delta));
+        self.mpi.agree(updated)?;
+        if self.has_interface {
+            self.interface = build_interface(
+                self.mpi,
+                self.sub,
+                self.factor.interface_schur(),
+                self.setup.n_interface,
+            )?;
+        }
+        Ok(true)
+    }
+
     fn solve(
         &mut self,
         force_n: &[f64],
@@ -453,9 +480,19 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         friction: case.contact.friction,
         coulomb: case.solver.coulomb,
         acceleration: case.solver.acceleration,
+        // A given r is the user's: kept as it is.
+        adapt_r: case.solver.r.is_none(),
     };
     let every = opts.monitor_every.max(1);
+    let mut last_r = setup.r;
     let mut monitor = |s: &Sweep| {
+        if s.r != last_r {
+            print.line(format!(
+                "  r raised to {:e} (active and slip sets settled; the factor's dense block refactored)",
+                s.r
+            ));
+            last_r = s.r;
+        }
         if s.iter == 1 || s.iter % every == 0 {
             print.line(monitor_line(s));
         }
@@ -572,6 +609,32 @@ struct Phases {
     one_solve: f64,
 }
 
+/// The interface system, summed from every rank's part and factored on the first rank
+/// (collective; `None` on the other ranks).
+fn build_interface(
+    mpi: &Mpi,
+    sub: &SubProblem,
+    s_local: Mat<f64>,
+    n_interface: usize,
+) -> Result<Option<InterfaceSystem>> {
+    let interface = if mpi.is_root() {
+        let mut pieces = vec![(sub.interface_global.clone(), s_local)];
+        for r in 1..mpi.size {
+            let (index, flat): (Vec<usize>, Vec<f64>) = decode(&mpi.recv_bytes(r))?;
+            let n = index.len();
+            pieces.push((index, Mat::<f64>::from_fn(n, n, |i, j| flat[i + n * j])));
+        }
+        Some(InterfaceSystem::new(n_interface, pieces))
+    } else {
+        let n = s_local.nrows();
+        let flat: Vec<f64> = (0..n * n).map(|k| s_local[(k % n, k / n)]).collect();
+        drop(s_local);
+        mpi.send_bytes(0, &encode(&(&sub.interface_global, flat))?);
+        None
+    };
+    mpi.agree(interface.transpose())
+}
+
 /// The default path: each rank factors its subdomain with its boundary dofs last and
 /// eliminates its own contact dofs with that factor; the first rank factors the summed
 /// interface system; the loop sweeps on the boundary system.
@@ -600,24 +663,11 @@ fn solve_condensed(
 
     // 3. First rank: the interface system, summed and factored once.
     let has_interface = setup.n_interface > 0;
-    let interface = if !has_interface {
-        None
-    } else if mpi.is_root() {
-        let mut pieces = vec![(sub.interface_global.clone(), s_local)];
-        for r in 1..mpi.size {
-            let (index, flat): (Vec<usize>, Vec<f64>) = decode(&mpi.recv_bytes(r))?;
-            let n = index.len();
-            pieces.push((index, Mat::<f64>::from_fn(n, n, |i, j| flat[i + n * j])));
-        }
-        Some(InterfaceSystem::new(setup.n_interface, pieces))
+    let interface = if has_interface {
+        build_interface(mpi, sub, s_local, setup.n_interface)?
     } else {
-        let n = s_local.nrows();
-        let flat: Vec<f64> = (0..n * n).map(|k| s_local[(k % n, k / n)]).collect();
-        drop(s_local);
-        mpi.send_bytes(0, &encode(&(&sub.interface_global, flat))?);
         None
     };
-    let interface = mpi.agree(interface.transpose())?;
     let interface_counts = if has_interface {
         let mut counts = Vec::new();
         mpi.all_gather(
@@ -635,7 +685,9 @@ fn solve_condensed(
     let n_own = sub.contact_nodes.len();
     let mut step = CondensedStep {
         mpi,
-        factor: &local.factor,
+        setup,
+        sub,
+        factor: &mut local.factor,
         response: LocalResponse::new(rows, g_local),
         interface,
         has_interface,
@@ -1046,6 +1098,7 @@ fn write_outputs(
             dual: s.dual,
             active: s.active,
             slip: s.slip,
+            r: s.r,
         })
         .collect();
     output::write_atomic(
@@ -1081,6 +1134,7 @@ fn write_outputs(
         "dofs": 2 * setup.nodes,
         "free_dofs": setup.free_dofs,
         "boundary_dofs": setup.n_boundary,
+        "interface_dofs": setup.n_interface,
         "contact_nodes": setup.contact_nodes,
         "active_nodes": active,
         "stick_nodes": stick,
@@ -1088,7 +1142,8 @@ fn write_outputs(
         "total_normal_force": all_rows.iter().map(|r| r[8] * r[4]).sum::<f64>(),
         "total_tangential_force": all_rows.iter().map(|r| r[8] * r[5]).sum::<f64>(),
         "friction": friction_name(&case.contact.friction),
-        "r": setup.r,
+        "r": last.map_or(setup.r, |s| s.r),
+        "r_initial": setup.r,
         "tol": case.solver.tol,
         "final_residuals": { "primal": last.map(|s| s.primal), "dual": last.map(|s| s.dual) },
         "timings_s": times,

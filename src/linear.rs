@@ -115,6 +115,11 @@ pub struct SetupTimes {
 /// solves plus O(n) vector work.
 pub struct DirectStep {
     chol: SparseCholesky,
+    /// A as assembled (lower triangle) with r0, and the per-node blocks of N'WN
+    /// (+ T'WT) for r = 1: what a change of r adds.
+    a0: faer::sparse::SparseColMat<usize, f64>,
+    r0: f64,
+    unit_blocks: Vec<(usize, [[f64; 2]; 2])>,
     dofs: DofMap,
     /// F + lifting of the prescribed dofs, on the free dofs.
     base: Vec<f64>,
@@ -122,6 +127,9 @@ pub struct DirectStep {
     contact_nodes: Vec<usize>,
     normal: [f64; 2],
     tangent: [f64; 2],
+    /// Without friction Tu is not part of the method: reported as 0, as the condensed
+    /// step does, so both paths see the same residual scale.
+    frictional: bool,
 }
 
 impl DirectStep {
@@ -138,12 +146,12 @@ impl DirectStep {
         let t0 = Instant::now();
         let dofs = DofMap::new(fixed);
         let [mx, my] = contact.normal;
-        let blocks: Vec<(usize, [[f64; 2]; 2])> = contact
+        let unit_blocks: Vec<(usize, [[f64; 2]; 2])> = contact
             .nodes
             .iter()
             .zip(contact.w)
             .map(|(&node, &w)| {
-                let rw = r * w;
+                let rw = w;
                 // N_i'N_i = m m'; with friction also T_i'T_i = t t', and m m' + t t' = I.
                 let blk = if contact.frictional {
                     [[rw, 0.0], [0.0, rw]]
@@ -152,6 +160,10 @@ impl DirectStep {
                 };
                 (node, blk)
             })
+            .collect();
+        let blocks: Vec<(usize, [[f64; 2]; 2])> = unit_blocks
+            .iter()
+            .map(|&(node, b)| (node, b.map(|row| row.map(|v| r * v))))
             .collect();
         let assembled = assemble(nodes, triangles, material, &dofs, &blocks)?;
         let mut base = assembled.lifting;
@@ -169,12 +181,16 @@ impl DirectStep {
         Ok((
             DirectStep {
                 chol,
+                a0: assembled.matrix,
+                r0: r,
+                unit_blocks,
                 dofs,
                 base,
                 rhs: Mat::zeros(n, 1),
                 contact_nodes: contact.nodes.to_vec(),
                 normal: contact.normal,
                 tangent: contact.tangent,
+                frictional: contact.frictional,
             },
             SetupTimes {
                 assemble: assemble_s,
@@ -228,6 +244,36 @@ pub fn add_contact_forces(
 }
 
 impl LinearStep for DirectStep {
+    /// A full numeric refactorization (this path is the textbook reference).
+    fn set_r(&mut self, r: f64) -> Result<bool> {
+        let mut a = self.a0.clone();
+        let dr = r - self.r0;
+        let (cp, ri): (Vec<usize>, Vec<usize>) = (
+            a.symbolic().col_ptr().to_vec(),
+            a.symbolic().row_idx().to_vec(),
+        );
+        let vals = a.val_mut();
+        for &(node, blk) in &self.unit_blocks {
+            for (ca, row) in blk.iter().enumerate() {
+                for (cb, &v) in row.iter().enumerate() {
+                    let (Some(i), Some(j)) =
+                        (self.dofs.eq[2 * node + ca], self.dofs.eq[2 * node + cb])
+                    else {
+                        continue;
+                    };
+                    if i < j {
+                        continue;
+                    }
+                    if let Some(p) = (cp[j]..cp[j + 1]).find(|&p| ri[p] == i) {
+                        vals[p] += dr * v;
+                    }
+                }
+            }
+        }
+        self.chol = SparseCholesky::factor(a.as_ref(), SymmetricOrdering::Amd)?;
+        Ok(true)
+    }
+
     fn solve(
         &mut self,
         force_n: &[f64],
@@ -255,7 +301,11 @@ impl LinearStep for DirectStep {
         for (k, &node) in self.contact_nodes.iter().enumerate() {
             let (ux, uy) = (self.dof_value(2 * node), self.dof_value(2 * node + 1));
             un[k] = -(mx * ux + my * uy);
-            ut[k] = tx * ux + ty * uy;
+            ut[k] = if self.frictional {
+                tx * ux + ty * uy
+            } else {
+                0.0
+            };
         }
         Ok(())
     }
@@ -285,6 +335,9 @@ pub struct LocalFactor {
     /// Number of contact dofs, first in B (not shifted).
     n_contact: usize,
     alpha: f64,
+    /// S~ = L_BB L_BB' of the matrix as assembled, kept from the first
+    /// [`LocalFactor::update_boundary`] on, so that every update starts from it.
+    s0: Option<Mat<f64>>,
     rhs: Mat<f64>,
     /// Seconds spent in the fill-reducing ordering (part of the factor phase).
     pub ordering_s: f64,
@@ -347,6 +400,7 @@ impl LocalFactor {
             l_bb,
             n_contact,
             alpha,
+            s0: None,
             rhs: Mat::zeros(n, 1),
             ordering_s,
         })
@@ -386,6 +440,50 @@ impl LocalFactor {
             }
         }
         s
+    }
+
+    /// Refactors for the matrix as assembled plus `delta` on the boundary block: (i, j, v)
+    /// adds v at B positions (i, j) and (j, i). Only the dense trailing block of the
+    /// factor changes (the interior block and the coupling L_BI do not depend on A_BB),
+    /// so this costs b^3 / 3 flops, not a sparse factorization; the updated block is
+    /// written back into the sparse factor, which stays the exact factor of the updated
+    /// matrix. Every update starts from the assembled matrix, so the result does not
+    /// depend on the updates made before.
+    pub fn update_boundary(&mut self, delta: &[(usize, usize, f64)]) -> Result<()> {
+        let n = self.l_bb.nrows();
+        let l_bb = &self.l_bb;
+        let s0 = self.s0.get_or_insert_with(|| {
+            use faer::linalg::matmul::triangular::{matmul, BlockStructure};
+            let mut s = Mat::<f64>::zeros(n, n);
+            matmul(
+                s.as_mut(),
+                BlockStructure::TriangularLower,
+                faer::Accum::Replace,
+                l_bb,
+                BlockStructure::TriangularLower,
+                l_bb.transpose(),
+                BlockStructure::TriangularUpper,
+                1.0,
+                faer::get_global_parallelism(),
+            );
+            s
+        });
+        let mut s = s0.clone();
+        for &(i, j, v) in delta {
+            // Only the lower triangle is read by the factorization.
+            let (i, j) = if i >= j { (i, j) } else { (j, i) };
+            s[(i, j)] += v;
+        }
+        let llt = s.llt(Side::Lower).map_err(|_| {
+            Error::Numerical(
+                "the updated boundary block is not positive definite (r too small?)".into(),
+            )
+        })?;
+        drop(s);
+        let l = llt.L();
+        self.l_bb = Mat::from_fn(n, n, |i, j| if i >= j { l[(i, j)] } else { 0.0 });
+        self.chol.set_trailing_block(self.n_interior, &self.l_bb);
+        Ok(())
     }
 
     /// Number of interface dofs (the tail of B).
@@ -652,6 +750,45 @@ pub fn interior_groups(dofs: &DofMap) -> Vec<usize> {
 }
 
 impl SparseCholesky {
+    /// Overwrites the trailing block of the factor with `l` (the inverse of
+    /// [`SparseCholesky::trailing_block`]; the same structure is required).
+    fn set_trailing_block(&mut self, first: usize, l: &Mat<f64>) {
+        use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
+        let n = self.dim();
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(s) => {
+                let (cp, ri) = (s.col_ptr(), s.row_idx());
+                for j in first..n {
+                    for p in cp[j]..cp[j + 1] {
+                        self.values[p] = l[(ri[p] - first, j - first)];
+                    }
+                }
+            }
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                let (begin, end) = (s.supernode_begin(), s.supernode_end());
+                let (rp, vp, ri) = (s.col_ptr_for_row_idx(), s.col_ptr_for_val(), s.row_idx());
+                for sn in 0..s.n_supernodes() {
+                    let (b, e) = (begin[sn], end[sn]);
+                    if e <= first {
+                        continue;
+                    }
+                    let pattern = &ri[rp[sn]..rp[sn + 1]];
+                    let nrows = (e - b) + pattern.len();
+                    let vals = &mut self.values[vp[sn]..vp[sn + 1]];
+                    for j in b.max(first)..e {
+                        let col = &mut vals[(j - b) * nrows..(j - b + 1) * nrows];
+                        for i in j..e {
+                            col[i - b] = l[(i - first, j - first)];
+                        }
+                        for (k, &i) in pattern.iter().enumerate() {
+                            col[(e - b) + k] = l[(i - first, j - first)];
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// The trailing `n - first` rows and columns of the Cholesky factor L (in the
     /// factor's own, permuted, order), dense. Requires an ordering that keeps those
     /// equations last in place.

@@ -44,14 +44,23 @@ fn iterations(dir: &Path) -> i64 {
 /// uninterrupted run: same iteration count and the same numbers to 1e-12 relative.
 fn check_restart(np: usize, extra: &[&str]) {
     let tmp = tempfile::tempdir().unwrap();
-    let base = [
-        "--builtin",
-        "block",
-        "--level",
-        "1",
-        "--quiet",
-        "--nodes-csv",
-    ];
+    check_restart_in(
+        tmp.path(),
+        np,
+        &["--builtin", "block", "--level", "1"],
+        extra,
+        (17, 5),
+    );
+}
+
+/// [`check_restart`] for a run given by `source` (a built-in or a case file), stopped
+/// after `stop.0` sweeps with checkpoints every `stop.1`.
+fn check_restart_in(tmp: &Path, np: usize, source: &[&str], extra: &[&str], stop: (usize, usize)) {
+    let base: Vec<&str> = source
+        .iter()
+        .copied()
+        .chain(["--quiet", "--nodes-csv"])
+        .collect();
     let args = |out: &str, more: &[&str]| -> Vec<String> {
         base.iter()
             .chain(["--out", out].iter())
@@ -60,12 +69,12 @@ fn check_restart(np: usize, extra: &[&str]) {
             .map(|s| s.to_string())
             .collect()
     };
-    let a = args("stopped", &["--max-iter", "17", "--checkpoint-every", "5"]);
-    let o = run(
-        np,
-        &a.iter().map(String::as_str).collect::<Vec<_>>(),
-        tmp.path(),
+    let (max_iter, every) = (stop.0.to_string(), stop.1.to_string());
+    let a = args(
+        "stopped",
+        &["--max-iter", &max_iter, "--checkpoint-every", &every],
     );
+    let o = run(np, &a.iter().map(String::as_str).collect::<Vec<_>>(), tmp);
     assert_eq!(
         o.status.code(),
         Some(3),
@@ -74,32 +83,23 @@ fn check_restart(np: usize, extra: &[&str]) {
     );
     for r in 0..np {
         assert!(tmp
-            .path()
             .join(format!("stopped/checkpoint/rank_{r}.bin"))
             .exists());
     }
     let a = args("stopped", &["--restart"]);
-    let o = run(
-        np,
-        &a.iter().map(String::as_str).collect::<Vec<_>>(),
-        tmp.path(),
-    );
+    let o = run(np, &a.iter().map(String::as_str).collect::<Vec<_>>(), tmp);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let a = args("straight", &[]);
-    let o = run(
-        np,
-        &a.iter().map(String::as_str).collect::<Vec<_>>(),
-        tmp.path(),
-    );
+    let o = run(np, &a.iter().map(String::as_str).collect::<Vec<_>>(), tmp);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
     assert_eq!(
-        iterations(&tmp.path().join("stopped")),
-        iterations(&tmp.path().join("straight"))
+        iterations(&tmp.join("stopped")),
+        iterations(&tmp.join("straight"))
     );
     for file in ["contact.csv", "nodes.csv"] {
-        let x = numbers(&tmp.path().join("stopped").join(file));
-        let y = numbers(&tmp.path().join("straight").join(file));
+        let x = numbers(&tmp.join("stopped").join(file));
+        let y = numbers(&tmp.join("straight").join(file));
         assert_eq!(x.len(), y.len());
         let scale = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for (a, b) in x.iter().zip(&y) {
@@ -116,6 +116,33 @@ fn restart_equals_uninterrupted_run_one_rank() {
 #[test]
 fn restart_equals_uninterrupted_run_two_ranks_coulomb_outer() {
     check_restart(2, &["--coulomb", "outer"]);
+}
+
+/// Frictionless, every node at zero gap: r is raised at sweep 3, before the checkpoint
+/// of sweep 4, so the restart must refactor with the raised r to continue exactly.
+#[test]
+fn restart_after_a_raise_of_r_continues_exactly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = contact_par::case::builtin_case_text("block", 1).unwrap();
+    let case: String = text
+        .lines()
+        .filter(|l| !l.trim_start().starts_with("coefficient"))
+        .map(|l| {
+            if l.trim_start().starts_with("friction") {
+                "friction = \"none\"\n".to_string()
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    let path = tmp.path().join("case.toml");
+    std::fs::write(&path, case).unwrap();
+    check_restart_in(tmp.path(), 2, &[path.to_str().unwrap()], &[], (5, 4));
+    let s: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(tmp.path().join("stopped/summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(s["r"].as_f64().unwrap() > 10.0 * s["r_initial"].as_f64().unwrap());
 }
 
 #[test]

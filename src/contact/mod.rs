@@ -23,6 +23,12 @@ pub trait LinearStep {
         un: &mut [f64],
         ut: &mut [f64],
     ) -> Result<()>;
+
+    /// Changes r in A (collective: every rank calls it with the same r). Returns false
+    /// when this step cannot; r then stays as it was.
+    fn set_r(&mut self, _r: f64) -> Result<bool> {
+        Ok(false)
+    }
 }
 
 /// Global sums over all ranks (an all-reduce). One rank: the identity.

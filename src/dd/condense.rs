@@ -89,6 +89,38 @@ impl ContactRows {
     }
 }
 
+/// 2 x 2 blocks at nodes (local ids) as entries (i, j, v) at B positions, each pair of
+/// positions once (i >= j); prescribed components are left out. For
+/// `LocalFactor::update_boundary`.
+pub fn boundary_entries(
+    blocks: &[(usize, [[f64; 2]; 2])],
+    fixed: &[Option<f64>],
+    boundary_dofs: &[usize],
+) -> Result<Vec<(usize, usize, f64)>> {
+    let mut position = std::collections::HashMap::with_capacity(boundary_dofs.len());
+    for (k, &d) in boundary_dofs.iter().enumerate() {
+        position.insert(d, k);
+    }
+    let mut out = Vec::with_capacity(3 * blocks.len());
+    for &(v, blk) in blocks {
+        for a in 0..2 {
+            for b in 0..=a {
+                let (da, db) = (2 * v + a, 2 * v + b);
+                if fixed[da].is_some() || fixed[db].is_some() {
+                    continue;
+                }
+                let (Some(&i), Some(&j)) = (position.get(&da), position.get(&db)) else {
+                    return Err(Error::Numerical(format!(
+                        "internal: node {v} of a boundary block has a dof outside B"
+                    )));
+                };
+                out.push((i.max(j), i.min(j), blk[a][b]));
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// One rank's part of the boundary solve of every sweep.
 pub struct LocalResponse {
     rows: ContactRows,

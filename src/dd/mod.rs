@@ -5,42 +5,55 @@
 //!
 //! ## Scheme
 //! Rank 0 partitions the mesh (METIS on the dual graph) and sends each rank its
-//! subdomain. The boundary dofs B of a rank are its interface dofs and the dofs of the
-//! contact nodes it owns. Each rank assembles A_s = K_s + r N'WN (+ r T'WT) on its own
-//! elements and contact nodes, orders the interior by nested dissection and B last, and
-//! factors once: the trailing block of the factor gives its Schur complement
-//! S_s = L_BB L_BB' (`LocalFactor`), with no solve per boundary dof. Rank 0 sums the S_s
-//! into the condensed matrix S on all of B, orders the contact dofs last and factors it
-//! (dense Cholesky). A sweep needs (Nu, Tu) on the contact nodes only, and the contact
-//! forces enter only on contact dofs, so one sweep is two triangular solves with the
-//! trailing contact block of that factor (`Condensed::contact_response`). After
-//! convergence, rank 0 solves for all of B once and every rank recovers its interior
-//! with one sparse solve. Everything is a direct method: the iterates are those of the
-//! one-rank solver up to round-off, whatever the rank count.
+//! subdomain. The boundary dofs B_s of a rank are its contact dofs c_s (own contact
+//! nodes that no other part touches) followed by its interface dofs g_s. Each rank
+//! assembles A_s = K_s + r N'WN (+ r T'WT) on its own elements and contact nodes, shifts
+//! the interface block by alpha I (floating subdomains), orders the interior by a
+//! fill-reducing ordering and B_s last, and factors once. The dense trailing block of
+//! the factor, L_BB = [L_cc 0; L_gc L_gg], is all the condensation needs
+//! (`LocalFactor`): L_cc L_cc' = S_cc (the contact block of the subdomain's Schur
+//! complement), L_gc L_cc' = S_gc, and L_gg L_gg' - alpha I is the subdomain's part of the
+//! interface system once its contact dofs are eliminated. Rank 0 sums those parts into
+//! the interface system S' (n_G interface dofs) and factors it (dense Cholesky).
 //!
-//! ## Cost model (rank s: n_s dofs, b_s boundary dofs, nnz(L_s) factor entries;
-//! n_B = sum of distinct boundary dofs, n_c = contact dofs (x and y), m = Anderson memory)
+//! A contact dof belongs to one subdomain, so the contact dofs are eliminated rank by
+//! rank, in parallel, and rank 0's dense work depends on the interface only. One sweep
+//! (`dd::condense`): each rank forms b_s = g_s + C_s' f_s and runs a forward
+//! elimination (a triangular solve with L_cc and a product with L_gc); rank 0 gathers
+//! and sums the interface tails, solves with S' and scatters the interface values; each
+//! rank back-substitutes and reads (Nu, Tu) on its own contact nodes. After convergence
+//! every rank holds its boundary values and recovers its interior with one sparse
+//! solve. Everything is a direct method: the iterates are those of the one-rank solver
+//! up to round-off, whatever the rank count.
+//!
+//! The earlier design summed the Schur complements on all of B on rank 0 and factored
+//! it there: (n_c + n_G)^3 / 3 serial flops (97 Gflop, 6.8 s, at block level 6 on two
+//! ranks, where n_c = 5122 of n_B = 6622) against n_G^3 / 3 now (1.1 Gflop).
+//!
+//! ## Cost model (rank s: n_s dofs, c_s contact and g_s interface dofs, b_s = c_s + g_s,
+//! nnz(L_s) factor entries; n_G = distinct interface dofs; m = Anderson memory)
 //!
 //! | phase | flops | memory | messages |
 //! | --- | --- | --- | --- |
 //! | partition + scatter (rank 0) | O(n log n) | the mesh | one point-to-point per rank |
 //! | assemble (each rank) | 42 per element entry | ~21 triplets per element | - |
-//! | factor (each rank) | ND sparse Cholesky, O(n_s^1.5) in 2D, + b_s^3 / 3 for the dense trailing block | nnz(L_s) + b_s^2 | - |
-//! | Schur S_s = L_BB L_BB' | b_s^3 | b_s^2 | one message of b_s^2 doubles to rank 0 |
-//! | condensed factor (rank 0) | n_B^3 / 3 | n_B^2 | - |
-//! | one sweep | rank 0: 2 n_c^2 (two triangular solves); each rank: O(own contact nodes) | - | MPI_Gatherv + MPI_Scatterv of the contact forces / displacements (n_c values in all), one MPI_Allreduce of 11 + m(m+1)/2 + m doubles |
-//! | recovery | rank 0: 2 n_B^2; each rank: two sparse solves, 8 nnz(L_s) | - | one broadcast of n_B doubles |
+//! | factor (each rank) | sparse Cholesky, O(n_s^1.5) in 2D with a good ordering, + b_s^3 / 3 for the dense trailing block | nnz(L_s) + b_s^2 | - |
+//! | condensed loads (each rank) | one sparse solve, 4 nnz(L_s) | n_s | - |
+//! | interface part L_gg L_gg' (each rank) | g_s^3 / 3 | g_s^2 | one message of g_s^2 doubles to rank 0 |
+//! | interface factor (rank 0) | n_G^3 / 3 | n_G^2 | - |
+//! | one sweep | each rank: 2 c_s^2 + 4 c_s g_s + O(own contact nodes); rank 0: 2 n_G^2 | - | MPI_Gatherv + MPI_Scatterv of the interface values (sum g_s values), one MPI_Allreduce of 11 + m(m+1)/2 + m doubles; with one rank, no interface and only the allreduce |
+//! | recovery | each rank: one sparse solve, 4 nnz(L_s) | - | - |
 //!
-//! The sweep is independent of the mesh size beyond the contact boundary: against one
-//! sparse forward+backward solve (4 nnz(L) flops, nnz(L) ~ 50-100 per dof in 2D) it is
-//! cheaper by the ratio 4 nnz(L) / 2 n_c^2, e.g. 1.2M-node Hertz: n_c = 3.5k dofs,
-//! nnz(L) ~ 2.5e8 -> 1e9 vs 2.5e7 flops. Measured figures are in summary.json
+//! The sweep is independent of the mesh size beyond the contact boundary and the
+//! interface: against one sparse forward+backward solve (4 nnz(L) flops, nnz(L) ~ 50-150
+//! per dof in 2D) it is cheaper by about 4 nnz(L) / (2 c^2 + 4 c g); e.g. block level 6 on
+//! one rank, c = 5122: 2.1e9 vs 5.2e7 flops. Measured figures are in summary.json
 //! (`sweep_s` against `one_solve_s`) and in the notes of the performance issue.
 //!
-//! Limits: the condensed matrix S is dense and held by rank 0 (n_B^2 doubles): fine for
-//! the few thousand boundary dofs of meshes of a few million nodes on tens of ranks; for
-//! hundreds of ranks the interface part of S would need a distributed (or iterative,
-//! BDDC-preconditioned) solve, which is not built.
+//! Limits: the interface system is dense and held by rank 0 (n_G^2 doubles): fine for
+//! the interfaces of meshes of tens of millions of nodes on tens of ranks (n_G = 20 000
+//! is 3.2 GB); for hundreds of ranks it would need a distributed dense factorization or
+//! a third level, which is not built.
 
 pub mod comm;
 pub mod condense;

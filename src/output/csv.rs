@@ -28,6 +28,8 @@ pub struct HistoryRow {
     pub dual: f64,
     pub active: usize,
     pub slip: usize,
+    /// The augmentation parameter of the sweep's linear step.
+    pub r: f64,
 }
 
 /// `contact.csv`: header `x,y,u_n,u_t,p_n,p_t,gap`, rows sorted by x then y.
@@ -72,16 +74,16 @@ pub fn nodes_csv(nodes: &[[f64; 2]], u: &[[f64; 2]]) -> String {
     out
 }
 
-/// `history.csv`: header `iteration,primal_residual,dual_residual,active_nodes,slip_nodes`,
+/// `history.csv`: header `iteration,primal_residual,dual_residual,active_nodes,slip_nodes,r`,
 /// rows in the given order.
 pub fn history_csv(rows: &[HistoryRow]) -> String {
     let mut out = String::with_capacity(48 * (rows.len() + 1));
-    out.push_str("iteration,primal_residual,dual_residual,active_nodes,slip_nodes\n");
+    out.push_str("iteration,primal_residual,dual_residual,active_nodes,slip_nodes,r\n");
     for r in rows {
         let _ = writeln!(
             out,
-            "{},{},{},{},{}",
-            r.iter, r.primal, r.dual, r.active, r.slip
+            "{},{},{},{},{},{}",
+            r.iter, r.primal, r.dual, r.active, r.slip, r.r
         );
     }
     out
@@ -221,6 +223,7 @@ mod tests {
                 dual: 1e-300,
                 active: 10,
                 slip: 0,
+                r: 1e5,
             },
             HistoryRow {
                 iter: 2,
@@ -228,19 +231,20 @@ mod tests {
                 dual: 2.0,
                 active: 12,
                 slip: 3,
+                r: 1e7,
             },
         ];
         let csv = history_csv(&rows);
         let mut lines = csv.lines();
         assert_eq!(
             lines.next(),
-            Some("iteration,primal_residual,dual_residual,active_nodes,slip_nodes")
+            Some("iteration,primal_residual,dual_residual,active_nodes,slip_nodes,r")
         );
         assert_eq!(
             lines.next(),
-            Some(format!("1,0.5,{},10,0", 1e-300).as_str())
+            Some(format!("1,0.5,{},10,0,100000", 1e-300).as_str())
         );
-        assert_eq!(lines.next(), Some("2,0.30000000000000004,2,12,3"));
+        assert_eq!(lines.next(), Some("2,0.30000000000000004,2,12,3,10000000"));
         assert_eq!(lines.next(), None);
         assert!(csv.ends_with('\n'));
     }
