@@ -325,3 +325,20 @@ fn quality_summary_reads_well() {
         "{s}"
     );
 }
+
+#[test]
+fn large_meshes_are_coarsened_before_metis() {
+    // Past 200 000 triangles the crate coarsens the graph itself before METIS, then
+    // refines the projected parts: the same promises must hold.
+    for (mesh, connected) in [(rectangle(400, 260), true), (two_bodies(300, 180), false)] {
+        for nparts in [2, 5] {
+            let p = partition_mesh(mesh.0, &mesh.1, &mesh.2, nparts).unwrap();
+            check_partition(&mesh, &p);
+            assert!(p.quality.imbalance <= 1.03, "{}", p.quality);
+            if connected {
+                assert_eq!(p.quality.disconnected_parts, 0, "{}", p.quality);
+            }
+            assert_eq!(p, partition_mesh(mesh.0, &mesh.1, &mesh.2, nparts).unwrap());
+        }
+    }
+}
