@@ -66,7 +66,8 @@ for path in sorted(glob.glob(os.path.join(out, "runs", "*", "summary.json"))):
     for r in s["per_rank"]:
         rows.append({
             "level": level, "nodes": s["nodes"], "ranks": s["ranks"], "rank": r["rank"],
-            "rank_nodes": r["nodes"], "boundary_dofs": s.get("boundary_dofs"),
+            "rank_nodes": r["nodes"], "interface_dofs": s.get("interface_dofs", 0),
+            "rank_boundary_dofs": r["boundary_dofs"],
             "factor_nnz": r["factor_nnz"], "peak_memory_bytes": r["peak_memory_bytes"],
         })
 rows.sort(key=lambda r: (r["level"], r["ranks"], r["rank"]))
@@ -89,23 +90,23 @@ def fit(xs, ys):
 
 MB = 2**20
 L = [f"Peak memory per rank, built-in case `{case}`, 1 thread per rank (VmHWM from summary.json).",
-     "", "| level | nodes | ranks | n_B | rank 0 MB | other ranks, max MB | bytes/node (largest other rank, or rank 0 alone) |",
+     "", "| level | nodes | ranks | n_G | rank 0 MB | other ranks, max MB | bytes/node (largest other rank, or rank 0 alone) |",
      "| --- | --- | --- | --- | --- | --- | --- |"]
 for (level, ranks) in sorted({(r["level"], r["ranks"]) for r in rows}):
     run = [r for r in rows if r["level"] == level and r["ranks"] == ranks]
     root = next(r for r in run if r["rank"] == 0)
     others = [r for r in run if r["rank"] > 0]
     big = max(others, key=lambda r: r["peak_memory_bytes"]) if others else root
-    L.append(f"| {level} | {root['nodes']} | {ranks} | {root['boundary_dofs']} | "
+    L.append(f"| {level} | {root['nodes']} | {ranks} | {root['interface_dofs']} | "
              f"{root['peak_memory_bytes'] / MB:.0f} | "
              + (f"{big['peak_memory_bytes'] / MB:.0f}" if others else "-")
              + f" | {big['peak_memory_bytes'] / big['rank_nodes']:.0f} |")
 L += ["", "Every rank:", "",
-      "| level | nodes | ranks | rank | nodes on rank | factor nnz | peak MB | bytes/node on rank |",
-      "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+      "| level | nodes | ranks | rank | nodes on rank | boundary dofs b_s | factor nnz | peak MB | bytes/node on rank |",
+      "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
 for r in rows:
     L.append(f"| {r['level']} | {r['nodes']} | {r['ranks']} | {r['rank']} | {r['rank_nodes']} | "
-             f"{r['factor_nnz']} | {r['peak_memory_bytes'] / MB:.0f} | "
+             f"{r['rank_boundary_dofs']} | {r['factor_nnz']} | {r['peak_memory_bytes'] / MB:.0f} | "
              f"{r['peak_memory_bytes'] / r['rank_nodes']:.0f} |")
 L.append("")
 groups = {
@@ -114,15 +115,17 @@ groups = {
         [(r["rank_nodes"], r["peak_memory_bytes"]) for r in rows if r["ranks"] > 1 and r["rank"] > 0],
 }
 # What rank 0 holds beyond a subdomain like the others': the whole mesh while it reads,
-# partitions and distributes it, and the dense condensed matrix S on the boundary dofs
-# (n_B = "boundary_dofs"). Its peak minus the mean peak of the other ranks of the same
-# run is fitted as x N + y 8 n_B^2 (N nodes of the whole mesh; y counts the dense copies).
+# partitions and distributes it, and the dense interface system on the interface dofs
+# (n_G = "interface_dofs"). Its peak minus the mean peak of the other ranks of the same
+# run is fitted as x N + y 8 n_G^2 (N nodes of the whole mesh; y counts the dense copies).
+# (Every rank also holds its dense trailing factor block, 8 b_s^2 bytes, inside its
+# per-node figure.)
 extra = []
 for (level, ranks) in sorted({(r["level"], r["ranks"]) for r in rows if r["ranks"] > 1}):
     run = [r for r in rows if r["level"] == level and r["ranks"] == ranks]
     others = [r["peak_memory_bytes"] for r in run if r["rank"] > 0]
     root = next(r for r in run if r["rank"] == 0)
-    extra.append((root["nodes"], 8.0 * root["boundary_dofs"] ** 2,
+    extra.append((root["nodes"], 8.0 * root["interface_dofs"] ** 2,
                   root["peak_memory_bytes"] - sum(others) / len(others)))
 L.append("Least-squares fits peak = a + b x:")
 L.append("")
@@ -143,10 +146,10 @@ if len(extra) >= 2:
         x = (t1 * s22 - t2 * s12) / det
         y = (s11 * t2 - s12 * t1) / det
         L.append(f"* rank 0 minus the mean of the other ranks of its run: {x:.0f} bytes per node "
-                 f"of the whole mesh + {y:.2f} x 8 n_B^2 bytes (n_B = boundary dofs; "
+                 f"of the whole mesh + {y:.2f} x 8 n_G^2 bytes (n_G = interface dofs; "
                  f"{len(extra)} runs):")
         L.append("")
-        L.append("  | nodes | ranks | n_B | rank 0 extra MB | fit MB |")
+        L.append("  | nodes | ranks | n_G | rank 0 extra MB | fit MB |")
         L.append("  | --- | --- | --- | --- | --- |")
         runs = sorted({(r["level"], r["ranks"]) for r in rows if r["ranks"] > 1})
         for (level, ranks), (n, d, e) in zip(runs, extra):

@@ -527,12 +527,12 @@ pub fn solve_with(
 const SETTLED_SWEEPS: usize = 2;
 /// How much the primal residual must exceed the dual one.
 const PRIMAL_DOMINANCE: f64 = 10.0;
-/// Factor of the raise, and the number of raises allowed. Measured on the built-in
-/// cases at levels 1 and 3 (sweeps of frictionless full contact, plain / accelerated):
-/// 10 x 2 raises after 3 settled sweeps 10-11 / 9-10; 100 x 1 after 3: 8-9 / 8; 100 x 1
-/// after 2: 7-8 / 7, against 5-6 for the best fixed r; the other cases did not change
-/// or improved (plain Hertz 330 -> 112 sweeps at level 1).
-const RAISE: f64 = 100.0;
+/// Factor of the raise, and the number of raises allowed. Measured on frictionless full
+/// contact (block, levels 1-4, plain and accelerated): 10 x 2 raises after 3 settled
+/// sweeps, 9-11 sweeps; 100 x 1 after 2, 7-8; 1000 x 1 after 2, 6; 10^4, 5; the best
+/// fixed r of a sweep over four decades, 5-6. 1000 keeps the condition number of the
+/// boundary block within three more decades.
+const RAISE: f64 = 1000.0;
 const MAX_RAISES: usize = 1;
 
 /// The raised r, if the history says the loop has settled into a linear regime where a
@@ -546,7 +546,7 @@ const MAX_RAISES: usize = 1;
 /// last projection. The default r balances the two; with no free direction left, the
 /// conditions are linear equalities and r -> infinity is best (frictionless contact with
 /// every node pressed onto the foundation at zero gap: 62-85 sweeps at the default r, 6
-/// at 100 r). Raising r with free directions left was measured to hurt: plain Hertz at
+/// at 100 r, 6 with the raise). Raising r with free directions left was measured to hurt: plain Hertz at
 /// tol 1e-12, 668 -> 5798 sweeps. A raise costs one dense refactorization of the
 /// trailing factor blocks, hence at most [`MAX_RAISES`]. Uses only global counts and
 /// residuals: every rank decides the same.
