@@ -172,8 +172,10 @@ pub struct RankStats {
     peak_memory_bytes: u64,
     assemble_s: f64,
     factor_s: f64,
-    /// Part of factor_s spent in the nested-dissection ordering.
+    /// Part of factor_s spent in the fill-reducing ordering.
     ordering_s: f64,
+    /// The ordering used: amd or nd (or the full path's amd).
+    ordering: String,
     /// Forming S_s = L_BB L_BB' and the condensed right-hand side.
     schur_s: f64,
     loop_s: f64,
@@ -533,6 +535,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         assemble_s: phases.assemble,
         factor_s: phases.factor,
         ordering_s: phases.ordering,
+        ordering: phases.ordering_used.name().to_string(),
         schur_s: phases.schur,
         loop_s: phases.uzawa,
         one_solve_s: phases.one_solve,
@@ -603,6 +606,7 @@ struct Phases {
     uzawa: f64,
     recover: f64,
     ordering: f64,
+    ordering_used: Ordering,
     schur: f64,
     factor_nnz: usize,
     /// One sparse forward+backward solve with this rank's factor.
@@ -767,6 +771,7 @@ fn solve_condensed(
             uzawa: loop_s,
             recover: t_recover.elapsed().as_secs_f64(),
             ordering: local.factor.ordering_s,
+            ordering_used: local.factor.ordering,
             schur: schur_s,
             factor_nnz: local.factor.factor_nnz(),
             one_solve,
@@ -903,6 +908,7 @@ fn solve_full(
             uzawa: t_loop.elapsed().as_secs_f64(),
             recover: 0.0,
             ordering: 0.0,
+            ordering_used: Ordering::Amd,
             schur: 0.0,
             factor_nnz: step.factor_nnz(),
             one_solve,

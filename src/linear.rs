@@ -341,21 +341,64 @@ pub struct LocalFactor {
     rhs: Mat<f64>,
     /// Seconds spent in the fill-reducing ordering (part of the factor phase).
     pub ordering_s: f64,
+    /// The ordering used (what `Auto` resolved to).
+    pub ordering: Ordering,
 }
 
 /// Fill-reducing ordering of a subdomain's interior.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Ordering {
-    /// Approximate minimum degree (faer): the default. Measured on the built-in meshes
-    /// up to 400k nodes it factors faster in total than nested dissection, whose ~20%
-    /// smaller factor does not pay for the METIS call.
+    /// Nested dissection from [`ND_MIN_INTERIOR_DOFS`] interior dofs on, minimum degree
+    /// below: the default.
+    ///
+    /// On a 2D mesh of n nodes, nested dissection orders for O(n log n) fill and
+    /// O(n^1.5) flops, the optimum (George): separators of O(sqrt n) nodes split the
+    /// mesh recursively, and only the separators fill. Minimum degree is greedy and
+    /// local; its factor is larger by a factor that grows with n (measured: x1.24 at
+    /// 411k nodes, x1.6 at 1.2M), and its flops more. But METIS_NodeND costs several
+    /// times AMD (1.7 s against 0.25 s at 411k nodes, 7.4 s against 3.1 s at 1.2M),
+    /// so the smaller factor pays only on large subdomains. Factor phase, one thread
+    /// per rank (ordering included): block level 5 on one rank (411k nodes, 0.82M
+    /// interior dofs) 3.5 s AMD against 4.8 s ND; hertz level 5 on two ranks (600k
+    /// nodes, 1.2M dofs per rank) 12.9 s AMD against 9.2 s ND; block level 6 on two
+    /// ranks (820k nodes) 16.7 s against 12.1 s; hertz 5 on one rank (1.2M nodes)
+    /// 32.4 s against 18.2 s. The crossover lies between 0.82M and 1.2M interior dofs:
+    /// the threshold is 1M. Everything smaller (levels 4 and below, any rank count)
+    /// stays on AMD, whose ordering is never more than a fraction of a second there.
+    #[default]
+    Auto,
+    /// Approximate minimum degree (faer): cheapest to compute, the best total below
+    /// about 1M interior dofs.
     Amd,
     /// METIS nested dissection on the node graph: less fill, for very large subdomains.
     NestedDissection,
 }
 
+/// Interior dofs from which [`Ordering::Auto`] chooses nested dissection (see there).
+pub const ND_MIN_INTERIOR_DOFS: usize = 1_000_000;
+
+impl Ordering {
+    /// The name of the `--ordering` option.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::Amd => "amd",
+            Self::NestedDissection => "nd",
+        }
+    }
+
+    /// The ordering actually used on a subdomain of `n_interior` interior dofs.
+    pub fn resolve(self, n_interior: usize) -> Self {
+        match self {
+            Self::Auto if n_interior >= ND_MIN_INTERIOR_DOFS => Self::NestedDissection,
+            Self::Auto => Self::Amd,
+            other => other,
+        }
+    }
+}
+
 impl LocalFactor {
-    /// [`LocalFactor::with_ordering`] with the default ordering (AMD).
+    /// [`LocalFactor::with_ordering`] with the default ordering ([`Ordering::Auto`]).
     pub fn new(
         a: SparseColMatRef<'_, usize, f64>,
         n_b: usize,
@@ -363,7 +406,7 @@ impl LocalFactor {
         alpha: f64,
         groups: &[usize],
     ) -> Result<Self> {
-        Self::with_ordering(a, n_b, n_contact, alpha, groups, Ordering::Amd)
+        Self::with_ordering(a, n_b, n_contact, alpha, groups, Ordering::Auto)
     }
 
     /// `a` is the LOWER triangle of the shifted matrix A + alpha E_g, in an equation
@@ -383,9 +426,10 @@ impl LocalFactor {
         let n = a.nrows();
         let n_interior = n - n_b;
         let t0 = Instant::now();
+        let ordering = ordering.resolve(n_interior);
         let perm = match ordering {
-            Ordering::Amd => interior_amd_then_boundary(a, n_interior)?,
             Ordering::NestedDissection => interior_nd_then_boundary(a, n_interior, groups)?,
+            _ => interior_amd_then_boundary(a, n_interior)?,
         };
         let ordering_s = t0.elapsed().as_secs_f64();
         let (fwd, inv) = (&perm.0, &perm.1);
@@ -403,6 +447,7 @@ impl LocalFactor {
             s0: None,
             rhs: Mat::zeros(n, 1),
             ordering_s,
+            ordering,
         })
     }
 
@@ -978,6 +1023,21 @@ mod tests {
         for k in 0..nb {
             assert!((u[ni + k] - xb[k]).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn auto_ordering_is_nested_dissection_on_large_subdomains_only() {
+        assert_eq!(Ordering::default(), Ordering::Auto);
+        assert_eq!(Ordering::Auto.resolve(1000), Ordering::Amd);
+        assert_eq!(
+            Ordering::Auto.resolve(ND_MIN_INTERIOR_DOFS),
+            Ordering::NestedDissection
+        );
+        assert_eq!(Ordering::Amd.resolve(usize::MAX), Ordering::Amd);
+        assert_eq!(
+            Ordering::NestedDissection.resolve(0),
+            Ordering::NestedDissection
+        );
     }
 
     #[test]

@@ -58,9 +58,10 @@ struct Cli {
     /// Override solver.acceleration: anderson (default) or none (plain ALG2).
     #[arg(long, value_parser = parse_acc)]
     acceleration: Option<Acceleration>,
-    /// Fill-reducing ordering of each subdomain: amd (default) or nd (METIS nested
-    /// dissection: less fill, worth it on very large subdomains).
-    #[arg(long, default_value = "amd", value_parser = parse_ordering)]
+    /// Fill-reducing ordering of each subdomain: auto (default: nd from 1M interior
+    /// dofs per rank, amd below), amd (minimum degree) or nd (METIS nested dissection:
+    /// less fill, worth it on very large subdomains).
+    #[arg(long, default_value = "auto", value_parser = parse_ordering)]
     ordering: Ordering,
     /// Save the loop state every N sweeps in OUT/checkpoint/ (atomically).
     #[arg(long, default_value_t = 0)]
@@ -90,9 +91,10 @@ fn parse_linear(s: &str) -> Result<LinearMode, String> {
 
 fn parse_ordering(s: &str) -> Result<Ordering, String> {
     match s {
+        "auto" => Ok(Ordering::Auto),
         "amd" => Ok(Ordering::Amd),
         "nd" => Ok(Ordering::NestedDissection),
-        _ => Err(format!("\"{s}\" is not amd or nd")),
+        _ => Err(format!("\"{s}\" is not auto, amd or nd")),
     }
 }
 
