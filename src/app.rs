@@ -490,7 +490,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
     let mut monitor = |s: &Sweep| {
         if s.r != last_r {
             print.line(format!(
-                "  r raised to {:e} (active and slip sets settled; the factor's dense block refactored)",
+                "  r raised to {:e} (every contact node held for two sweeps; the dense factor blocks refactored)",
                 s.r
             ));
             last_r = s.r;
@@ -582,13 +582,21 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
     let mut times = times;
     times.output = t_out.elapsed().as_secs_f64();
     times.total = t_start.elapsed().as_secs_f64();
+    // Without friction there is no stick or slip to report.
+    let split = if Problem::is_frictional(case) {
+        format!(" ({} stick, {} slip)", sums[1] as usize, sums[2] as usize)
+    } else {
+        String::new()
+    };
     print.line(format!(
-        "{} after {} iterations: {} active contact nodes ({} stick, {} slip), total normal force {}",
-        if outcome.converged { "converged" } else { "NOT CONVERGED" },
+        "{} after {} iterations: {} active contact nodes{split}, total normal force {}",
+        if outcome.converged {
+            "converged"
+        } else {
+            "NOT CONVERGED"
+        },
         outcome.iterations,
         (sums[1] + sums[2]) as usize,
-        sums[1] as usize,
-        sums[2] as usize,
         sums[0]
     ));
     print_timings(print, &times, outcome.iterations);
