@@ -7,6 +7,7 @@
 # the table and plot from an existing CSV.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. run-scripts/case_law.sh
 LEVELS="1 2 3"
 OUT=docs
 REPORT_ONLY=0
@@ -30,17 +31,8 @@ echo "case,law,level,acceleration,r_factor,r,iterations,converged" > "$CSV"
 FACTORS="0.01 0.03 0.1 0.3 1 3 10 30 100"
 for case in hertz block; do
   for law in none tresca coulomb; do
-    case "$case:$law" in
-      hertz:tresca) fr='friction = "tresca"\nthreshold = 500.0' ;;
-      hertz:coulomb) fr='friction = "coulomb"\ncoefficient = 0.2' ;;
-      block:tresca) fr='friction = "tresca"\nthreshold = 20.0' ;;
-      block:coulomb) fr='friction = "coulomb"\ncoefficient = 0.3' ;;
-      *) fr='friction = "none"' ;;
-    esac
     for level in $LEVELS; do
-      "$BIN" --builtin "$case" --level "$level" --print-case \
-        | grep -v -E '^(friction|threshold|coefficient) *=' \
-        | awk -v fr="$fr" '{print} /^obstacle_normal/ {gsub(/\\n/, "\n", fr); print fr}' > "$TMP/case.toml"
+      write_case "$BIN" "$case" "$law" "$level" "$TMP/case.toml"
       "$BIN" "$TMP/case.toml" --out "$TMP/o" --quiet --max-iter 1 || true
       r0=$(python3 -c "import json; print(json.load(open('$TMP/o/summary.json'))['r'])")
       for acc in none anderson; do

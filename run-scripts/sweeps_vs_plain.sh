@@ -10,6 +10,7 @@
 # result does not depend on the machine's load.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. run-scripts/case_law.sh
 LEVELS="1 2 3"
 OUT=docs
 while [ $# -gt 0 ]; do
@@ -31,17 +32,8 @@ iters() {
 }
 for case in hertz block; do
   for law in none tresca coulomb; do
-    case "$case:$law" in
-      hertz:tresca) fr='friction = "tresca"\nthreshold = 500.0' ;;
-      hertz:coulomb) fr='friction = "coulomb"\ncoefficient = 0.2' ;;
-      block:tresca) fr='friction = "tresca"\nthreshold = 20.0' ;;
-      block:coulomb) fr='friction = "coulomb"\ncoefficient = 0.3' ;;
-      *) fr='friction = "none"' ;;
-    esac
     for level in $LEVELS; do
-      "$BIN" --builtin "$case" --level "$level" --print-case \
-        | grep -v -E '^(friction|threshold|coefficient) *=' \
-        | awk -v fr="$fr" '{print} /^obstacle_normal/ {gsub(/\\n/, "\n", fr); print fr}' > "$TMP/case.toml"
+      write_case "$BIN" "$case" "$law" "$level" "$TMP/case.toml"
       "$BIN" "$TMP/case.toml" --out "$TMP/o" --quiet || true
       read -r r it conv < <(iters)
       echo "$case,$law,$level,default,$r,$it,$conv" >> "$CSV"

@@ -721,19 +721,9 @@ fn solve_condensed(
     let t_recover = Instant::now();
     if outcome.iterations == 0 {
         // A loop that never solved: the boundary values of zero forces.
-        step.forces.fill(0.0);
-        let z = step.response.forward(step.factor, &step.forces).to_vec();
-        step.x_g.resize(z.len(), 0.0);
-        if step.has_interface {
-            mpi.gather_to_root(&z, &step.interface_counts, &mut step.gathered);
-            if let Some(sys) = step.interface.as_mut() {
-                sys.solve_packed(&step.gathered, &mut step.solved);
-            }
-            mpi.scatter_from_root(&step.solved, &step.interface_counts, &mut step.x_g);
-        }
-        step.out.resize(step.forces.len(), 0.0);
-        step.response
-            .backward(step.factor, &step.x_g, &mut step.out);
+        let zero = vec![0.0; n_own];
+        let (mut un, mut ut) = (zero.clone(), zero.clone());
+        step.solve(&zero, &zero, &mut un, &mut ut)?;
     }
     let x_b = step.response.boundary_values();
     let mut g = step.response.constant_rhs().to_vec();

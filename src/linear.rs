@@ -798,85 +798,62 @@ impl SparseCholesky {
     /// Overwrites the trailing block of the factor with `l` (the inverse of
     /// [`SparseCholesky::trailing_block`]; the same structure is required).
     fn set_trailing_block(&mut self, first: usize, l: &Mat<f64>) {
-        use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
-        let n = self.dim();
-        match self.symbolic.raw() {
-            SymbolicCholeskyRaw::Simplicial(s) => {
-                let (cp, ri) = (s.col_ptr(), s.row_idx());
-                for j in first..n {
-                    for p in cp[j]..cp[j + 1] {
-                        self.values[p] = l[(ri[p] - first, j - first)];
-                    }
-                }
-            }
-            SymbolicCholeskyRaw::Supernodal(s) => {
-                let (begin, end) = (s.supernode_begin(), s.supernode_end());
-                let (rp, vp, ri) = (s.col_ptr_for_row_idx(), s.col_ptr_for_val(), s.row_idx());
-                for sn in 0..s.n_supernodes() {
-                    let (b, e) = (begin[sn], end[sn]);
-                    if e <= first {
-                        continue;
-                    }
-                    let pattern = &ri[rp[sn]..rp[sn + 1]];
-                    let nrows = (e - b) + pattern.len();
-                    let vals = &mut self.values[vp[sn]..vp[sn + 1]];
-                    for j in b.max(first)..e {
-                        let col = &mut vals[(j - b) * nrows..(j - b + 1) * nrows];
-                        for i in j..e {
-                            col[i - b] = l[(i - first, j - first)];
-                        }
-                        for (k, &i) in pattern.iter().enumerate() {
-                            col[(e - b) + k] = l[(i - first, j - first)];
-                        }
-                    }
-                }
-            }
-        }
+        let values = &mut self.values;
+        for_each_trailing_entry(&self.symbolic, first, |p, i, j| values[p] = l[(i, j)]);
     }
 
     /// The trailing `n - first` rows and columns of the Cholesky factor L (in the
     /// factor's own, permuted, order), dense. Requires an ordering that keeps those
     /// equations last in place.
     fn trailing_block(&self, first: usize) -> Mat<f64> {
-        use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
-        let n = self.dim();
-        let nb = n - first;
+        let nb = self.dim() - first;
         let mut l = Mat::<f64>::zeros(nb, nb);
-        match self.symbolic.raw() {
-            SymbolicCholeskyRaw::Simplicial(s) => {
-                let (cp, ri) = (s.col_ptr(), s.row_idx());
-                for j in first..n {
-                    for p in cp[j]..cp[j + 1] {
-                        l[(ri[p] - first, j - first)] = self.values[p];
-                    }
+        for_each_trailing_entry(&self.symbolic, first, |p, i, j| l[(i, j)] = self.values[p]);
+        l
+    }
+}
+
+/// Calls `visit(p, i, j)` for every stored entry of a Cholesky factor in its trailing
+/// columns: value `p` is L(first + i, first + j).
+fn for_each_trailing_entry(
+    symbolic: &SymbolicCholesky<usize>,
+    first: usize,
+    mut visit: impl FnMut(usize, usize, usize),
+) {
+    use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
+    let n = symbolic.nrows();
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            let (cp, ri) = (s.col_ptr(), s.row_idx());
+            for j in first..n {
+                for p in cp[j]..cp[j + 1] {
+                    visit(p, ri[p] - first, j - first);
                 }
             }
-            SymbolicCholeskyRaw::Supernodal(s) => {
-                let (begin, end) = (s.supernode_begin(), s.supernode_end());
-                let (rp, vp, ri) = (s.col_ptr_for_row_idx(), s.col_ptr_for_val(), s.row_idx());
-                for sn in 0..s.n_supernodes() {
-                    let (b, e) = (begin[sn], end[sn]);
-                    if e <= first {
-                        continue;
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            let (begin, end) = (s.supernode_begin(), s.supernode_end());
+            let (rp, vp, ri) = (s.col_ptr_for_row_idx(), s.col_ptr_for_val(), s.row_idx());
+            for sn in 0..s.n_supernodes() {
+                let (b, e) = (begin[sn], end[sn]);
+                if e <= first {
+                    continue;
+                }
+                let pattern = &ri[rp[sn]..rp[sn + 1]];
+                let nrows = (e - b) + pattern.len();
+                // Column-major dense block: the diagonal block rows b..e, then the
+                // rows of the pattern.
+                for j in b.max(first)..e {
+                    let col = vp[sn] + (j - b) * nrows;
+                    for i in j..e {
+                        visit(col + i - b, i - first, j - first);
                     }
-                    let pattern = &ri[rp[sn]..rp[sn + 1]];
-                    let nrows = (e - b) + pattern.len();
-                    // Column-major dense block: the diagonal block rows b..e, then the
-                    // rows of the pattern.
-                    let vals = &self.values[vp[sn]..vp[sn + 1]];
-                    for j in b.max(first)..e {
-                        let col = &vals[(j - b) * nrows..(j - b + 1) * nrows];
-                        for i in j..e {
-                            l[(i - first, j - first)] = col[i - b];
-                        }
-                        for (k, &i) in pattern.iter().enumerate() {
-                            l[(i - first, j - first)] = col[(e - b) + k];
-                        }
+                    for (k, &i) in pattern.iter().enumerate() {
+                        visit(col + (e - b) + k, i - first, j - first);
                     }
                 }
             }
         }
-        l
     }
 }
 
