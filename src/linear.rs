@@ -461,21 +461,8 @@ impl LocalFactor {
 
     /// The subdomain's Schur complement onto its boundary dofs (dense, symmetric).
     pub fn schur(&self) -> Mat<f64> {
-        use faer::linalg::matmul::triangular::{matmul, BlockStructure};
         let n = self.l_bb.nrows();
-        let mut s = Mat::<f64>::zeros(n, n);
-        // Only the lower half of L L' (L lower triangular): a sixth of a full product.
-        matmul(
-            s.as_mut(),
-            BlockStructure::TriangularLower,
-            faer::Accum::Replace,
-            &self.l_bb,
-            BlockStructure::TriangularLower,
-            self.l_bb.transpose(),
-            BlockStructure::TriangularUpper,
-            1.0,
-            faer::get_global_parallelism(),
-        );
+        let mut s = lower_gram(self.l_bb.as_ref());
         for j in 0..n {
             if j >= self.n_contact {
                 s[(j, j)] -= self.alpha;
@@ -497,22 +484,7 @@ impl LocalFactor {
     pub fn update_boundary(&mut self, delta: &[(usize, usize, f64)]) -> Result<()> {
         let n = self.l_bb.nrows();
         let l_bb = &self.l_bb;
-        let s0 = self.s0.get_or_insert_with(|| {
-            use faer::linalg::matmul::triangular::{matmul, BlockStructure};
-            let mut s = Mat::<f64>::zeros(n, n);
-            matmul(
-                s.as_mut(),
-                BlockStructure::TriangularLower,
-                faer::Accum::Replace,
-                l_bb,
-                BlockStructure::TriangularLower,
-                l_bb.transpose(),
-                BlockStructure::TriangularUpper,
-                1.0,
-                faer::get_global_parallelism(),
-            );
-            s
-        });
+        let s0 = self.s0.get_or_insert_with(|| lower_gram(l_bb.as_ref()));
         let mut s = s0.clone();
         for &(i, j, v) in delta {
             // Only the lower triangle is read by the factorization.
@@ -521,7 +493,7 @@ impl LocalFactor {
         }
         let llt = s.llt(Side::Lower).map_err(|_| {
             Error::Numerical(
-                "the updated boundary block is not positive definite (r too small?)".into(),
+                "the boundary block refactored for a raised r is not positive definite; set solver.r to keep r fixed".into(),
             )
         })?;
         drop(s);
@@ -539,21 +511,8 @@ impl LocalFactor {
     /// This subdomain's part of the interface system left once the contact dofs are
     /// eliminated, S_gg - S_gc S_cc^-1 S_cg = L_gg L_gg' - alpha I (dense, symmetric).
     pub fn interface_schur(&self) -> Mat<f64> {
-        use faer::linalg::matmul::triangular::{matmul, BlockStructure};
         let (nc, ng) = (self.n_contact, self.n_interface());
-        let l_gg = self.l_bb.submatrix(nc, nc, ng, ng);
-        let mut s = Mat::<f64>::zeros(ng, ng);
-        matmul(
-            s.as_mut(),
-            BlockStructure::TriangularLower,
-            faer::Accum::Replace,
-            l_gg,
-            BlockStructure::TriangularLower,
-            l_gg.transpose(),
-            BlockStructure::TriangularUpper,
-            1.0,
-            faer::get_global_parallelism(),
-        );
+        let mut s = lower_gram(self.l_bb.submatrix(nc, nc, ng, ng));
         for j in 0..ng {
             s[(j, j)] -= self.alpha;
             for i in j + 1..ng {
@@ -811,6 +770,26 @@ impl SparseCholesky {
         for_each_trailing_entry(&self.symbolic, first, |p, i, j| l[(i, j)] = self.values[p]);
         l
     }
+}
+
+/// The lower triangle of L L' for a lower triangular L (the upper one is left zero): a
+/// sixth of the flops of a full product.
+fn lower_gram(l: faer::MatRef<'_, f64>) -> Mat<f64> {
+    use faer::linalg::matmul::triangular::{matmul, BlockStructure};
+    let n = l.nrows();
+    let mut s = Mat::<f64>::zeros(n, n);
+    matmul(
+        s.as_mut(),
+        BlockStructure::TriangularLower,
+        faer::Accum::Replace,
+        l,
+        BlockStructure::TriangularLower,
+        l.transpose(),
+        BlockStructure::TriangularUpper,
+        1.0,
+        faer::get_global_parallelism(),
+    );
+    s
 }
 
 /// Calls `visit(p, i, j)` for every stored entry of a Cholesky factor in its trailing
