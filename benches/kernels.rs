@@ -34,7 +34,7 @@
 //! The whole run takes about 90 s on a 2-core machine: `cargo bench --bench kernels`
 //! (`cargo bench --bench kernels -- sweep/` runs one group).
 
-use contact_par::app::{contact_blocks, load_mesh};
+use contact_par::app::load_mesh;
 use contact_par::case::{self, Acceleration, Case};
 use contact_par::contact::kernels::{coulomb_threshold, normal_from_state, tangential_from_state};
 use contact_par::contact::{self, LinearStep, NoComm, Params};
@@ -42,7 +42,8 @@ use contact_par::dd::condense::{ContactRows, LocalResponse};
 use contact_par::error::Result;
 use contact_par::fem::{self, assemble, Assembled, DofMap};
 use contact_par::linear::{
-    interior_groups, ContactDofs, DirectStep, LocalFactor, NodeGraph, SparseCholesky,
+    contact_blocks, interior_groups, ContactDofs, DirectStep, LocalFactor, NodeGraph,
+    SparseCholesky,
 };
 use contact_par::problem::{self, Problem};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, SamplingMode};

@@ -9,7 +9,8 @@ use crate::dd::split::{split, SubProblem};
 use crate::error::{Error, Result};
 use crate::fem::{self, assemble, DofMap};
 use crate::linear::{
-    add_contact_forces, interior_groups, ContactDofs, DirectStep, LocalFactor, Ordering,
+    add_contact_forces, contact_blocks, interior_groups, ContactDofs, DirectStep, LocalFactor,
+    Ordering,
 };
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::{self, ContactRow, HistoryRow};
@@ -342,8 +343,6 @@ struct CondensedStep<'a> {
     interface: Option<InterfaceSystem>,
     has_interface: bool,
     interface_counts: Vec<usize>,
-    n_own: usize,
-    frictional: bool,
     /// The packed own forces of the last sweep.
     forces: Vec<f64>,
     gathered: Vec<f64>,
@@ -385,9 +384,10 @@ impl LinearStep for CondensedStep<'_> {
         un: &mut [f64],
         ut: &mut [f64],
     ) -> Result<()> {
+        let frictional = Problem::is_frictional(&self.setup.case);
         self.forces.clear();
         self.forces.extend_from_slice(force_n);
-        if self.frictional {
+        if frictional {
             self.forces.extend_from_slice(force_t);
         }
         let z = self.response.forward(self.factor, &self.forces);
@@ -404,40 +404,15 @@ impl LinearStep for CondensedStep<'_> {
         self.out.resize(self.forces.len(), 0.0);
         self.response
             .backward(self.factor, &self.x_g, &mut self.out);
-        un.copy_from_slice(&self.out[..self.n_own]);
-        if self.frictional {
-            ut.copy_from_slice(&self.out[self.n_own..]);
+        let n_own = force_n.len();
+        un.copy_from_slice(&self.out[..n_own]);
+        if frictional {
+            ut.copy_from_slice(&self.out[n_own..]);
         } else {
             ut.fill(0.0);
         }
         Ok(())
     }
-}
-
-/// Augmentation blocks r w_i (m m', or I with friction since m m' + t t' = I).
-pub fn contact_blocks(
-    nodes: &[usize],
-    w: &[f64],
-    r: f64,
-    m: [f64; 2],
-    frictional: bool,
-) -> Vec<(usize, [[f64; 2]; 2])> {
-    nodes
-        .iter()
-        .zip(w)
-        .map(|(&node, &w)| {
-            let rw = r * w;
-            let blk = if frictional {
-                [[rw, 0.0], [0.0, rw]]
-            } else {
-                [
-                    [rw * m[0] * m[0], rw * m[0] * m[1]],
-                    [rw * m[1] * m[0], rw * m[1] * m[1]],
-                ]
-            };
-            (node, blk)
-        })
-        .collect()
 }
 
 /// The whole run, on any number of ranks.
@@ -704,8 +679,6 @@ fn solve_condensed(
         interface,
         has_interface,
         interface_counts,
-        n_own,
-        frictional,
         // Sized for the (never expected) case of a loop that solves nothing.
         forces: vec![0.0; if frictional { 2 * n_own } else { n_own }],
         gathered: Vec::new(),

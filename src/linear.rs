@@ -145,22 +145,14 @@ impl DirectStep {
     ) -> Result<(Self, SetupTimes)> {
         let t0 = Instant::now();
         let dofs = DofMap::new(fixed);
-        let [mx, my] = contact.normal;
-        let unit_blocks: Vec<(usize, [[f64; 2]; 2])> = contact
-            .nodes
-            .iter()
-            .zip(contact.w)
-            .map(|(&node, &w)| {
-                let rw = w;
-                // N_i'N_i = m m'; with friction also T_i'T_i = t t', and m m' + t t' = I.
-                let blk = if contact.frictional {
-                    [[rw, 0.0], [0.0, rw]]
-                } else {
-                    [[rw * mx * mx, rw * mx * my], [rw * my * mx, rw * my * my]]
-                };
-                (node, blk)
-            })
-            .collect();
+        // N_i'N_i = m m'; with friction also T_i'T_i = t t', and m m' + t t' = I.
+        let unit_blocks = contact_blocks(
+            contact.nodes,
+            contact.w,
+            1.0,
+            contact.normal,
+            contact.frictional,
+        );
         let blocks: Vec<(usize, [[f64; 2]; 2])> = unit_blocks
             .iter()
             .map(|&(node, b)| (node, b.map(|row| row.map(|v| r * v))))
@@ -216,6 +208,32 @@ impl DirectStep {
     fn dof_value(&self, dof: usize) -> f64 {
         self.dofs.eq[dof].map_or(self.dofs.value[dof], |i| self.rhs[(i, 0)])
     }
+}
+
+/// Augmentation blocks r w_i (m m', or I with friction since m m' + t t' = I).
+pub fn contact_blocks(
+    nodes: &[usize],
+    w: &[f64],
+    r: f64,
+    m: [f64; 2],
+    frictional: bool,
+) -> Vec<(usize, [[f64; 2]; 2])> {
+    nodes
+        .iter()
+        .zip(w)
+        .map(|(&node, &w)| {
+            let rw = r * w;
+            let blk = if frictional {
+                [[rw, 0.0], [0.0, rw]]
+            } else {
+                [
+                    [rw * m[0] * m[0], rw * m[0] * m[1]],
+                    [rw * m[1] * m[0], rw * m[1] * m[1]],
+                ]
+            };
+            (node, blk)
+        })
+        .collect()
 }
 
 /// Adds the contact forces N' force_n + T' force_t (N_i' = -m, T_i' = t) to a right-hand
@@ -281,23 +299,24 @@ impl LinearStep for DirectStep {
         un: &mut [f64],
         ut: &mut [f64],
     ) -> Result<()> {
-        for (i, b) in self.base.iter().enumerate() {
-            self.rhs[(i, 0)] = *b;
-        }
-        let ([mx, my], [tx, ty]) = (self.normal, self.tangent);
-        for (k, &node) in self.contact_nodes.iter().enumerate() {
-            // N_i' = -m, T_i' = t.
-            let f = [
-                -mx * force_n[k] + tx * force_t[k],
-                -my * force_n[k] + ty * force_t[k],
-            ];
-            for c in 0..2 {
-                if let Some(i) = self.dofs.eq[2 * node + c] {
-                    self.rhs[(i, 0)] += f[c];
-                }
-            }
-        }
+        let rhs = self
+            .rhs
+            .col_mut(0)
+            .try_as_col_major_mut()
+            .expect("a one-column Mat is contiguous")
+            .as_slice_mut();
+        rhs.copy_from_slice(&self.base);
+        add_contact_forces(
+            &self.dofs,
+            &self.contact_nodes,
+            self.normal,
+            self.tangent,
+            force_n,
+            force_t,
+            rhs,
+        );
         self.chol.solve_in_place(self.rhs.as_mut());
+        let ([mx, my], [tx, ty]) = (self.normal, self.tangent);
         for (k, &node) in self.contact_nodes.iter().enumerate() {
             let (ux, uy) = (self.dof_value(2 * node), self.dof_value(2 * node + 1));
             un[k] = -(mx * ux + my * uy);

@@ -2,15 +2,15 @@
 //! exactly where an uninterrupted run ends; a rank killed mid-run takes the job down
 //! promptly instead of leaving the others waiting.
 
+mod common;
+
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-const BIN: &str = env!("CARGO_BIN_EXE_contact-par");
-
 fn mpirun(np: usize) -> Command {
     let mut c = Command::new("mpirun");
-    c.args(["-n", &np.to_string(), "--oversubscribe", BIN])
+    c.args(["-n", &np.to_string(), "--oversubscribe", common::BIN])
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .env("OMPI_MCA_rmaps_base_oversubscribe", "1");
@@ -35,9 +35,9 @@ fn numbers(path: &Path) -> Vec<f64> {
 }
 
 fn iterations(dir: &Path) -> i64 {
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
-    s["iterations"].as_i64().unwrap()
+    common::read_summary(&dir.join("summary.json"))["iterations"]
+        .as_i64()
+        .unwrap()
 }
 
 /// Interrupt at sweep 17 (checkpoints every 5: the last at 15), restart, compare with an
@@ -123,63 +123,34 @@ fn restart_equals_uninterrupted_run_two_ranks_coulomb_outer() {
 #[test]
 fn restart_after_a_raise_of_r_continues_exactly() {
     let tmp = tempfile::tempdir().unwrap();
-    let text = contact_par::case::builtin_case_text("block", 1).unwrap();
-    let case: String = text
-        .lines()
-        .filter(|l| !l.trim_start().starts_with("coefficient"))
-        .map(|l| {
-            if l.trim_start().starts_with("friction") {
-                "friction = \"none\"\n".to_string()
-            } else {
-                format!("{l}\n")
-            }
-        })
-        .collect();
+    let case = common::builtin_with_friction("block", 1, "friction = \"none\"");
     let path = tmp.path().join("case.toml");
     std::fs::write(&path, case).unwrap();
     check_restart_in(tmp.path(), 2, &[path.to_str().unwrap()], &[], (5, 4));
-    let s: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(tmp.path().join("stopped/summary.json")).unwrap(),
-    )
-    .unwrap();
+    let s = common::read_summary(&tmp.path().join("stopped/summary.json"));
     assert!(s["r"].as_f64().unwrap() > 10.0 * s["r_initial"].as_f64().unwrap());
 }
 
 #[test]
 fn restart_with_another_rank_count_is_refused_clearly() {
     let tmp = tempfile::tempdir().unwrap();
+    let base = [
+        "--builtin",
+        "block",
+        "--level",
+        "0",
+        "--quiet",
+        "--out",
+        "o",
+    ];
+    let with = |more: &[&'static str]| -> Vec<&str> { base.iter().chain(more).copied().collect() };
     let o = run(
         2,
-        &[
-            "--builtin",
-            "block",
-            "--level",
-            "0",
-            "--quiet",
-            "--out",
-            "o",
-            "--max-iter",
-            "6",
-            "--checkpoint-every",
-            "3",
-        ],
+        &with(&["--max-iter", "6", "--checkpoint-every", "3"]),
         tmp.path(),
     );
     assert_eq!(o.status.code(), Some(3));
-    let o = run(
-        1,
-        &[
-            "--builtin",
-            "block",
-            "--level",
-            "0",
-            "--quiet",
-            "--out",
-            "o",
-            "--restart",
-        ],
-        tmp.path(),
-    );
+    let o = run(1, &with(&["--restart"]), tmp.path());
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("mpirun -n 2"), "{err}");

@@ -66,17 +66,7 @@ pub fn run_in(dir: &Path, args: &[&str]) -> (i32, String, String) {
 
 /// Runs with `args` (plus `--out out --quiet`) in a fresh temporary directory.
 pub fn run_args(args: &[&str]) -> Run {
-    let dir = TempDir::new().unwrap();
-    let mut all: Vec<&str> = args.to_vec();
-    all.extend(["--out", "out", "--quiet"]);
-    let (code, stdout, stderr) = run_in(dir.path(), &all);
-    Run {
-        code,
-        stdout,
-        stderr,
-        out: dir.path().join("out"),
-        dir,
-    }
+    run_fresh(TempDir::new().unwrap(), args)
 }
 
 /// Writes `toml` to `case.toml` in a fresh temporary directory and runs it with `extra`
@@ -86,6 +76,12 @@ pub fn run_case(toml: &str, extra: &[&str]) -> Run {
     std::fs::write(dir.path().join("case.toml"), toml).unwrap();
     let mut all = vec!["case.toml"];
     all.extend_from_slice(extra);
+    run_fresh(dir, &all)
+}
+
+/// Runs `args` plus `--out out --quiet` in `dir`, which the returned run keeps alive.
+fn run_fresh(dir: TempDir, args: &[&str]) -> Run {
+    let mut all: Vec<&str> = args.to_vec();
     all.extend(["--out", "out", "--quiet"]);
     let (code, stdout, stderr) = run_in(dir.path(), &all);
     Run {
