@@ -90,10 +90,12 @@ impl Fixture {
     }
 
     fn blocks(&self) -> Vec<(usize, [[f64; 2]; 2])> {
+        let r = vec![self.r; self.prob.contact_nodes.len()];
         contact_blocks(
             &self.prob.contact_nodes,
             &self.prob.contact.w,
-            self.r,
+            &r,
+            &r,
             self.prob.normal,
             self.frictional,
         )

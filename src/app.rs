@@ -279,10 +279,12 @@ impl LocalSystem {
         let t0 = Instant::now();
         let frictional = Problem::is_frictional(&setup.case);
         let dofs = DofMap::with_last(&sub.fixed, &sub.boundary_dofs);
+        let rr = vec![setup.r; sub.contact_nodes.len()];
         let mut blocks = contact_blocks(
             &sub.contact_nodes,
             &sub.contact.w,
-            setup.r,
+            &rr,
+            &rr,
             setup.normal,
             frictional,
         );
@@ -354,12 +356,14 @@ struct CondensedStep<'a> {
 impl LinearStep for CondensedStep<'_> {
     /// Each rank refactors the dense trailing block of its factor with the new
     /// augmentation on its contact dofs; the first rank rebuilds the interface system.
-    fn set_r(&mut self, r: f64) -> Result<bool> {
+    fn set_r(&mut self, r_n: &[f64], r_t: &[f64]) -> Result<bool> {
         let frictional = Problem::is_frictional(&self.setup.case);
+        let shift = |r: &[f64]| r.iter().map(|r| r - self.setup.r).collect::<Vec<f64>>();
         let blocks = contact_blocks(
             &self.sub.contact_nodes,
             &self.sub.contact.w,
-            r - self.setup.r,
+            &shift(r_n),
+            &shift(r_t),
             self.setup.normal,
             frictional,
         );
@@ -461,14 +465,18 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         adapt_r: case.solver.r.is_none(),
     };
     let every = opts.monitor_every.max(1);
-    let mut last_r = setup.r;
+    let mut retunes = 0;
     let mut monitor = |s: &Sweep| {
-        if s.r != last_r {
-            print.line(format!(
-                "  r raised to {:e} (every contact node held for two sweeps; the dense factor blocks refactored)",
-                s.r
-            ));
-            last_r = s.r;
+        if s.retunes != retunes {
+            print.line(if s.stiff + s.soft == 0 {
+                "  r back to the reference on every contact direction (the statuses kept moving); the dense factor blocks refactored".to_string()
+            } else {
+                format!(
+                    "  r retuned (statuses settled): raised on {} held contact directions, lowered on {} free ones; the dense factor blocks refactored",
+                    s.stiff, s.soft
+                )
+            });
+            retunes = s.retunes;
         }
         if s.iter == 1 || s.iter % every == 0 {
             print.line(monitor_line(s));
@@ -1075,7 +1083,9 @@ fn write_outputs(
             dual: s.dual,
             active: s.active,
             slip: s.slip,
-            r: s.r,
+            changed: s.changed,
+            stiff: s.stiff,
+            soft: s.soft,
         })
         .collect();
     output::write_atomic(
@@ -1119,8 +1129,8 @@ fn write_outputs(
         "total_normal_force": all_rows.iter().map(|r| r[8] * r[4]).sum::<f64>(),
         "total_tangential_force": all_rows.iter().map(|r| r[8] * r[5]).sum::<f64>(),
         "friction": friction_name(&case.contact.friction),
-        "r": last.map_or(setup.r, |s| s.r),
-        "r_initial": setup.r,
+        "r": setup.r,
+        "r_retunes": o.retunes,
         "tol": case.solver.tol,
         "final_residuals": { "primal": last.map(|s| s.primal), "dual": last.map(|s| s.dual) },
         "timings_s": times,

@@ -115,11 +115,11 @@ pub struct SetupTimes {
 /// solves plus O(n) vector work.
 pub struct DirectStep {
     chol: SparseCholesky,
-    /// A as assembled (lower triangle) with r0, and the per-node blocks of N'WN
-    /// (+ T'WT) for r = 1: what a change of r adds.
+    /// A as assembled (lower triangle) with r0 on every contact direction, and the
+    /// contact weights: what a change of r adds.
     a0: faer::sparse::SparseColMat<usize, f64>,
     r0: f64,
-    unit_blocks: Vec<(usize, [[f64; 2]; 2])>,
+    w: Vec<f64>,
     dofs: DofMap,
     /// F + lifting of the prescribed dofs, on the free dofs.
     base: Vec<f64>,
@@ -145,18 +145,15 @@ impl DirectStep {
     ) -> Result<(Self, SetupTimes)> {
         let t0 = Instant::now();
         let dofs = DofMap::new(fixed);
-        // N_i'N_i = m m'; with friction also T_i'T_i = t t', and m m' + t t' = I.
-        let unit_blocks = contact_blocks(
+        let rr = vec![r; contact.nodes.len()];
+        let blocks = contact_blocks(
             contact.nodes,
             contact.w,
-            1.0,
+            &rr,
+            &rr,
             contact.normal,
             contact.frictional,
         );
-        let blocks: Vec<(usize, [[f64; 2]; 2])> = unit_blocks
-            .iter()
-            .map(|&(node, b)| (node, b.map(|row| row.map(|v| r * v))))
-            .collect();
         let assembled = assemble(nodes, triangles, material, &dofs, &blocks)?;
         let mut base = assembled.lifting;
         for (dof, eq) in dofs.eq.iter().enumerate() {
@@ -175,7 +172,7 @@ impl DirectStep {
                 chol,
                 a0: assembled.matrix,
                 r0: r,
-                unit_blocks,
+                w: contact.w.to_vec(),
                 dofs,
                 base,
                 rhs: Mat::zeros(n, 1),
@@ -210,27 +207,30 @@ impl DirectStep {
     }
 }
 
-/// Augmentation blocks r w_i (m m', or I with friction since m m' + t t' = I).
+/// Augmentation blocks w_i (r_n m m' + r_t t t') of the contact nodes (without friction
+/// w_i r_n m m'), with t t' = I - m m' for the unit tangent t.
 pub fn contact_blocks(
     nodes: &[usize],
     w: &[f64],
-    r: f64,
+    r_n: &[f64],
+    r_t: &[f64],
     m: [f64; 2],
     frictional: bool,
 ) -> Vec<(usize, [[f64; 2]; 2])> {
+    let mm = [[m[0] * m[0], m[0] * m[1]], [m[1] * m[0], m[1] * m[1]]];
     nodes
         .iter()
-        .zip(w)
-        .map(|(&node, &w)| {
-            let rw = r * w;
-            let blk = if frictional {
-                [[rw, 0.0], [0.0, rw]]
-            } else {
-                [
-                    [rw * m[0] * m[0], rw * m[0] * m[1]],
-                    [rw * m[1] * m[0], rw * m[1] * m[1]],
-                ]
-            };
+        .enumerate()
+        .map(|(k, &node)| {
+            let (a, b) = (w[k] * r_n[k], if frictional { w[k] * r_t[k] } else { 0.0 });
+            let eye = |i: usize, j: usize| if i == j { 1.0 } else { 0.0 };
+            // Equal r: exactly r w I (m m' + t t' = I), not its round-off.
+            let blk = std::array::from_fn(|i| {
+                std::array::from_fn(|j| match a == b {
+                    true => a * eye(i, j),
+                    false => a * mm[i][j] + b * (eye(i, j) - mm[i][j]),
+                })
+            });
             (node, blk)
         })
         .collect()
@@ -263,15 +263,23 @@ pub fn add_contact_forces(
 
 impl LinearStep for DirectStep {
     /// A full numeric refactorization (this path is the textbook reference).
-    fn set_r(&mut self, r: f64) -> Result<bool> {
+    fn set_r(&mut self, r_n: &[f64], r_t: &[f64]) -> Result<bool> {
         let mut a = self.a0.clone();
-        let dr = r - self.r0;
+        let shift = |r: &[f64]| r.iter().map(|r| r - self.r0).collect::<Vec<f64>>();
+        let delta = contact_blocks(
+            &self.contact_nodes,
+            &self.w,
+            &shift(r_n),
+            &shift(r_t),
+            self.normal,
+            self.frictional,
+        );
         let (cp, ri): (Vec<usize>, Vec<usize>) = (
             a.symbolic().col_ptr().to_vec(),
             a.symbolic().row_idx().to_vec(),
         );
         let vals = a.val_mut();
-        for &(node, blk) in &self.unit_blocks {
+        for &(node, blk) in &delta {
             for (ca, row) in blk.iter().enumerate() {
                 for (cb, &v) in row.iter().enumerate() {
                     let (Some(i), Some(j)) =
@@ -283,7 +291,7 @@ impl LinearStep for DirectStep {
                         continue;
                     }
                     if let Some(p) = (cp[j]..cp[j + 1]).find(|&p| ri[p] == i) {
-                        vals[p] += dr * v;
+                        vals[p] += v;
                     }
                 }
             }
@@ -512,7 +520,7 @@ impl LocalFactor {
         }
         let llt = s.llt(Side::Lower).map_err(|_| {
             Error::Numerical(
-                "the boundary block refactored for a raised r is not positive definite; set solver.r to keep r fixed".into(),
+                "the boundary block refactored for a retuned r is not positive definite; set solver.r to keep r fixed".into(),
             )
         })?;
         drop(s);
@@ -997,6 +1005,34 @@ mod tests {
         }
         for k in 0..nb {
             assert!((u[ni + k] - xb[k]).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn contact_blocks_weigh_each_direction_by_its_r() {
+        let m = [0.6, 0.8];
+        let t = [-0.8, 0.6];
+        let blocks = contact_blocks(&[7, 9], &[0.5, 2.0], &[10.0, 3.0], &[4.0, 3.0], m, true);
+        assert_eq!((blocks[0].0, blocks[1].0), (7, 9));
+        // Different r: w (r_n m m' + r_t t t'); the quadratic forms on m and t give them back.
+        let b = blocks[0].1;
+        let form = |v: [f64; 2]| {
+            (0..2)
+                .map(|i| (0..2).map(|j| v[i] * b[i][j] * v[j]).sum::<f64>())
+                .sum::<f64>()
+        };
+        assert!((form(m) - 0.5 * 10.0).abs() < 1e-12);
+        assert!((form(t) - 0.5 * 4.0).abs() < 1e-12);
+        assert!((b[0][1] - b[1][0]).abs() < 1e-15);
+        // Equal r: exactly r w I.
+        assert_eq!(blocks[1].1, [[6.0, 0.0], [0.0, 6.0]]);
+        // Without friction only the normal direction.
+        let plain = contact_blocks(&[7], &[0.5], &[10.0], &[4.0], m, false);
+        let want = [[1.8, 2.4], [2.4, 3.2]];
+        for i in 0..2 {
+            for j in 0..2 {
+                assert!((plain[0].1[i][j] - want[i][j]).abs() < 1e-12);
+            }
         }
     }
 

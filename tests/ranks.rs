@@ -132,10 +132,12 @@ fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: 
         let s = summary(&out);
         assert_eq!(s["ranks"], np as i64);
         assert_eq!(s["converged"], true);
-        if name == "block" && friction.contains("none") {
-            let (r, r0) = (s["r"].as_f64().unwrap(), s["r_initial"].as_f64().unwrap());
-            assert!(r > 10.0 * r0, "r was not raised: {r} vs {r0}");
-        }
+        // Every built-in case settles and retunes r: the test covers the refactored
+        // dense blocks and interface system on every rank count.
+        assert!(
+            s["r_retunes"].as_u64().unwrap() >= 1,
+            "{name} {friction}: {s}"
+        );
         let iters = s["iterations"].as_i64().unwrap();
         let contact = read_csv(&out.join("contact.csv"));
         let nodes = read_csv(&out.join("nodes.csv"));
@@ -181,7 +183,7 @@ fn hertz_coulomb_1_to_4_ranks() {
     check_rank_independence("hertz", 0, "friction = \"coulomb\"\ncoefficient = 0.2");
 }
 
-/// Every node pressed onto the foundation at zero gap: the automatic r is raised
+/// Every node pressed onto the foundation at zero gap: the automatic r is retuned
 /// during the loop (a refactorization of every rank's dense block and of the interface
 /// system), and the answer still does not depend on the rank count.
 #[test]
@@ -216,7 +218,7 @@ fn block_flat_1_to_4_ranks() {
 fn condensed_sweep_equals_full_solve() {
     for (name, friction) in [
         ("hertz", "friction = \"none\""),
-        // r is raised during the loop: both paths refactor.
+        // r is retuned during the loop: both paths refactor.
         ("block", "friction = \"none\""),
         ("block", "friction = \"tresca\"\nthreshold = 20.0"),
         ("block", "friction = \"coulomb\"\ncoefficient = 0.3"),

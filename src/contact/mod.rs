@@ -4,7 +4,7 @@
 pub mod kernels;
 pub mod uzawa;
 
-pub use uzawa::{solve, solve_with, Checkpoints, Outcome, Params, Snapshot, Sweep};
+pub use uzawa::{solve, solve_with, Augmentation, Checkpoints, Outcome, Params, Snapshot, Sweep};
 
 use crate::error::Result;
 
@@ -24,9 +24,10 @@ pub trait LinearStep {
         ut: &mut [f64],
     ) -> Result<()>;
 
-    /// Changes r in A (collective: every rank calls it with the same r). Returns false
-    /// when this step cannot; r then stays as it was.
-    fn set_r(&mut self, _r: f64) -> Result<bool> {
+    /// Sets the r of each owned contact node's normal and tangential direction in A
+    /// (collective: every rank calls it at the same sweep). Returns false when this
+    /// step cannot; r then stays as it was.
+    fn set_r(&mut self, _r_n: &[f64], _r_t: &[f64]) -> Result<bool> {
         Ok(false)
     }
 }

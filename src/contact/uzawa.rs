@@ -10,7 +10,9 @@
 //!   2. the linear step: (Nu, Tu);
 //!   3. G(x) = (Nu + lambda / r, Tu + mu / r).
 //!
-//! Iterating G is exactly ALG2; this form lets an accelerator act on x.
+//! Iterating G is exactly ALG2; this form lets an accelerator act on x. Each contact
+//! direction may have its own r (an [`Augmentation`], retuned once the statuses settle:
+//! see [`retuned`]); the formulas above then read r_n or r_t of the node.
 //!
 //! ## Acceleration
 //! Anderson mixing (type II, memory m) on G, with the W-weighted inner product summed
@@ -21,14 +23,15 @@
 //! therefore bounds the accelerated one (at the price of one extra solve per refusal).
 //!
 //! ## Communication per sweep
-//! One linear step, and one all-reduce of 10 + m(m+1)/2 + m numbers: the squared
-//! W-norms of the residuals, displacements and multipliers, the active and slip counts,
-//! and the Anderson Gram matrix and right-hand side.
+//! One linear step, and one all-reduce of 15 + m(m+1)/2 + m numbers: the squared
+//! W-norms of the residuals, displacements and multipliers, the active, slip, changed,
+//! stiff, soft and mistuned counts, and the Anderson Gram matrix and right-hand side.
 //!
 //! ## Residuals
 //! Both are in force units and relative to S = max(|lambda|_W + |mu|_W, r (|Nu|_W +
 //! |Tu|_W)): primal = |lambda+ - lambda|_W + |mu+ - mu|_W (= r |Nu - p+|), dual =
-//! r (|p+ - p|_W + |q+ - q|_W). The multipliers set the scale when there is contact,
+//! r (|p+ - p|_W + |q+ - q|_W), with the reference r whatever the r of each direction,
+//! so that a retune does not move the test. The multipliers set the scale when there is contact,
 //! the displacements when there is none: a displacement-only scale fails when contact
 //! nodes sit exactly on the foundation (Nu -> g = 0).
 
@@ -48,7 +51,7 @@ pub struct Params {
     pub friction: Friction,
     pub coulomb: CoulombMode,
     pub acceleration: Acceleration,
-    /// Raise r when the loop settles into a linear regime (see [`raised_r`]).
+    /// Retune r per contact direction when the loop settles (see [`retuned`]).
     pub adapt_r: bool,
 }
 
@@ -60,8 +63,17 @@ pub struct Sweep {
     pub dual: f64,
     pub active: usize,
     pub slip: usize,
-    /// The r of this sweep's linear step.
-    pub r: f64,
+    /// Contact nodes whose status (free, stick, slip) in the image of this sweep differs
+    /// from the one in the image of the sweep before.
+    pub changed: usize,
+    /// Contact directions (normal and, with friction, tangential) whose r in this
+    /// sweep's linear step is raised above the reference r, and lowered below it.
+    pub stiff: usize,
+    pub soft: usize,
+    /// Directions whose r differs from what their status in the image asks for.
+    pub mistuned: usize,
+    /// Retunes of r before this sweep.
+    pub retunes: usize,
 }
 
 /// The converged (or last) state on this rank's contact nodes.
@@ -74,6 +86,8 @@ pub struct Outcome {
     pub outer_iterations: usize,
     /// Accelerated points refused by the safeguard.
     pub refused: usize,
+    /// Retunes of r per contact direction.
+    pub retunes: usize,
     /// Normal multiplier = contact pressure p_n (force per unit length).
     pub lambda: Vec<f64>,
     /// Tangential multiplier = -p_t.
@@ -105,8 +119,28 @@ pub struct Snapshot {
     pub last: Option<(Vec<f64>, Vec<f64>)>,
     /// Coulomb outer mode: the frozen thresholds and the outer iteration.
     pub outer: Option<(Vec<f64>, usize)>,
-    /// The r of the last accepted point.
-    pub r: f64,
+    /// This rank's r per contact direction at the last accepted point.
+    pub aug: Augmentation,
+    /// Retunes of r so far.
+    pub retunes: usize,
+}
+
+/// The augmentation parameter of each contact direction on this rank: ALG2 converges
+/// for any positive r per direction (it is the method in a rescaled constraint), and
+/// the best r differs between held and free directions (see [`retuned`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Augmentation {
+    pub r_n: Vec<f64>,
+    pub r_t: Vec<f64>,
+}
+
+impl Augmentation {
+    pub fn uniform(n: usize, r: f64) -> Self {
+        Augmentation {
+            r_n: vec![r; n],
+            r_t: vec![r; n],
+        }
+    }
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -147,7 +181,7 @@ struct Derived {
     mu: Vec<f64>,
 }
 
-fn derive(x: &[f64], nodes: &ContactNodes, law: Law, r: f64) -> Derived {
+fn derive(x: &[f64], nodes: &ContactNodes, law: Law, aug: &Augmentation) -> Derived {
     let n = nodes.len();
     let mut d = Derived {
         p: vec![0.0; n],
@@ -156,11 +190,11 @@ fn derive(x: &[f64], nodes: &ContactNodes, law: Law, r: f64) -> Derived {
         mu: vec![0.0; n],
     };
     for i in 0..n {
-        let (p, lambda) = normal_from_state(x[i], nodes.g[i], r);
+        let (p, lambda) = normal_from_state(x[i], nodes.g[i], aug.r_n[i]);
         d.p[i] = p;
         d.lambda[i] = lambda;
         if law.frictional() {
-            let (q, mu) = tangential_from_state(x[n + i], law.threshold(i, lambda), r);
+            let (q, mu) = tangential_from_state(x[n + i], law.threshold(i, lambda), aug.r_t[i]);
             d.q[i] = q;
             d.mu[i] = mu;
         }
@@ -168,18 +202,33 @@ fn derive(x: &[f64], nodes: &ContactNodes, law: Law, r: f64) -> Derived {
     d
 }
 
+impl Derived {
+    /// Whether node i's normal and tangential directions are held: pressed onto the
+    /// foundation, and sticking (with friction).
+    fn held(&self, i: usize, frictional: bool) -> (bool, bool) {
+        (self.lambda[i] > 0.0, frictional && self.q[i] == 0.0)
+    }
+}
+
+/// Local sums of one evaluation, reduced over the ranks with the Anderson sums.
+const N_SUMS: usize = 14;
+
 /// One evaluation of G: its value, the quantities derived from the input and output,
 /// and the local sums of the residual statistics.
 struct Eval {
     gx: Vec<f64>,
     out: Derived,
-    sums: [f64; 10],
+    sums: [f64; N_SUMS],
 }
 
 struct Sweeper<'a, S: LinearStep> {
     step: &'a mut S,
     nodes: &'a ContactNodes,
-    r: f64,
+    /// The reference r: the scale of the residuals, and the r of a direction not retuned.
+    r_ref: f64,
+    aug: Augmentation,
+    /// The statuses in the image of the last evaluation (empty before the first).
+    last_held: Vec<(bool, bool)>,
     force_n: Vec<f64>,
     force_t: Vec<f64>,
     un: Vec<f64>,
@@ -188,24 +237,27 @@ struct Sweeper<'a, S: LinearStep> {
 
 impl<S: LinearStep> Sweeper<'_, S> {
     fn eval(&mut self, x: &[f64], law: Law) -> Result<Eval> {
-        let (n, r) = (self.nodes.len(), self.r);
+        let (n, r, aug) = (self.nodes.len(), self.r_ref, &self.aug);
+        let frictional = law.frictional();
         let w = &self.nodes.w;
-        let inp = derive(x, self.nodes, law, r);
+        let inp = derive(x, self.nodes, law, aug);
         for i in 0..n {
-            self.force_n[i] = w[i] * (r * inp.p[i] - inp.lambda[i]);
-            self.force_t[i] = w[i] * (r * inp.q[i] - inp.mu[i]);
+            self.force_n[i] = w[i] * (aug.r_n[i] * inp.p[i] - inp.lambda[i]);
+            self.force_t[i] = w[i] * (aug.r_t[i] * inp.q[i] - inp.mu[i]);
         }
         self.step
             .solve(&self.force_n, &self.force_t, &mut self.un, &mut self.ut)?;
         let mut gx = vec![0.0; x.len()];
         for i in 0..n {
-            gx[i] = self.un[i] + inp.lambda[i] / r;
-            if law.frictional() {
-                gx[n + i] = self.ut[i] + inp.mu[i] / r;
+            gx[i] = self.un[i] + inp.lambda[i] / aug.r_n[i];
+            if frictional {
+                gx[n + i] = self.ut[i] + inp.mu[i] / aug.r_t[i];
             }
         }
-        let out = derive(&gx, self.nodes, law, r);
-        let mut sums = [0.0; 10];
+        let out = derive(&gx, self.nodes, law, aug);
+        let mut sums = [0.0; N_SUMS];
+        // The residuals are measured with the reference r whatever the r of each
+        // direction, so that a retune does not move the stopping test.
         for i in 0..n {
             sums[0] += w[i] * (out.lambda[i] - inp.lambda[i]).powi(2);
             sums[1] += w[i] * (out.mu[i] - inp.mu[i]).powi(2);
@@ -217,11 +269,29 @@ impl<S: LinearStep> Sweeper<'_, S> {
             sums[7] += w[i] * out.mu[i].powi(2);
             if out.lambda[i] > 0.0 {
                 sums[8] += 1.0;
-                if !law.frictional() || out.q[i] != 0.0 {
+                if !frictional || out.q[i] != 0.0 {
                     sums[9] += 1.0;
                 }
             }
+            let held = out.held(i, frictional);
+            // The first sweep compares with the statuses of its input.
+            let before = self.last_held.get(i).copied();
+            if before.unwrap_or_else(|| inp.held(i, frictional)) != held {
+                sums[10] += 1.0;
+            }
+            let (want_n, want_t) = tuned(held, frictional, r);
+            for (have, want) in [(aug.r_n[i], want_n), (aug.r_t[i], want_t)] {
+                if have > r {
+                    sums[11] += 1.0;
+                } else if have < r {
+                    sums[12] += 1.0;
+                }
+                if have != want {
+                    sums[13] += 1.0;
+                }
+            }
         }
+        self.last_held = (0..n).map(|i| out.held(i, frictional)).collect();
         Ok(Eval { gx, out, sums })
     }
 }
@@ -322,16 +392,26 @@ impl Anderson {
             }
         }
         let mut b: Vec<f64> = sums[idx..idx + k].to_vec();
-        // A little Tikhonov regularisation keeps nearly dependent differences harmless.
-        let diag = (0..k).map(|i| a[i][i]).fold(0.0, f64::max);
+        // Jacobi scaling first: the differences in memory can span many orders of
+        // magnitude (early sweeps against late ones), and a regularisation relative to
+        // the largest would drown the newest, most useful ones.
+        let scale: Vec<f64> = (0..k).map(|i| a[i][i].sqrt()).collect();
         // NaN-safe: a NaN diagonal fails this test too.
-        if diag.is_nan() || diag <= 0.0 {
+        if scale.iter().any(|d| d.is_nan() || *d <= 0.0) {
             return None;
         }
         for i in 0..k {
-            a[i][i] += 1e-10 * diag;
+            for j in 0..k {
+                a[i][j] /= scale[i] * scale[j];
+            }
+            b[i] /= scale[i];
+            // A little Tikhonov regularisation keeps nearly dependent differences harmless.
+            a[i][i] += 1e-10;
         }
-        let gamma = solve_small_spd(a, &mut b)?;
+        let mut gamma = solve_small_spd(a, &mut b)?;
+        for (c, d) in gamma.iter_mut().zip(&scale) {
+            *c /= d;
+        }
         let mut y = g.to_vec();
         for (c, dg) in gamma.iter().zip(&self.dg) {
             for (yi, d) in y.iter_mut().zip(dg) {
@@ -411,7 +491,9 @@ pub fn solve_with(
     let mut sweeper = Sweeper {
         step,
         nodes,
-        r: params.r,
+        r_ref: params.r,
+        aug: Augmentation::uniform(n, params.r),
+        last_held: Vec::new(),
         force_n: vec![0.0; n],
         force_t: vec![0.0; n],
         un: vec![0.0; n],
@@ -429,6 +511,8 @@ pub fn solve_with(
     let mut run = Run {
         n_contact: total[0] as usize,
         history: Vec::new(),
+        retunes: 0,
+        can_retune: true,
         refused: 0,
         ckpt,
         resume,
@@ -513,6 +597,7 @@ pub fn solve_with(
         iterations: run.history.len(),
         outer_iterations,
         refused: run.refused,
+        retunes: run.retunes,
         lambda: last.lambda,
         mu: last.mu,
         un: sweeper.un,
@@ -523,48 +608,94 @@ pub fn solve_with(
     })
 }
 
-/// Sweeps with the same active and slip counts that [`raised_r`] waits for.
-const SETTLED_SWEEPS: usize = 2;
-/// How much the primal residual must exceed the dual one.
-const PRIMAL_DOMINANCE: f64 = 10.0;
-/// Factor of the raise, and the number of raises allowed. Measured on frictionless full
-/// contact (block, levels 1-4, plain and accelerated): 10 x 2 raises after 3 settled
-/// sweeps, 9-11 sweeps; 100 x 1 after 2, 7-8; 1000 x 1 after 2, 6; 10^4, 5; the best
-/// fixed r of a sweep over four decades, 5-6. 1000 keeps the condition number of the
-/// boundary block within three more decades.
-const RAISE: f64 = 1000.0;
-const MAX_RAISES: usize = 1;
+/// Sweeps without a status change that [`retuned`] waits for; one more with friction,
+/// whose stick/slip statuses follow the pressures and settle later (retuning one sweep
+/// earlier scrambled them on the built-in frictional cases).
+const SETTLED_SWEEPS: usize = 1;
+/// Factors from the reference r for a held normal (raised) and a free one (lowered).
+/// 1000 x keeps the condition number of the contact block within three more decades;
+/// measured on frictionless full contact (block, levels 1-4): 10 x, 9-11 sweeps; 100 x,
+/// 7-8; 1000 x, 6.
+const NORMAL_FACTOR: f64 = 1000.0;
+/// The same for the tangents. Friction statuses are fragile (a sticking node flips to
+/// slip when a large r amplifies the remaining tangential motion): over the built-in
+/// frictional cases at levels 1-3, 10 x gave 22-42 sweeps, 30 x 19-56, 1000 x 20-112.
+const TANGENT_FACTOR: f64 = 10.0;
+/// Retunes to the statuses allowed; after them, a further settled change of the
+/// statuses returns every direction to the reference r (once).
+const MAX_RETUNES: usize = 4;
 
-/// The raised r, if the history says the loop has settled into a linear regime where a
-/// larger r can only help: the last [`SETTLED_SWEEPS`] sweeps with the current r had
-/// every one of the `n_contact` contact nodes active and (with friction) sticking, and a
-/// primal residual (the constraint violation) [`PRIMAL_DOMINANCE`] times the dual one.
-/// The augmentation acts as a spring r w on every contact node: it speeds up the
-/// directions that are constrained (active normal, sticking tangent), where the sweep
-/// contracts each mode by 1 / (1 + r c_i) (c_i the contact compliances), and slows down
-/// the free ones (an inactive node, a slipping tangent), which the spring pins near the
-/// last projection. The default r balances the two; with no free direction left, the
-/// conditions are linear equalities and r -> infinity is best (frictionless contact with
-/// every node pressed onto the foundation at zero gap: 62-85 sweeps at the default r, 6
-/// at 100 r, 6 with the raise). Raising r with free directions left was measured to hurt: plain Hertz at
-/// tol 1e-12, 668 -> 5798 sweeps. A raise costs one dense refactorization of the
-/// trailing factor blocks, hence at most [`MAX_RAISES`]. Uses only global counts and
-/// residuals: every rank decides the same.
-pub fn raised_r(history: &[Sweep], r: f64, n_contact: usize, frictional: bool) -> Option<f64> {
-    let raises = history.windows(2).filter(|w| w[1].r != w[0].r).count();
-    if raises >= MAX_RAISES || history.len() < SETTLED_SWEEPS {
+/// The r of a node's normal and tangential directions once their statuses have settled:
+/// raised where held (pressed, sticking), lowered where free (open, slipping). Without
+/// friction the tangent is not part of the method and keeps r.
+fn tuned((held_n, held_t): (bool, bool), frictional: bool, r: f64) -> (f64, f64) {
+    let pick = |held: bool, factor: f64| if held { r * factor } else { r / factor };
+    let t = if frictional {
+        pick(held_t, TANGENT_FACTOR)
+    } else {
+        r
+    };
+    (pick(held_n, NORMAL_FACTOR), t)
+}
+
+/// What [`retuned`] asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Retune {
+    /// Each direction to the r its status asks for ([`tuned`]).
+    ToStatus,
+    /// Every direction back to the reference r.
+    ToReference,
+}
+
+/// Whether to retune r now, from the history alone (global counts: every rank decides
+/// the same, whatever the rank count).
+///
+/// Why: r acts as a spring r w on each contact direction. A held direction (an active
+/// normal, a sticking tangent) is an equality the sweep enforces by contracting each of
+/// its modes by 1 / (1 + r c) (c a contact compliance): large r is best. A free
+/// direction (an open node, a slipping tangent) is pinned by the spring near its last
+/// value and moves by r c / (1 + r c) of the way: small r is best. One r for all
+/// balances the two and sweeps slowly (plain Hertz: 423 sweeps at level 3, Anderson
+/// 54). Once the statuses stop changing, the held and free sets are known and each
+/// direction gets its own r (ALG2 converges for any positive r per direction: it is the
+/// same method for rescaled constraints).
+///
+/// When: the last [`SETTLED_SWEEPS`] sweeps, all with the current r, changed no status,
+/// and some direction's r differs from what its status asks for. At most
+/// [`MAX_RETUNES`] times, then once back to the reference r if the statuses move
+/// again: a retune costs one dense refactorization of the contact blocks.
+pub fn retuned(history: &[Sweep], frictional: bool, n_contact: usize) -> Option<Retune> {
+    let last = history.last()?;
+    let settled = if frictional {
+        SETTLED_SWEEPS + 1
+    } else {
+        SETTLED_SWEEPS
+    };
+    if history.len() < settled || last.mistuned == 0 {
         return None;
     }
-    let tail = &history[history.len() - SETTLED_SWEEPS..];
-    let settled = tail.iter().all(|s| {
-        s.r == r
-            && s.active == n_contact
-            && n_contact > 0
-            && (!frictional || s.slip == 0)
-            && s.primal > PRIMAL_DOMINANCE * s.dual
-    });
-    settled.then_some(r * RAISE)
+    let tail = &history[history.len() - settled..];
+    if !tail
+        .iter()
+        .all(|s| s.changed == 0 && s.retunes == last.retunes)
+    {
+        return None;
+    }
+    match last.retunes {
+        k if k < MAX_RETUNES && 2 * n_contact <= MAX_RETUNE_DOFS => Some(Retune::ToStatus),
+        MAX_RETUNES if last.stiff + last.soft > 0 => Some(Retune::ToReference),
+        _ => None,
+    }
 }
+
+/// Contact dofs (two per contact node, over all ranks) above which r is not retuned. A
+/// retune refactors the dense contact blocks, about c^3 / 3 flops for c contact dofs,
+/// which costs as much as 30-80 sweeps (measured on hertz, frictionless, one rank: 28,
+/// 38, 62, 78, 80 sweeps at c = 222, 440, 878, 1756, 3508; 0.5 s at c = 3508, 1.2 s on
+/// two ranks). Up to 2048 a retune takes at most about 0.1 s, negligible next to the
+/// factorization; above, the seconds it takes exceed what the sweeps it saves cost, and
+/// Anderson mixing alone is faster.
+const MAX_RETUNE_DOFS: usize = 2048;
 
 fn relative(value: f64, scale: f64) -> f64 {
     if scale > 0.0 {
@@ -578,6 +709,9 @@ struct Run<'c, 'a> {
     /// Contact nodes over all ranks.
     n_contact: usize,
     history: Vec<Sweep>,
+    retunes: usize,
+    /// False once the linear step has declined a change of r.
+    can_retune: bool,
     refused: usize,
     ckpt: &'c mut Checkpoints<'a>,
     resume: Option<Snapshot>,
@@ -593,8 +727,6 @@ struct Evaluated {
     gram: Vec<f64>,
     /// max(primal, dual) relative residual.
     worst: f64,
-    /// The r it was evaluated with.
-    r: f64,
 }
 
 impl Run<'_, '_> {
@@ -609,7 +741,7 @@ impl Run<'_, '_> {
         aa: Option<&Anderson>,
         monitor: &mut dyn FnMut(&Sweep),
     ) -> Result<Evaluated> {
-        let r = sweeper.r;
+        let r = sweeper.r_ref;
         let e = sweeper.eval(x, law)?;
         let f: Vec<f64> = e.gx.iter().zip(x).map(|(a, b)| a - b).collect();
         let mut buf: Vec<f64> = e.sums.to_vec();
@@ -626,7 +758,11 @@ impl Run<'_, '_> {
             dual: relative(s[2].sqrt() + s[3].sqrt(), scale),
             active: s[8] as usize,
             slip: s[9] as usize,
-            r,
+            changed: s[10] as usize,
+            stiff: s[11] as usize,
+            soft: s[12] as usize,
+            mistuned: s[13] as usize,
+            retunes: self.retunes,
         };
         if !(sweep.primal.is_finite() && sweep.dual.is_finite() && scale.is_finite()) {
             return Err(Error::Numerical(format!(
@@ -637,10 +773,9 @@ impl Run<'_, '_> {
         self.history.push(sweep);
         monitor(&sweep);
         Ok(Evaluated {
-            r,
             worst: sweep.primal.max(sweep.dual),
-            res: s[10].sqrt(),
-            gram: s[11..].to_vec(),
+            res: s[N_SUMS].sqrt(),
+            gram: s[N_SUMS + 1..].to_vec(),
             e,
         })
     }
@@ -652,7 +787,13 @@ impl Run<'_, '_> {
         }
     }
 
-    fn save(&mut self, x: &[f64], cur: &Evaluated, aa: &Anderson) -> Result<()> {
+    fn save(
+        &mut self,
+        x: &[f64],
+        cur: &Evaluated,
+        aa: &Anderson,
+        aug: &Augmentation,
+    ) -> Result<()> {
         let snap = Snapshot {
             history: self.history.clone(),
             refused: self.refused,
@@ -665,7 +806,8 @@ impl Run<'_, '_> {
             dg: aa.dg.clone(),
             last: aa.last.clone(),
             outer: self.outer.clone(),
-            r: cur.r,
+            aug: aug.clone(),
+            retunes: self.retunes,
         };
         (self.ckpt.save)(&snap)
     }
@@ -690,29 +832,34 @@ impl Run<'_, '_> {
         // The last accepted point is `x`, `cur` its evaluation.
         let mut cur = match self.resume.take() {
             Some(snap) => {
-                if snap.r != sweeper.r {
-                    if !sweeper.step.set_r(snap.r)? {
-                        return Err(Error::Input(format!(
-                            "the checkpoint was taken with r = {} and this linear step cannot change r; restart with --r {}",
-                            snap.r, snap.r
-                        )));
+                if snap.aug != sweeper.aug {
+                    if snap.aug.r_n.len() != sweeper.aug.r_n.len()
+                        || !sweeper.step.set_r(&snap.aug.r_n, &snap.aug.r_t)?
+                    {
+                        return Err(Error::Input(
+                            "the checkpoint was taken with r retuned per contact direction and this linear step cannot change r; restart without --restart".into(),
+                        ));
                     }
-                    sweeper.r = snap.r;
+                    sweeper.aug = snap.aug;
                 }
+                self.retunes = snap.retunes;
+                let out = derive(&snap.gx, sweeper.nodes, law, &sweeper.aug);
+                sweeper.last_held = (0..out.p.len())
+                    .map(|i| out.held(i, law.frictional()))
+                    .collect();
                 self.history = snap.history;
                 self.refused = snap.refused;
                 *x = snap.x;
                 (aa.df, aa.dg, aa.last) = (snap.df, snap.dg, snap.last);
                 Evaluated {
                     e: Eval {
-                        out: derive(&snap.gx, sweeper.nodes, law, sweeper.r),
+                        out: derive(&snap.gx, sweeper.nodes, law, &sweeper.aug),
                         gx: snap.gx,
-                        sums: [0.0; 10],
+                        sums: [0.0; N_SUMS],
                     },
                     res: snap.res,
                     gram: snap.gram,
                     worst: snap.worst,
-                    r: snap.r,
                 }
             }
             None => self.evaluate(sweeper, comm, law, x, aa_on.then_some(&aa), monitor)?,
@@ -723,34 +870,41 @@ impl Run<'_, '_> {
                 && cur.worst > params.tol
                 && self.history.len() < params.max_iter
             {
-                self.save(x, &cur, &aa)?;
+                self.save(x, &cur, &aa, &sweeper.aug)?;
                 next_save = self.next_checkpoint();
             }
             if cur.worst <= params.tol || self.history.len() >= params.max_iter {
                 *x = cur.e.gx;
                 return Ok((cur.worst <= params.tol, cur.e.out));
             }
-            if params.adapt_r {
-                if let Some(r) =
-                    raised_r(&self.history, sweeper.r, self.n_contact, law.frictional())
-                {
-                    if sweeper.step.set_r(r)? {
+            if params.adapt_r && self.can_retune {
+                if let Some(kind) = retuned(&self.history, law.frictional(), self.n_contact) {
+                    let (n, r) = (sweeper.nodes.len(), sweeper.r_ref);
+                    let d = &cur.e.out;
+                    let frictional = law.frictional();
+                    let mut aug = Augmentation::uniform(n, r);
+                    if kind == Retune::ToStatus {
+                        for i in 0..n {
+                            (aug.r_n[i], aug.r_t[i]) = tuned(d.held(i, frictional), frictional, r);
+                        }
+                    }
+                    if sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
                         // The state with the new r that keeps p, lambda, q and mu of the
                         // last image exactly: s = p + lambda / r, z = q + mu / r.
-                        let d = &cur.e.out;
-                        let n = sweeper.nodes.len();
                         for i in 0..n {
-                            x[i] = d.p[i] + d.lambda[i] / r;
-                            if law.frictional() {
-                                x[n + i] = d.q[i] + d.mu[i] / r;
+                            x[i] = d.p[i] + d.lambda[i] / aug.r_n[i];
+                            if frictional {
+                                x[n + i] = d.q[i] + d.mu[i] / aug.r_t[i];
                             }
                         }
-                        sweeper.r = r;
+                        sweeper.aug = aug;
+                        self.retunes += 1;
                         aa.clear();
                         cur =
                             self.evaluate(sweeper, comm, law, x, aa_on.then_some(&aa), monitor)?;
                         continue;
                     }
+                    self.can_retune = false;
                 }
             }
             let proposal = if aa_on {
@@ -930,17 +1084,23 @@ mod tests {
         assert_eq!(o.iterations, 2);
     }
 
-    /// Many springs with spread stiffness: plain ALG2 needs many sweeps, Anderson few,
-    /// and both reach the same answer.
-    fn many(acc: Acceleration, kick: Option<(usize, f64)>) -> Outcome {
+    /// 40 contact nodes on springs of stiffness spread over 400x, with growing gaps.
+    fn spread_springs() -> (usize, ContactNodes, Vec<f64>) {
         let n = 40;
         let nodes = ContactNodes {
             w: vec![0.5; n],
             g: (0..n).map(|i| 0.02 * i as f64).collect(),
         };
-        let k: Vec<f64> = (0..n)
+        let k = (0..n)
             .map(|i| 0.05 + 20.0 * (i as f64 / n as f64).powi(2))
             .collect();
+        (n, nodes, k)
+    }
+
+    /// Many springs with spread stiffness: plain ALG2 needs many sweeps, Anderson few,
+    /// and both reach the same answer.
+    fn many(acc: Acceleration, kick: Option<(usize, f64)>) -> Outcome {
+        let (n, nodes, k) = spread_springs();
         let mut s = Springs {
             rw: vec![5.0; n],
             f: k.iter().map(|k| [0.5 * k + 0.3, 0.2]).collect(),
@@ -983,43 +1143,136 @@ mod tests {
         }
     }
 
-    fn sweep(iter: usize, primal: f64, dual: f64, active: usize, r: f64) -> Sweep {
+    fn sweep(changed: usize, mistuned: usize, retunes: usize) -> Sweep {
         Sweep {
-            iter,
-            primal,
-            dual,
-            active,
+            iter: 1,
+            primal: 1e-3,
+            dual: 1e-3,
+            active: 5,
             slip: 0,
-            r,
+            changed,
+            stiff: 0,
+            soft: 0,
+            mistuned,
+            retunes,
         }
     }
 
     #[test]
-    fn r_is_raised_once_when_every_node_is_held_with_the_primal_dominant() {
+    fn r_is_retuned_once_the_statuses_have_settled() {
+        let (moving, still) = (sweep(2, 5, 0), sweep(0, 5, 0));
+        // Frictionless: one sweep without a change; with friction, two.
+        assert_eq!(retuned(&[moving, still], false, 5), Some(Retune::ToStatus));
+        assert_eq!(retuned(&[moving, still], true, 5), None);
+        assert_eq!(
+            retuned(&[moving, still, still], true, 5),
+            Some(Retune::ToStatus)
+        );
+        assert_eq!(retuned(&[still, moving], false, 5), None);
+        // Nothing to change, or a contact block too large to refactor cheaply.
+        assert_eq!(retuned(&[moving, sweep(0, 0, 0)], false, 5), None);
+        assert_eq!(retuned(&[moving, still], false, MAX_RETUNE_DOFS), None);
+        // The settled sweeps must all be with the current r.
+        let after = sweep(0, 3, 1);
+        assert_eq!(retuned(&[still, after], true, 5), None);
+        assert_eq!(
+            retuned(&[still, after, after], true, 5),
+            Some(Retune::ToStatus)
+        );
+        // After the budget, once back to the reference r, then never again.
+        let mut spent = sweep(0, 3, MAX_RETUNES);
+        spent.stiff = 2;
+        assert_eq!(
+            retuned(&[spent, spent], false, 5),
+            Some(Retune::ToReference)
+        );
+        let reset = sweep(0, 3, MAX_RETUNES + 1);
+        assert_eq!(retuned(&[reset, reset], false, 5), None);
+    }
+
+    #[test]
+    fn tuned_r_raises_held_directions_and_lowers_free_ones() {
         let r = 10.0;
-        let held = [sweep(1, 1.0, 0.0, 5, r), sweep(2, 0.1, 1e-3, 5, r)];
-        assert_eq!(raised_r(&held, r, 5, false), Some(r * RAISE));
-        // Too short a history, a free node, a slipping node, or a dual residual that
-        // matters: no raise.
-        assert_eq!(raised_r(&held[..1], r, 5, false), None);
-        assert_eq!(raised_r(&held, r, 6, false), None);
-        let mut slipping = held;
-        slipping[1].slip = 1;
-        assert_eq!(raised_r(&slipping, r, 5, true), None);
-        let mut sticking = held;
-        (sticking[0].slip, sticking[1].slip) = (0, 0);
-        assert_eq!(raised_r(&sticking, r, 5, true), Some(r * RAISE));
-        let dual = [sweep(1, 1.0, 0.5, 5, r), sweep(2, 0.1, 0.05, 5, r)];
-        assert_eq!(raised_r(&dual, r, 5, false), None);
-        assert_eq!(raised_r(&[sweep(1, 1.0, 0.0, 0, r); 2], r, 0, false), None);
-        // Once raised, never again.
-        let r2 = r * RAISE;
-        let after = [
-            sweep(1, 1.0, 0.0, 5, r),
-            sweep(2, 0.1, 0.0, 5, r),
-            sweep(3, 0.01, 0.0, 5, r2),
-            sweep(4, 0.001, 0.0, 5, r2),
-        ];
-        assert_eq!(raised_r(&after, r2, 5, false), None);
+        assert_eq!(
+            tuned((true, false), true, r),
+            (r * NORMAL_FACTOR, r / TANGENT_FACTOR)
+        );
+        assert_eq!(
+            tuned((false, true), true, r),
+            (r / NORMAL_FACTOR, r * TANGENT_FACTOR)
+        );
+        // Without friction the tangent keeps the reference r.
+        assert_eq!(tuned((true, false), false, r), (r * NORMAL_FACTOR, r));
+    }
+
+    /// Springs whose augmentation follows set_r: the retuned loop must reach the answer
+    /// of the plain one (r is only a parameter of the method, not of the problem).
+    struct Tunable {
+        k: Vec<f64>,
+        w: Vec<f64>,
+        r_n: Vec<f64>,
+        r_t: Vec<f64>,
+        f: Vec<[f64; 2]>,
+        set_calls: usize,
+    }
+
+    impl LinearStep for Tunable {
+        fn solve(&mut self, fnn: &[f64], ft: &[f64], un: &mut [f64], ut: &mut [f64]) -> Result<()> {
+            for i in 0..un.len() {
+                un[i] = (self.f[i][0] + fnn[i]) / (self.k[i] + self.r_n[i] * self.w[i]);
+                ut[i] = (self.f[i][1] + ft[i]) / (self.k[i] + self.r_t[i] * self.w[i]);
+            }
+            Ok(())
+        }
+
+        fn set_r(&mut self, r_n: &[f64], r_t: &[f64]) -> Result<bool> {
+            self.set_calls += 1;
+            (self.r_n, self.r_t) = (r_n.to_vec(), r_t.to_vec());
+            Ok(true)
+        }
+    }
+
+    fn tunable(friction: Friction, adapt_r: bool) -> (Outcome, usize) {
+        let (n, nodes, k) = spread_springs();
+        let mut s = Tunable {
+            f: k.iter().map(|k| [0.5 * k + 0.3, 0.2]).collect(),
+            k,
+            w: vec![0.5; n],
+            r_n: vec![10.0; n],
+            r_t: vec![10.0; n],
+            set_calls: 0,
+        };
+        let mut p = params(friction, ANDERSON);
+        p.adapt_r = adapt_r;
+        let o = solve(&mut s, &NoComm, &nodes, &p, &mut |_| {}).unwrap();
+        (o, s.set_calls)
+    }
+
+    #[test]
+    fn retuned_loop_reaches_the_plain_answer() {
+        for friction in [
+            Friction::None,
+            Friction::Tresca { threshold: 0.4 },
+            Friction::Coulomb { coefficient: 0.3 },
+        ] {
+            let (fixed, none) = tunable(friction, false);
+            let (tuned, calls) = tunable(friction, true);
+            assert_eq!(none, 0);
+            assert!(fixed.converged && tuned.converged, "{friction:?}");
+            assert!(
+                calls >= 1 && tuned.retunes == calls,
+                "{friction:?}: {calls}"
+            );
+            let last = tuned.history.last().unwrap();
+            assert!(last.stiff + last.soft > 0 || tuned.retunes > MAX_RETUNES);
+            let scale = fixed.lambda.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for i in 0..fixed.lambda.len() {
+                assert!((fixed.lambda[i] - tuned.lambda[i]).abs() < 1e-8 * scale);
+                assert!((fixed.mu[i] - tuned.mu[i]).abs() < 1e-8 * scale);
+                // Displacements of order 0.1-1 here.
+                assert!((fixed.un[i] - tuned.un[i]).abs() < 1e-8);
+                assert!((fixed.ut[i] - tuned.ut[i]).abs() < 1e-8);
+            }
+        }
     }
 }

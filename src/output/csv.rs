@@ -28,8 +28,11 @@ pub struct HistoryRow {
     pub dual: f64,
     pub active: usize,
     pub slip: usize,
-    /// The augmentation parameter of the sweep's linear step.
-    pub r: f64,
+    /// Contact nodes whose status changed in the sweep.
+    pub changed: usize,
+    /// Contact directions whose r was raised above the reference r, and lowered below it.
+    pub stiff: usize,
+    pub soft: usize,
 }
 
 /// `contact.csv`: header `x,y,u_n,u_t,p_n,p_t,gap`, rows sorted by x then y.
@@ -74,16 +77,17 @@ pub fn nodes_csv(nodes: &[[f64; 2]], u: &[[f64; 2]]) -> String {
     out
 }
 
-/// `history.csv`: header `iteration,primal_residual,dual_residual,active_nodes,slip_nodes,r`,
+/// `history.csv`: header
+/// `iteration,primal_residual,dual_residual,active_nodes,slip_nodes,changed_nodes,stiff_directions,soft_directions`,
 /// rows in the given order.
 pub fn history_csv(rows: &[HistoryRow]) -> String {
     let mut out = String::with_capacity(48 * (rows.len() + 1));
-    out.push_str("iteration,primal_residual,dual_residual,active_nodes,slip_nodes,r\n");
+    out.push_str("iteration,primal_residual,dual_residual,active_nodes,slip_nodes,changed_nodes,stiff_directions,soft_directions\n");
     for r in rows {
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{}",
-            r.iter, r.primal, r.dual, r.active, r.slip, r.r
+            "{},{},{},{},{},{},{},{}",
+            r.iter, r.primal, r.dual, r.active, r.slip, r.changed, r.stiff, r.soft
         );
     }
     out
@@ -223,7 +227,9 @@ mod tests {
                 dual: 1e-300,
                 active: 10,
                 slip: 0,
-                r: 1e5,
+                changed: 4,
+                stiff: 0,
+                soft: 0,
             },
             HistoryRow {
                 iter: 2,
@@ -231,20 +237,22 @@ mod tests {
                 dual: 2.0,
                 active: 12,
                 slip: 3,
-                r: 1e7,
+                changed: 0,
+                stiff: 12,
+                soft: 5,
             },
         ];
         let csv = history_csv(&rows);
         let mut lines = csv.lines();
         assert_eq!(
             lines.next(),
-            Some("iteration,primal_residual,dual_residual,active_nodes,slip_nodes,r")
+            Some("iteration,primal_residual,dual_residual,active_nodes,slip_nodes,changed_nodes,stiff_directions,soft_directions")
         );
         assert_eq!(
             lines.next(),
-            Some(format!("1,0.5,{},10,0,100000", 1e-300).as_str())
+            Some(format!("1,0.5,{},10,0,4,0,0", 1e-300).as_str())
         );
-        assert_eq!(lines.next(), Some("2,0.30000000000000004,2,12,3,10000000"));
+        assert_eq!(lines.next(), Some("2,0.30000000000000004,2,12,3,0,12,5"));
         assert_eq!(lines.next(), None);
         assert!(csv.ends_with('\n'));
     }
