@@ -343,7 +343,6 @@ struct CondensedStep<'a> {
     response: LocalResponse,
     /// The interface system, on the first rank only.
     interface: Option<InterfaceSystem>,
-    has_interface: bool,
     interface_counts: Vec<usize>,
     /// The packed own forces of the last sweep.
     forces: Vec<f64>,
@@ -370,7 +369,7 @@ impl LinearStep for CondensedStep<'_> {
         let updated = boundary_entries(&blocks, &self.sub.fixed, &self.sub.boundary_dofs)
             .and_then(|delta| self.factor.update_boundary(&delta));
         self.mpi.agree(updated)?;
-        if self.has_interface {
+        if self.setup.n_interface > 0 {
             self.interface = build_interface(
                 self.mpi,
                 self.sub,
@@ -396,7 +395,7 @@ impl LinearStep for CondensedStep<'_> {
         }
         let z = self.response.forward(self.factor, &self.forces);
         self.x_g.resize(z.len(), 0.0);
-        if self.has_interface {
+        if self.setup.n_interface > 0 {
             self.mpi
                 .gather_to_root(z, &self.interface_counts, &mut self.gathered);
             if let Some(sys) = self.interface.as_mut() {
@@ -685,7 +684,6 @@ fn solve_condensed(
         factor: &mut local.factor,
         response: LocalResponse::new(rows, g_local),
         interface,
-        has_interface,
         interface_counts,
         // Sized for the (never expected) case of a loop that solves nothing.
         forces: vec![0.0; if frictional { 2 * n_own } else { n_own }],

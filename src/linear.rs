@@ -46,11 +46,27 @@ impl SparseCholesky {
             ))
         })?;
         values.resize(symbolic.len_val(), 0.0);
-        let mut mem =
-            MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
-        symbolic
+        let scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, par));
+        let mut chol = SparseCholesky {
+            symbolic,
+            values,
+            scratch,
+        };
+        chol.refactor(a)?;
+        Ok(chol)
+    }
+
+    /// Numeric factorization of `a` (LOWER triangle), which must have the sparsity of
+    /// the matrix this factor was built for: the ordering and symbolic analysis are kept.
+    pub fn refactor(&mut self, a: SparseColMatRef<'_, usize, f64>) -> Result<()> {
+        let par = faer::get_global_parallelism();
+        let mut mem = MemBuffer::new(
+            self.symbolic
+                .factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+        );
+        self.symbolic
             .factorize_numeric_llt(
-                &mut values,
+                &mut self.values,
                 a,
                 Side::Lower,
                 LltRegularization::default(),
@@ -64,12 +80,7 @@ impl SparseCholesky {
                         .into(),
                 )
             })?;
-        let scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, par));
-        Ok(SparseCholesky {
-            symbolic,
-            values,
-            scratch,
-        })
+        Ok(())
     }
 
     /// Overwrites `rhs` (one column) with A^-1 rhs.
@@ -262,7 +273,7 @@ pub fn add_contact_forces(
 }
 
 impl LinearStep for DirectStep {
-    /// A full numeric refactorization (this path is the textbook reference).
+    /// A numeric refactorization of the whole matrix (this path is the textbook reference).
     fn set_r(&mut self, r_n: &[f64], r_t: &[f64]) -> Result<bool> {
         let mut a = self.a0.clone();
         let shift = |r: &[f64]| r.iter().map(|r| r - self.r0).collect::<Vec<f64>>();
@@ -296,7 +307,8 @@ impl LinearStep for DirectStep {
                 }
             }
         }
-        self.chol = SparseCholesky::factor(a.as_ref(), SymmetricOrdering::Amd)?;
+        // Same sparsity as a0: only the numeric factorization is redone.
+        self.chol.refactor(a.as_ref())?;
         Ok(true)
     }
 
@@ -488,17 +500,7 @@ impl LocalFactor {
 
     /// The subdomain's Schur complement onto its boundary dofs (dense, symmetric).
     pub fn schur(&self) -> Mat<f64> {
-        let n = self.l_bb.nrows();
-        let mut s = lower_gram(self.l_bb.as_ref());
-        for j in 0..n {
-            if j >= self.n_contact {
-                s[(j, j)] -= self.alpha;
-            }
-            for i in j + 1..n {
-                s[(j, i)] = s[(i, j)];
-            }
-        }
-        s
+        unshifted_gram(self.l_bb.as_ref(), self.n_contact, self.alpha)
     }
 
     /// Refactors for the matrix as assembled plus `delta` on the boundary block: (i, j, v)
@@ -539,14 +541,7 @@ impl LocalFactor {
     /// eliminated, S_gg - S_gc S_cc^-1 S_cg = L_gg L_gg' - alpha I (dense, symmetric).
     pub fn interface_schur(&self) -> Mat<f64> {
         let (nc, ng) = (self.n_contact, self.n_interface());
-        let mut s = lower_gram(self.l_bb.submatrix(nc, nc, ng, ng));
-        for j in 0..ng {
-            s[(j, j)] -= self.alpha;
-            for i in j + 1..ng {
-                s[(j, i)] = s[(i, j)];
-            }
-        }
-        s
+        unshifted_gram(self.l_bb.submatrix(nc, nc, ng, ng), 0, self.alpha)
     }
 
     /// First half of a solve of S x = b on B, in place on `b` (n_b x 1):
@@ -797,6 +792,22 @@ impl SparseCholesky {
         for_each_trailing_entry(&self.symbolic, first, |p, i, j| l[(i, j)] = self.values[p]);
         l
     }
+}
+
+/// The full symmetric L L' with the shift alpha taken off the diagonal from row
+/// `shifted_from` on (the shifted interface dofs).
+fn unshifted_gram(l: faer::MatRef<'_, f64>, shifted_from: usize, alpha: f64) -> Mat<f64> {
+    let n = l.nrows();
+    let mut s = lower_gram(l);
+    for j in 0..n {
+        if j >= shifted_from {
+            s[(j, j)] -= alpha;
+        }
+        for i in j + 1..n {
+            s[(j, i)] = s[(i, j)];
+        }
+    }
+    s
 }
 
 /// The lower triangle of L L' for a lower triangular L (the upper one is left zero): a
