@@ -17,7 +17,7 @@ import sys
 
 # The phases of summary.json's "timings_s", in the order the program runs them. Any
 # other key found there (a phase added later) is kept, before "total".
-PHASES = ["read", "partition", "assemble", "factor", "condense", "loop", "recover", "output"]
+PHASES = ["read", "partition", "scatter", "assemble", "factor", "condense", "loop", "recover", "output"]
 KEY = ("study", "case", "level", "ranks", "threads")
 
 

@@ -69,6 +69,8 @@ pub struct RunReport {
 struct Timings {
     read: f64,
     partition: f64,
+    /// Rank 0 sending every other rank its subproblem.
+    scatter: f64,
     assemble: f64,
     factor: f64,
     condense: f64,
@@ -434,7 +436,9 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         None
     };
     let prepared = mpi.agree(prepared.transpose())?;
+    let t_scatter = Instant::now();
     let (setup, sub) = distribute(mpi, prepared)?;
+    let scatter_s = t_scatter.elapsed().as_secs_f64();
     let case = &setup.case;
     print.line(format!(
         "contact-par: {} | {} nodes, {} triangles, {} contact nodes | friction {} | r = {:e}, tol = {:e} | {} rank(s) x {} thread(s)",
@@ -526,6 +530,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
     let times = Timings {
         read: setup.read_s,
         partition: setup.partition_s,
+        scatter: scatter_s,
         assemble: phases.assemble,
         factor: phases.factor,
         condense: phases.condense,
@@ -897,8 +902,9 @@ fn print_timings(print: &Printer, t: &Timings, iterations: usize) {
     print.line("phase         seconds");
     for (name, v) in [
         ("read", t.read),
-        ("assemble", t.assemble),
         ("partition", t.partition),
+        ("scatter", t.scatter),
+        ("assemble", t.assemble),
         ("factor", t.factor),
         ("condense", t.condense),
         ("loop", t.uzawa),
