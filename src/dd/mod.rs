@@ -36,7 +36,7 @@
 //! | phase | flops | memory | messages |
 //! | --- | --- | --- | --- |
 //! | partition + scatter (rank 0) | O(n log n) | the mesh | one point-to-point per rank |
-//! | assemble (each rank) | 42 per element entry | ~21 triplets per element | - |
+//! | assemble (each rank) | ~160 per element (a stiffness row per vertex) | the matrix only (~8 lower entries per dof) | - |
 //! | factor (each rank) | sparse Cholesky, O(n_s^1.5) in 2D with a good ordering, + b_s^3 / 3 for the dense trailing block | nnz(L_s) + b_s^2 | - |
 //! | condensed loads (each rank) | one sparse solve, 4 nnz(L_s) | n_s | - |
 //! | interface part L_gg L_gg' (each rank) | g_s^3 / 3 | g_s^2 | one message of g_s^2 doubles to rank 0 |
