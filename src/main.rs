@@ -111,13 +111,22 @@ fn parse_coulomb(s: &str) -> Result<CoulombMode, String> {
 /// MPI_Init on a machine without a fast network (0.33 s against 0.11 s for a whole
 /// two-rank run of a small case). With every rank on one node the traffic goes
 /// through shared memory whichever layer carries it, so unless the user chose a PML
-/// (`--mca pml`, `OMPI_MCA_pml`), ask for ob1 there. Jobs spread over several nodes
-/// keep Open MPI's own choice (UCX on InfiniBand clusters).
+/// (`--mca pml`, `OMPI_MCA_pml`), ask for ob1 there. Only where one node is certain:
+/// mpirun says every rank is local, or the process was started alone (no mpirun, no
+/// srun). Anything else (srun, several nodes) keeps Open MPI's own choice: UCX on
+/// InfiniBand clusters.
 fn prefer_shared_memory_on_one_node() {
     const PML: &str = "OMPI_MCA_pml";
-    let var = |name: &str| std::env::var(name).ok();
-    let one_node = var("OMPI_COMM_WORLD_SIZE") == var("OMPI_COMM_WORLD_LOCAL_SIZE");
-    if one_node && std::env::var_os(PML).is_none() {
+    let var = |name: &str| std::env::var_os(name);
+    let one_node = match (
+        var("OMPI_COMM_WORLD_SIZE"),
+        var("OMPI_COMM_WORLD_LOCAL_SIZE"),
+    ) {
+        (Some(all), Some(local)) => all == local,
+        (None, None) => var("SLURM_PROCID").is_none() && var("PMIX_RANK").is_none(),
+        _ => false,
+    };
+    if one_node && var(PML).is_none() {
         // Called first thing in main, before any other thread exists.
         std::env::set_var(PML, "ob1");
     }
