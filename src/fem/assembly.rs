@@ -208,9 +208,9 @@ struct Columns {
 
 impl Columns {
     /// Appends column `j`, the equation of free dof `dof`: rows `>= j` among the free
-    /// dofs of the nodes that share a triangle with the dof's node, itself included
-    /// (so the diagonal is always there: a node on no triangle gives a zero diagonal,
-    /// which the factorization reports as singular instead of a malformed pattern).
+    /// dofs of the dof's node and of the nodes that share a triangle with it (so the
+    /// diagonal is always there: a node on no triangle gives a zero diagonal, which the
+    /// factorization reports as singular instead of a malformed pattern).
     #[allow(clippy::too_many_arguments)]
     fn push_column(
         &mut self,
@@ -224,7 +224,12 @@ impl Columns {
     ) {
         let (v, c) = (dof / 2, dof % 2);
         self.scratch.clear();
-        self.scratch.push(j);
+        // The node's own dofs even on no triangle, where a node block may still land.
+        self.scratch.extend(
+            (0..2)
+                .filter_map(|comp| dofs.eq[2 * v + comp])
+                .filter(|&i| i >= j),
+        );
         for &e in stars.of(v) {
             for &u in &triangles[e] {
                 for comp in 0..2 {
@@ -394,8 +399,8 @@ mod tests {
 
     #[test]
     fn boundary_dofs_last_and_node_blocks() {
-        // A 3 x 3 grid of nodes, irregular, with a node on no triangle (8): its column
-        // holds its diagonal only.
+        // A 3 x 3 grid of nodes, irregular, with a node on no triangle (8): its columns
+        // hold its own dofs only, where its node block lands.
         let nodes = [
             [0.0, 0.0],
             [1.1, 0.0],
@@ -431,6 +436,7 @@ mod tests {
             (4usize, [[2.0, 0.5], [0.5, 1.0]]),
             (6, [[0.7, -0.1], [-0.1, 0.3]]),
             (2, [[1.5, 0.0], [0.0, 1.5]]),
+            (8, [[1.0, 0.25], [0.25, 2.0]]),
         ];
         let a = assemble(&nodes, &tris, &mat, &dofs, &blocks).unwrap();
         let mut k = dense_k(&nodes, &tris, &mat);
@@ -444,7 +450,7 @@ mod tests {
         assert_matches_dense(&a, &dofs, &k);
         assert_eq!(
             dofs.eq[16].map(|e| a.matrix.as_ref().symbolic().row_idx_of_col_raw(e).len()),
-            Some(1)
+            Some(2)
         );
         for (di, ei) in dofs.eq.iter().enumerate() {
             let Some(ei) = *ei else { continue };
