@@ -46,7 +46,7 @@ pub(crate) fn to_idx(v: usize) -> Result<Idx, PartitionError> {
 
 /// Node-to-triangle incidence in CSR form: the triangles touching node `n` are
 /// `tris[start[n]..start[n + 1]]`, in increasing order.
-pub(crate) struct Stars {
+pub struct Stars {
     start: Vec<Idx>,
     tris: Vec<Idx>,
 }

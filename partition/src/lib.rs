@@ -30,7 +30,8 @@
 mod coarsen;
 mod graph;
 
-use graph::{dual_from_stars, pieces_and_cut, to_idx, Graph, Stars};
+pub use graph::Stars;
+use graph::{dual_from_stars, pieces_and_cut, to_idx, Graph};
 use metis::Idx;
 use std::collections::BTreeMap;
 use std::fmt;

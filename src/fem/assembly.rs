@@ -3,8 +3,9 @@
 
 use super::{elasticity_matrix, element_stiffness_row};
 use crate::case::Material;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use partition::Stars;
 use rayon::prelude::*;
 
 /// Which dofs are free (and their equation number) and which are prescribed.
@@ -97,13 +98,21 @@ pub fn assemble(
 ) -> Result<Assembled> {
     let d = elasticity_matrix(material);
     let n = dofs.n_free;
-    let stars = Stars::new(nodes.len(), triangles);
+    let stars = Stars::new(nodes.len(), triangles)
+        .map_err(|e| Error::Numerical(format!("cannot assemble the stiffness matrix: {e}")))?;
     let mut dof_of_eq = vec![0usize; n];
     for (dof, eq) in dofs.eq.iter().enumerate() {
         if let Some(i) = eq {
             dof_of_eq[*i] = dof;
         }
     }
+    let mesh = ColumnSource {
+        nodes,
+        triangles,
+        d: &d,
+        dofs,
+        stars: &stars,
+    };
     let chunk = (n / (4 * rayon::current_num_threads())).max(1024);
     let parts: Vec<Columns> = dof_of_eq
         .par_chunks(chunk)
@@ -111,7 +120,7 @@ pub fn assemble(
         .map(|(k, chunk_dofs)| {
             let mut cols = Columns::default();
             for (off, &dof) in chunk_dofs.iter().enumerate() {
-                cols.push_column(k * chunk + off, dof, triangles, nodes, &d, dofs, &stars);
+                cols.push_column(k * chunk + off, dof, &mesh);
             }
             cols
         })
@@ -157,40 +166,14 @@ pub fn assemble(
     })
 }
 
-/// The triangles around each node (compressed rows).
-struct Stars {
-    start: Vec<usize>,
-    triangles: Vec<usize>,
-}
-
-impl Stars {
-    fn new(num_nodes: usize, triangles: &[[usize; 3]]) -> Self {
-        let mut start = vec![0usize; num_nodes + 1];
-        for t in triangles {
-            for &v in t {
-                start[v + 1] += 1;
-            }
-        }
-        for v in 0..num_nodes {
-            start[v + 1] += start[v];
-        }
-        let mut next = start[..num_nodes].to_vec();
-        let mut list = vec![0usize; start[num_nodes]];
-        for (e, t) in triangles.iter().enumerate() {
-            for &v in t {
-                list[next[v]] = e;
-                next[v] += 1;
-            }
-        }
-        Stars {
-            start,
-            triangles: list,
-        }
-    }
-
-    fn of(&self, v: usize) -> &[usize] {
-        &self.triangles[self.start[v]..self.start[v + 1]]
-    }
+/// What every column is computed from.
+#[derive(Clone, Copy)]
+struct ColumnSource<'a> {
+    nodes: &'a [[f64; 2]],
+    triangles: &'a [[usize; 3]],
+    d: &'a nalgebra::Matrix3<f64>,
+    dofs: &'a DofMap,
+    stars: &'a Stars,
 }
 
 /// Consecutive columns of the lower triangle, built by one thread.
@@ -211,17 +194,14 @@ impl Columns {
     /// dofs of the dof's node and of the nodes that share a triangle with it (so the
     /// diagonal is always there: a node on no triangle gives a zero diagonal, which the
     /// factorization reports as singular instead of a malformed pattern).
-    #[allow(clippy::too_many_arguments)]
-    fn push_column(
-        &mut self,
-        j: usize,
-        dof: usize,
-        triangles: &[[usize; 3]],
-        nodes: &[[f64; 2]],
-        d: &nalgebra::Matrix3<f64>,
-        dofs: &DofMap,
-        stars: &Stars,
-    ) {
+    fn push_column(&mut self, j: usize, dof: usize, mesh: &ColumnSource) {
+        let ColumnSource {
+            nodes,
+            triangles,
+            d,
+            dofs,
+            stars,
+        } = *mesh;
         let (v, c) = (dof / 2, dof % 2);
         self.scratch.clear();
         // The node's own dofs even on no triangle, where a node block may still land.
@@ -231,7 +211,7 @@ impl Columns {
                 .filter(|&i| i >= j),
         );
         for &e in stars.of(v) {
-            for &u in &triangles[e] {
+            for &u in &triangles[e as usize] {
                 for comp in 0..2 {
                     match dofs.eq[2 * u + comp] {
                         Some(i) if i > j => self.scratch.push(i),
@@ -247,7 +227,7 @@ impl Columns {
         self.values.resize(self.rows.len(), 0.0);
         let mut lift = 0.0;
         for &e in stars.of(v) {
-            let t = triangles[e];
+            let t = triangles[e as usize];
             let a = t.iter().position(|&u| u == v).unwrap_or(0);
             let k = element_stiffness_row(&[nodes[t[0]], nodes[t[1]], nodes[t[2]]], d, 2 * a + c);
             for (m, km) in k.iter().enumerate() {
