@@ -15,12 +15,13 @@
 //! see [`retuned`]); the formulas above then read r_n or r_t of the node.
 //!
 //! ## Acceleration
-//! Anderson mixing (type II, memory m) on G, with the W-weighted inner product summed
-//! over all ranks, so every rank computes the same mixing coefficients and the iterates
-//! do not depend on the rank count. Safeguard: a mixed point is kept only if its
-//! fixed-point residual |G(y) - y| does not exceed the residual of the last kept point;
-//! otherwise the plain step G(x) is taken and the memory is cleared. The plain method
-//! therefore bounds the accelerated one (at the price of one extra solve per refusal).
+//! Anderson mixing (type II, memory m) on G, with an inner product in force units (each
+//! direction weighted by w (r / r_ref)^2, see [`metric`]) summed over all ranks, so every
+//! rank computes the same mixing coefficients and the iterates do not depend on the rank
+//! count. Safeguard: a mixed point is kept only if its fixed-point residual |G(y) - y|
+//! (same norm) does not exceed the residual of the last kept point; otherwise the plain
+//! step G(x) is taken and the memory is cleared. The plain method therefore bounds the
+//! accelerated one (at the price of one extra solve per refusal).
 //!
 //! ## Communication per sweep
 //! One linear step, and one all-reduce of 15 + m(m+1)/2 + m numbers: the squared
@@ -296,17 +297,32 @@ impl<S: LinearStep> Sweeper<'_, S> {
     }
 }
 
-/// W-weighted inner product of two states (normal and tangential parts alike).
-fn dot(a: &[f64], b: &[f64], w: &[f64]) -> f64 {
-    let n = w.len();
-    let mut s = 0.0;
-    for i in 0..n {
-        s += w[i] * a[i] * b[i];
-        if a.len() > n {
-            s += w[i] * a[n + i] * b[n + i];
-        }
+/// Weighted inner product of two states, one weight per component (see [`metric`]).
+fn dot(a: &[f64], b: &[f64], omega: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .zip(omega)
+        .map(|((x, y), o)| o * x * y)
+        .sum()
+}
+
+/// The weights of the state norm: w (r / r_ref)^2 per direction, so that a state
+/// difference is measured in force units, r times a displacement, with each direction's
+/// own r. Once r is retuned, a held direction's state moves by its multiplier change over a
+/// large r and a free one's by a displacement: unweighted, the mixing would fit the free
+/// directions and neglect the held ones, which the stopping test weighs in force units.
+fn metric(w: &[f64], aug: &Augmentation, r_ref: f64, frictional: bool) -> Vec<f64> {
+    let scaled = |r: &[f64]| -> Vec<f64> {
+        w.iter()
+            .zip(r)
+            .map(|(w, r)| w * (r / r_ref).powi(2))
+            .collect()
+    };
+    let mut omega = scaled(&aug.r_n);
+    if frictional {
+        omega.extend(scaled(&aug.r_t));
     }
-    s
+    omega
 }
 
 /// Anderson memory: differences of residuals and of images of the last iterations.
@@ -352,7 +368,7 @@ impl Anderson {
     /// where DF is the memory as it will be once (f, g) is pushed: computing them with
     /// the evaluation lets one reduction per sweep serve both the statistics and the
     /// mixing.
-    fn local_sums_with_new(&self, f: &[f64], w: &[f64]) -> Vec<f64> {
+    fn local_sums_with_new(&self, f: &[f64], omega: &[f64]) -> Vec<f64> {
         let mut diffs: Vec<&[f64]> = self.df.iter().map(Vec::as_slice).collect();
         let newest: Vec<f64>;
         if let Some((f0, _)) = &self.last {
@@ -366,11 +382,11 @@ impl Anderson {
         let mut v = Vec::with_capacity(k * (k + 1) / 2 + k);
         for a in 0..k {
             for b in a..k {
-                v.push(dot(diffs[a], diffs[b], w));
+                v.push(dot(diffs[a], diffs[b], omega));
             }
         }
         for a in 0..k {
-            v.push(dot(diffs[a], f, w));
+            v.push(dot(diffs[a], f, omega));
         }
         v
     }
@@ -745,9 +761,10 @@ impl Run<'_, '_> {
         let e = sweeper.eval(x, law)?;
         let f: Vec<f64> = e.gx.iter().zip(x).map(|(a, b)| a - b).collect();
         let mut buf: Vec<f64> = e.sums.to_vec();
-        buf.push(dot(&f, &f, &sweeper.nodes.w));
+        let omega = metric(&sweeper.nodes.w, &sweeper.aug, r, law.frictional());
+        buf.push(dot(&f, &f, &omega));
         if let Some(aa) = aa {
-            buf.extend(aa.local_sums_with_new(&f, &sweeper.nodes.w));
+            buf.extend(aa.local_sums_with_new(&f, &omega));
         }
         comm.sum_in_place(&mut buf);
         let s = &buf;
@@ -1203,6 +1220,34 @@ mod tests {
         );
         // Without friction the tangent keeps the reference r.
         assert_eq!(tuned((true, false), false, r), (r * NORMAL_FACTOR, r));
+    }
+
+    #[test]
+    fn metric_measures_state_differences_in_force_units() {
+        let w = [2.0, 3.0];
+        let r = 10.0;
+        // One r everywhere: the weights are the contact weights, so the mixing is the same
+        // as with the plain W inner product until the first retune.
+        let uniform = Augmentation::uniform(2, r);
+        assert_eq!(metric(&w, &uniform, r, false), vec![2.0, 3.0]);
+        assert_eq!(metric(&w, &uniform, r, true), vec![2.0, 3.0, 2.0, 3.0]);
+        // Retuned: a state change dx in a direction with spring r costs (r dx)^2 w / r_ref^2,
+        // so a multiplier change r dx weighs the same whatever that direction's r.
+        let aug = Augmentation {
+            r_n: vec![1000.0 * r, r / 1000.0],
+            r_t: vec![r / 10.0, 10.0 * r],
+        };
+        let omega = metric(&w, &aug, r, true);
+        let dx = [1e-3, 1e3, 10.0, 0.1];
+        let force: Vec<f64> = [aug.r_n.clone(), aug.r_t.clone()]
+            .concat()
+            .iter()
+            .zip(dx)
+            .map(|(r, d)| r * d)
+            .collect();
+        let expected: f64 = (0..4).map(|k| w[k % 2] * (force[k] / r).powi(2)).sum();
+        assert!((dot(&dx, &dx, &omega) - expected).abs() <= 1e-12 * expected);
+        assert_eq!(force, vec![10.0 * 1.0, 1e3 * 1e-2, 1.0 * 10.0, 100.0 * 0.1]);
     }
 
     /// Springs whose augmentation follows set_r: the retuned loop must reach the answer
