@@ -704,13 +704,14 @@ pub fn retuned(history: &[Sweep], frictional: bool, n_contact: usize) -> Option<
     }
 }
 
-/// Contact dofs (two per contact node, over all ranks) above which r is not retuned. A
-/// retune refactors the dense contact blocks, about c^3 / 3 flops for c contact dofs,
-/// which costs as much as 30-80 sweeps (measured on hertz, frictionless, one rank: 28,
-/// 38, 62, 78, 80 sweeps at c = 222, 440, 878, 1756, 3508; 0.5 s at c = 3508, 1.2 s on
-/// two ranks). Up to 2048 a retune takes at most about 0.1 s, negligible next to the
-/// factorization; above, the seconds it takes exceed what the sweeps it saves cost, and
-/// Anderson mixing alone is faster.
+/// Contact dofs (two per contact node, over all ranks) above which r is not retuned. The
+/// first retune refactors the dense contact blocks, about c^3 / 3 flops for c contact
+/// dofs, which costs as much as 30-80 sweeps (measured on hertz, frictionless, one rank:
+/// 28, 38, 62, 78, 80 sweeps at c = 222, 440, 878, 1756, 3508; 0.5 s at c = 3508, 1.2 s
+/// on two ranks); the later ones move a few directions and update the factor in place
+/// (`LocalFactor::update_boundary`) for a fraction of that. Up to 2048 a retune takes at
+/// most about 0.1 s, negligible next to the factorization; above, the seconds it takes
+/// exceed what the sweeps it saves cost, and Anderson mixing alone is faster.
 const MAX_RETUNE_DOFS: usize = 2048;
 
 fn relative(value: f64, scale: f64) -> f64 {
