@@ -129,8 +129,8 @@ fn friction_name(f: &Friction) -> &'static str {
 /// output phase mostly page faults. Only the output phase gets this: its buffers are far
 /// smaller than the factorization's, so the peak memory per rank does not move, whereas
 /// the same setting for the whole run (`GLIBC_TUNABLES=glibc.malloc.mmap_max=0`, see the
-/// README) raises it by 9-16%. Measured on hertz level 4, one rank: output 1.06 s -> 0.87
-/// s, page faults 638k -> 535k, peak 1036 MB both.
+/// README) raises it by 9-16%. Measured on hertz level 4, one rank: output 1.05 s before,
+/// 0.81-0.87 s after; page faults 638k -> 535k-541k; peak 1036 MB both.
 fn keep_freed_blocks_for_reuse() {
     // SAFETY: mallopt only changes glibc's allocation policy; it may be called at any
     // time, and blocks already mapped are still unmapped correctly when freed. A failed
