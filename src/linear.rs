@@ -238,9 +238,12 @@ pub fn contact_blocks(
             let eye = |i: usize, j: usize| if i == j { 1.0 } else { 0.0 };
             // Equal r: exactly r w I (m m' + t t' = I), not its round-off.
             let blk = std::array::from_fn(|i| {
-                std::array::from_fn(|j| match a == b {
-                    true => a * eye(i, j),
-                    false => a * mm[i][j] + b * (eye(i, j) - mm[i][j]),
+                std::array::from_fn(|j| {
+                    if a == b {
+                        a * eye(i, j)
+                    } else {
+                        a * mm[i][j] + b * (eye(i, j) - mm[i][j])
+                    }
                 })
             });
             (node, blk)

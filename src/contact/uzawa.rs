@@ -871,7 +871,7 @@ impl Run<'_, '_> {
                 (aa.df, aa.dg, aa.last) = (snap.df, snap.dg, snap.last);
                 Evaluated {
                     e: Eval {
-                        out: derive(&snap.gx, sweeper.nodes, law, &sweeper.aug),
+                        out,
                         gx: snap.gx,
                         sums: [0.0; N_SUMS],
                     },

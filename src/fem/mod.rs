@@ -67,7 +67,6 @@ pub fn element_stiffness(p: &[[f64; 2]; 3], d: &Matrix3<f64>) -> SMatrix<f64, 6,
     b.transpose() * d * b * area.abs()
 }
 
-/// In-plane stress (sxx, syy, sxy) of an element, constant over a P1 triangle.
 /// Row `l` (local dof 2 a + c: node a of the triangle, component c) of
 /// [`element_stiffness`], at a third of its cost: (B' D B)_l = (D B_l)' B.
 pub fn element_stiffness_row(p: &[[f64; 2]; 3], d: &Matrix3<f64>, l: usize) -> [f64; 6] {
@@ -77,6 +76,7 @@ pub fn element_stiffness_row(p: &[[f64; 2]; 3], d: &Matrix3<f64>, l: usize) -> [
     std::array::from_fn(|m| row[m])
 }
 
+/// In-plane stress (sxx, syy, sxy) of an element, constant over a P1 triangle.
 pub fn element_stress(p: &[[f64; 2]; 3], d: &Matrix3<f64>, u: &[f64; 6]) -> [f64; 3] {
     let (b, _) = strain_displacement(p);
     let s: Vector3<f64> = d * (b * SMatrix::<f64, 6, 1>::from_column_slice(u));
