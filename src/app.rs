@@ -238,7 +238,7 @@ fn prepare(opts: &Options, nparts: usize) -> Result<(Setup, Vec<SubProblem>)> {
         nparts,
     )
     .map_err(|e| Error::Input(format!("{mesh_name}: cannot partition the mesh: {e}")))?;
-    let (subs, map) = split(&prob, &part)?;
+    let (subs, map) = split(&prob, &part, Problem::is_frictional(&case))?;
     let partition_s = t1.elapsed().as_secs_f64();
     let r = case.solver.r.unwrap_or_else(|| prob.default_r(&case));
     let m = &case.material;

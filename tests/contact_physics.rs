@@ -176,6 +176,39 @@ fn kkt_frictionless_partial_contact() {
     assert!(active[..first_free].iter().all(|a| *a) && active[first_free..].iter().all(|a| !*a));
 }
 
+/// Without friction only the normal component of a contact node is read and loaded, so
+/// on a foundation along an axis only that component enters the condensed boundary system
+/// (one boundary dof per contact node), the other is eliminated with the interior; with
+/// friction, or with an inclined normal, both do. The frictionless answer on the smaller
+/// system must still satisfy the contact conditions (`ranks.rs` also compares it with the
+/// uncondensed solve).
+#[test]
+fn condensed_system_keeps_the_contact_components_that_are_read() {
+    for (friction, normal, per_node) in [
+        ("friction = \"none\"", FLAT, 1),
+        ("friction = \"none\"", tilted(), 2),
+        ("friction = \"coulomb\"\ncoefficient = 0.3", FLAT, 2),
+    ] {
+        let what = format!("{friction}, normal {normal:?}");
+        let run = run_case(
+            &block_case(0, "ux = 0.0\nuy = -0.02", friction, normal, ""),
+            &[],
+        );
+        run.expect_code(0);
+        let rows = run.contact();
+        let s = run.summary();
+        assert_eq!(
+            num(&s, "boundary_dofs") as usize,
+            per_node * rows.len(),
+            "{what}"
+        );
+        if per_node == 1 {
+            let c = check_kkt(&rows, Law::None, KKT_REL, &what);
+            assert!(c.slip > 0, "{what}: nothing in contact: {c:?}");
+        }
+    }
+}
+
 #[test]
 fn kkt_tresca_partial_contact_with_stick_and_slip() {
     let s = 20.0;

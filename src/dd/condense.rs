@@ -62,6 +62,10 @@ impl ContactRows {
             for &(row, coef) in kinds {
                 for comp in 0..2 {
                     let dof = 2 * v + comp;
+                    if coef[comp] == 0.0 {
+                        // Not read (and maybe not in B: see `split::contact_components`).
+                        continue;
+                    }
                     match fixed[dof] {
                         Some(value) => c0[row] += coef[comp] * value,
                         None => {
@@ -90,7 +94,8 @@ impl ContactRows {
 }
 
 /// 2 x 2 blocks at nodes (local ids) as entries (i, j, v) at B positions, each pair of
-/// positions once (i >= j); prescribed components are left out. For
+/// positions once (i >= j); prescribed components, and zero entries on a component
+/// outside B (see `split::contact_components`), are left out. For
 /// `LocalFactor::update_boundary`.
 pub fn boundary_entries(
     blocks: &[(usize, [[f64; 2]; 2])],
@@ -110,6 +115,9 @@ pub fn boundary_entries(
                     continue;
                 }
                 let (Some(&i), Some(&j)) = (position.get(&da), position.get(&db)) else {
+                    if blk[a][b] == 0.0 {
+                        continue;
+                    }
                     return Err(Error::Numerical(format!(
                         "internal: node {v} of a boundary block has a dof outside B"
                     )));

