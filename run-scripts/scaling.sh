@@ -10,6 +10,12 @@
 # Weak scaling (the mesh grows with the ranks; each block level has 4x the nodes of the
 # one below): 1 rank at --weak-level (default --level - 1), 4 ranks at one level more,
 # 16 ranks at two more, ... up to --weak-max-ranks (default 4), 1 thread per rank.
+# The ceiling of this machine: P independent 1-rank x 1-thread copies of the strong-scaling
+# run at once (P = each strong-scaling ranks x threads from 2 up to the cores; --copies).
+# Cores that share memory bandwidth, caches or (on a virtual machine) a host core run P
+# copies at less than P times the throughput of one: P T1 / T(copy) is the speed-up a
+# P-way run could reach without doing less work than the 1-rank run, and the report
+# divides each speed-up by it.
 # Every point is run --runs times (median reported); the repetitions are interleaved
 # (run 1 of every point, then run 2, ...) so that a drift in the machine's load spreads
 # over all points instead of biasing one.
@@ -30,6 +36,8 @@
 #   --bin PATH           the contact-par binary; default target/release/contact-par
 #                        (built with `cargo build --release` when missing)
 #   --study S            strong, weak or both; default both
+#   --copies "P ..."     the copy counts of the ceiling points, or "none"; default every
+#                        strong-scaling ranks x threads from 2 to the number of cores
 #   --bind B             mpirun --bind-to value; default none (Open MPI would otherwise
 #                        bind a 1- or 2-rank job to one core per rank, and then the
 #                        threads of a rank share that core)
@@ -41,8 +49,8 @@
 #                        120); for shared machines. Default: do not wait. Every run
 #                        records how many cores others kept busy during it regardless.
 #   --no-plots           no plots, no pip
-#   --smoke              level 0, 1 run, ranks 1 and 2 (1 thread), strong study only, no
-#                        pip (plots only when python3 already has matplotlib)
+#   --smoke              level 0, 1 run, ranks 1 and 2 (1 thread) and 2 copies, strong
+#                        study only, no pip (plots only when python3 already has matplotlib)
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
 CMDLINE="bash run-scripts/scaling.sh"
@@ -56,6 +64,7 @@ RUNS=3
 OUT=scaling-out
 BIN="$ROOT/target/release/contact-par"
 STUDY=both
+COPIES=
 BIND=none
 VENV=
 MPI_ARGS=
@@ -76,6 +85,7 @@ while [[ $# -gt 0 ]]; do
     --out) need_arg "$@"; OUT="$2"; shift 2 ;;
     --bin) need_arg "$@"; BIN="$2"; shift 2 ;;
     --study) need_arg "$@"; STUDY="$2"; shift 2 ;;
+    --copies) need_arg "$@"; COPIES="$2"; shift 2 ;;
     --bind) need_arg "$@"; BIND="$2"; shift 2 ;;
     --venv) need_arg "$@"; VENV="$2"; shift 2 ;;
     --mpirun-args) need_arg "$@"; MPI_ARGS="$2"; shift 2 ;;
@@ -95,6 +105,8 @@ done
 [[ "$WAIT_MAX" =~ ^[0-9]+$ ]] || die "--wait-max must be a whole number of seconds"
 [[ "$RUNS" -ge 1 ]] || die "--runs must be at least 1"
 case "$STUDY" in strong|weak|both) ;; *) die "--study must be strong, weak or both" ;; esac
+[[ -z "$COPIES" || "$COPIES" == none || "$COPIES" =~ ^[0-9]+( [0-9]+)*$ ]] ||
+  die "--copies must be whole numbers separated by spaces, or none, not '$COPIES'"
 
 if [[ $SMOKE == 1 ]]; then
   LEVEL=0 RUNS=1 STUDY=strong
@@ -105,11 +117,24 @@ fi
 
 # The points: "study level ranks threads".
 POINTS=()
+CORES=$(nproc)
 if [[ $STUDY != weak ]]; then
   if [[ $SMOKE == 1 ]]; then
     POINTS+=("strong $LEVEL 1 1" "strong $LEVEL 2 1")
+    [[ -n "$COPIES" ]] || COPIES=2
   else
     for pt in "1 1" "1 2" "2 1" "2 2" "4 1" "8 1"; do POINTS+=("strong $LEVEL $pt"); done
+    if [[ -z "$COPIES" ]]; then
+      for p in 2 4 8; do
+        if (( p <= CORES )); then COPIES+="${COPIES:+ }$p"; fi
+      done
+    fi
+  fi
+  if [[ "$COPIES" != none ]]; then
+    for p in $COPIES; do
+      (( p >= 2 )) || die "--copies: a ceiling needs at least 2 copies, not $p"
+      POINTS+=("copies $LEVEL $p 1")
+    done
   fi
 fi
 if [[ $STUDY != strong ]]; then
@@ -144,11 +169,10 @@ if [[ $(id -u) == 0 ]]; then
 fi
 export OMPI_MCA_rmaps_base_oversubscribe=1
 
-CORES=$(nproc)
 # The machine and the command, for the report (python3 writes valid JSON).
 META_COMMAND="$CMDLINE" META_CORES="$CORES" META_BIND="$BIND" META_MPI_ARGS="$MPI_ARGS" \
 META_BIN="$BIN" META_SHA="$(sha256sum "$EXE" | cut -c1-16)" META_CASE="$CASE" META_LEVEL="$LEVEL" META_WEAK_LEVEL="$WEAK_LEVEL" \
-META_RUNS="$RUNS" META_SMOKE="$SMOKE" META_WAIT_IDLE="$WAIT_IDLE" \
+META_RUNS="$RUNS" META_SMOKE="$SMOKE" META_WAIT_IDLE="$WAIT_IDLE" META_COPIES="$COPIES" \
 META_CPU="$(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -1)" \
 META_MPIRUN="$(mpirun --version 2>/dev/null | head -1)" \
 META_GIT="$(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo unknown)" \
@@ -181,6 +205,7 @@ meta = {
     "runs": int(e["META_RUNS"]),
     "smoke": e["META_SMOKE"] == "1",
     "wait_idle_cores": float(e["META_WAIT_IDLE"]) if e["META_WAIT_IDLE"] else None,
+    "copies": [int(p) for p in e["META_COPIES"].split()] if e["META_COPIES"] not in ("", "none") else [],
 }
 with open(sys.argv[1], "w") as f:
     json.dump(meta, f, indent=2)
@@ -246,6 +271,62 @@ run_one() { # study level ranks threads run
   fi
 }
 
+run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
+  local level=$2 copies=$3 run=$5
+  local base="$OUT/runs/copies_L${level}_P${copies}_T1_r${run}" k
+  wait_idle
+  local b0 b1 t0 t1
+  b0=$(busy_s)
+  t0=$(date +%s.%N)
+  for k in $(seq 1 "$copies"); do
+    local dir="${base}_c$k"
+    rm -rf "$dir" && mkdir -p "$dir"
+    (
+      timer=()
+      [[ -x /usr/bin/time ]] && timer=(/usr/bin/time -f '%U %S %M' -o "$dir/time.txt")
+      a=$(date +%s.%N) code=0
+      # shellcheck disable=SC2086
+      "${timer[@]}" mpirun -n 1 --bind-to "$BIND" $MPI_ARGS \
+        "$EXE" --builtin "$CASE" --level "$level" --threads 1 --out "$dir" \
+        >"$dir/stdout.txt" 2>"$dir/stderr.txt" || code=$?
+      echo "$a $(date +%s.%N) $code" >"$dir/wall.txt"
+    ) &
+  done
+  wait
+  t1=$(date +%s.%N)
+  b1=$(busy_s)
+  # Others' cores: the machine's busy time minus every copy's own CPU time, per second.
+  local cpu_all=0 u sy rss
+  for k in $(seq 1 "$copies"); do
+    if [[ -s "${base}_c$k/time.txt" ]]; then
+      read -r u sy rss < <(tail -n 1 "${base}_c$k/time.txt") || true
+      cpu_all=$(awk -v a="$cpu_all" -v u="$u" -v s="$sy" 'BEGIN { print a + u + s }')
+    fi
+  done
+  local others
+  others=$(awk -v b0="$b0" -v b1="$b1" -v c="$cpu_all" -v a="$t0" -v b="$t1" \
+    'BEGIN { o = (b1 - b0 - c) / (b - a); printf "%.2f", (o < 0 ? 0 : o) }')
+  for k in $(seq 1 "$copies"); do
+    local dir="${base}_c$k" a b code cpu="" wall
+    read -r a b code <"$dir/wall.txt"
+    wall=$(awk -v a="$a" -v b="$b" 'BEGIN { printf "%.3f", b - a }')
+    rss=""
+    if [[ -s "$dir/time.txt" ]]; then
+      read -r u sy rss < <(tail -n 1 "$dir/time.txt") || true
+      cpu=$(awk -v u="$u" -v s="$sy" 'BEGIN { printf "%.3f", u + s }')
+    fi
+    rm -f "$dir"/*.vtu "$dir"/*.pvtu
+    printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' copies "$CASE" "$level" "$copies" \
+      1 "$run" "$code" "$wall" "$cpu" "$others" "$rss" "runs/$(basename "$dir")" >>"$INDEX"
+    printf '  %-6s level %-2s %2s copies of 1x1    run %s copy %s: %7ss  exit %s  (others kept %s cores busy)\n' \
+      copies "$level" "$copies" "$run" "$k" "$wall" "$code" "$others"
+    if [[ $code != 0 && $code != 3 ]]; then
+      echo "    failed; see $dir/stderr.txt:" >&2
+      grep -m 2 '^contact-par' "$dir/stderr.txt" >&2 || tail -n 3 "$dir/stderr.txt" >&2 || true
+    fi
+  done
+}
+
 echo "contact-par scaling: case $CASE, ${#POINTS[@]} points x $RUNS run(s), $CORES core(s), out $OUT"
 # One untimed run first: the binary and the libraries come into the page cache.
 if [[ $SMOKE == 0 ]]; then
@@ -257,7 +338,10 @@ fi
 for run in $(seq 1 "$RUNS"); do
   for pt in "${POINTS[@]}"; do
     # shellcheck disable=SC2086
-    run_one $pt "$run"
+    case "$pt" in
+      copies*) run_copies $pt "$run" ;;
+      *) run_one $pt "$run" ;;
+    esac
   done
 done
 

@@ -138,7 +138,7 @@ def summarise(runs, phases, cores):
     # Speed-up and efficiency against the 1 rank x 1 thread point of the same study
     # (strong: same level; weak: the smallest level).
     for row in rows:
-        if row["study"] == "strong":
+        if row["study"] in ("strong", "copies"):
             ref = next((q for q in rows if q["study"] == "strong" and q["level"] == row["level"]
                         and q["ranks"] == 1 and q["threads"] == 1), None)
         else:
@@ -148,7 +148,11 @@ def summarise(runs, phases, cores):
         usable = min(n, cores)
         if ref is None or not ref.get("t_total") or not row.get("t_total"):
             continue
-        if row["study"] == "strong":
+        if row["study"] == "copies":
+            # n copies did n times the work of the 1x1 point in the time of one copy.
+            row["ceiling"] = n * ref["t_total"] / row["t_total"]
+            row["ceiling_best"] = n * ref["t_total_min"] / row["t_total_min"]
+        elif row["study"] == "strong":
             s = ref["t_total"] / row["t_total"]
             row["speedup"] = s
             row["speedup_best"] = ref["t_total_min"] / row["t_total_min"]
@@ -165,7 +169,15 @@ def summarise(runs, phases, cores):
             row["efficiency_best"] = ref["t_total_min"] / row["t_total_min"]
             row["efficiency_vs_cores"] = e * n / usable
             row["work_ratio"] = (row["nodes"] or 0) / (ref["nodes"] or 1)
-    order = {"strong": 0, "weak": 1}
+    for row in rows:
+        if row["study"] != "strong" or not row.get("speedup"):
+            continue
+        c = next((q for q in rows if q["study"] == "copies" and q["level"] == row["level"]
+                  and q["ranks"] == row["ranks_x_threads"] and q.get("ceiling")), None)
+        if c is not None:
+            row["ceiling"] = c["ceiling"]
+            row["of_ceiling"] = row["speedup"] / c["ceiling"]
+    order = {"strong": 0, "copies": 1, "weak": 2}
     rows.sort(key=lambda q: (order.get(q["study"], 2), q["level"] if q["study"] == "strong" else 0,
                              q["ranks"], q["threads"]))
     return rows
@@ -271,11 +283,35 @@ def report(out, meta, runs, rows, phases, plots):
                      "other work on the machine), then the speed-up of each phase (medians):\n")
             sp_phases = [p for p in phases if p not in ("read", "output")]
             header = (["ranks", "threads", "ranks x threads", "speed-up", "eff", "eff/cores",
-                       "speed-up (best run)"] + [f"S({p})" for p in sp_phases])
+                       "speed-up (best run)", "ceiling", "speed-up / ceiling"]
+                      + [f"S({p})" for p in sp_phases])
             lines = [[r["ranks"], r["threads"], r["ranks_x_threads"], r.get("speedup"),
-                      r.get("efficiency"), r.get("efficiency_vs_cores"), r.get("speedup_best")]
+                      r.get("efficiency"), r.get("efficiency_vs_cores"), r.get("speedup_best"),
+                      r.get("ceiling"), r.get("of_ceiling")]
                      + [r.get("speedup_" + p) for p in sp_phases] for r in rs]
             L.append(table(header, lines))
+            cs = [r for r in rows if r["study"] == "copies" and r["level"] == rs[0]["level"]]
+            if cs:
+                L.append("\n### The machine's ceiling\n")
+                L.append("P independent copies of the 1 rank x 1 thread run, started together "
+                         "(`copies` rows of `runs.csv`): P copies do P times the work of one in "
+                         "the time a copy takes, so `ceiling` = P x T(1x1) / T(copy) is the "
+                         "speed-up a P-way run reaches on this machine if it does the same work "
+                         "as the 1-rank run and loses nothing to communication or imbalance. "
+                         "It is below P where the cores share memory bandwidth and caches, or "
+                         "(on a virtual machine) a host core; `speed-up / ceiling` above is the "
+                         "part of the reachable speed-up the solver gets. Medians over every "
+                         "copy of every repetition:\n")
+                header = ["copies", "T(1x1) s", "T(copy) s", "copy min-max s", "ceiling",
+                          "ceiling (best runs)", "others' cores"]
+                lines = [[r["ranks"], next((q.get("t_total") for q in rs if q["ranks"] == 1
+                                            and q["threads"] == 1), None),
+                          r.get("t_total"),
+                          (f"{r['t_total_min']:.3f}-{r['t_total_max']:.3f}"
+                           if r.get("t_total_min") is not None else ""),
+                          r.get("ceiling"), r.get("ceiling_best"), r.get("others_cores")]
+                         for r in cs]
+                L.append(table(header, lines))
         else:
             L.append("Weak-scaling efficiency T(1 rank) / T(P ranks) of the total time; "
                      "`eff/cores` is relative to the best time possible on this machine's "
@@ -352,6 +388,11 @@ def plot(out, rows, phases, cores):
                   label=f"{t} thread(s)/rank, best run")
         ax_e.plot(x, [p[2] for p in pts], "o-", label=f"eff, {t} thread(s)/rank")
         ax_e.plot(x, [p[3] for p in pts], "s--", alpha=0.6, label=f"eff/cores, {t} thread(s)/rank")
+    ceil = sorted((r["ranks"], r["ceiling"]) for r in rows
+                  if r["study"] == "copies" and r.get("ceiling"))
+    if ceil:
+        ax_s.plot([c[0] for c in ceil], [c[1] for c in ceil], "k*", ms=10,
+                  label="ceiling: copies of 1x1 at once")
     if strong:
         lvl = strong[0]["level"]
         ax_s.set_title(f"strong scaling, level {lvl} ({strong[0]['nodes']} nodes)")
@@ -442,7 +483,7 @@ def main(argv):
                 + ["t_" + p for p in phases]
                 + ["t_total", "t_total_min", "t_total_max", "ms_per_sweep", "cpu_s", "others_cores",
                    "speedup", "speedup_best", "efficiency", "efficiency_best",
-                   "efficiency_vs_cores", "work_ratio"]
+                   "efficiency_vs_cores", "work_ratio", "ceiling", "ceiling_best", "of_ceiling"]
                 + ["speedup_" + p for p in phases]
                 + ["peak_mem_max_bytes", "peak_mem_sum_bytes", "time_maxrss_bytes",
                    "factor_nnz_max", "factor_nnz_sum",
