@@ -1,7 +1,8 @@
 //! The contact response of the condensed system, pure dense linear algebra (no MPI).
 //!
-//! The boundary system S x = b lives on B = the contact dofs of every rank (dofs of own
-//! contact nodes that no other part touches) and the interface dofs. A contact dof
+//! The boundary system S x = b lives on B = the contact dofs of every rank (the dofs of
+//! own contact nodes that no other part touches and that the contact reads:
+//! `split::contact_components`) and the interface dofs. A contact dof
 //! belongs to one subdomain only, so S_cc is block diagonal by rank and each rank
 //! eliminates its own contact dofs with the dense trailing block of its sparse factor
 //! (`LocalFactor::forward` / `backward`). What is left is the interface system
