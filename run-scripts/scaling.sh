@@ -15,7 +15,7 @@
 # Cores that share memory bandwidth, caches or (on a virtual machine) a host core run P
 # copies at less than P times the throughput of one: P T1 / T(copy) is the speed-up a
 # P-way run could reach without doing less work than the 1-rank run, and the report
-# divides each speed-up by it.
+# divides each speed-up by it (a point that would not fit in memory is skipped).
 # Every point is run --runs times (median reported); the repetitions are interleaved
 # (run 1 of every point, then run 2, ...) so that a drift in the machine's load spreads
 # over all points instead of biasing one.
@@ -274,6 +274,15 @@ run_one() { # study level ranks threads run
 run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
   local level=$2 copies=$3 run=$5
   local base="$OUT/runs/copies_L${level}_P${copies}_T1_r${run}" k
+  # P copies need P times the memory of one: skip the point (with a line) rather than
+  # push the machine into swap or the OOM killer, judged by the 1x1 run of this level.
+  local one_kb avail_kb
+  one_kb=$(awk -F'\t' -v l="$level" '$1 == "strong" && $3 == l && $4 == 1 && $5 == 1 && $11 != "" { kb = $11 } END { print kb }' "$INDEX")
+  avail_kb=$(awk '/^MemAvailable:/ { print $2 }' /proc/meminfo)
+  if [[ -n "$one_kb" && -n "$avail_kb" ]] && (( copies * one_kb > avail_kb * 9 / 10 )); then
+    echo "  copies level $level: $copies copies of a ${one_kb} kB run do not fit in ${avail_kb} kB available; skipped" >&2
+    return 0
+  fi
   wait_idle
   local b0 b1 t0 t1
   b0=$(busy_s)
