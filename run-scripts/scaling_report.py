@@ -300,8 +300,9 @@ def report(out, meta, runs, rows, phases, plots):
                          "as the 1-rank run and loses nothing to communication or imbalance. "
                          "It is below P where the cores share memory bandwidth and caches, or "
                          "(on a virtual machine) a host core; `speed-up / ceiling` above is the "
-                         "part of the reachable speed-up the solver gets. Medians over every "
-                         "copy of every repetition:\n")
+                         "part of the reachable speed-up the solver gets. A ceiling above P only "
+                         "says that the machine was quieter during the copies than during the "
+                         "1x1 runs. Medians over every copy of every repetition:\n")
                 header = ["copies", "T(1x1) s", "T(copy) s", "copy min-max s", "ceiling",
                           "ceiling (best runs)", "others' cores"]
                 lines = [[r["ranks"], next((q.get("t_total") for q in rs if q["ranks"] == 1
