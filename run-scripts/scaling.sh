@@ -232,6 +232,32 @@ wait_idle() {
   done
 }
 
+# "CPU seconds (user + sys) and peak resident kB" of a run, from DIR/time.txt
+# (/usr/bin/time); nothing when /usr/bin/time was missing.
+cpu_rss() {
+  [[ -s "$1/time.txt" ]] || return 0
+  tail -n 1 "$1/time.txt" | awk '{ printf "%.3f %s\n", $1 + $2, $3 }'
+}
+
+# How many cores other processes kept busy on average: the machine's busy CPU seconds
+# (b0 -> b1) minus ours (cpu), per second of wall time (t0 -> t1).
+others_cores() { # b0 b1 cpu t0 t1
+  awk -v b0="$1" -v b1="$2" -v c="$3" -v a="$4" -v b="$5" \
+    'BEGIN { o = (b1 - b0 - c) / (b - a); printf "%.2f", (o < 0 ? 0 : o) }'
+}
+
+record() { # study level ranks threads run code wall cpu others rss dir: one row of runs.tsv
+  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$1" "$CASE" "$2" "$3" "$4" "$5" \
+    "$6" "$7" "$8" "$9" "${10}" "runs/$(basename "${11}")" >>"$INDEX"
+}
+
+report_failure() { # code dir
+  if [[ $1 != 0 && $1 != 3 ]]; then
+    echo "    failed; see $2/stderr.txt:" >&2
+    grep -m 2 '^contact-par' "$2/stderr.txt" >&2 || tail -n 3 "$2/stderr.txt" >&2 || true
+  fi
+}
+
 run_one() { # study level ranks threads run
   local study=$1 level=$2 ranks=$3 threads=$4 run=$5
   local dir="$OUT/runs/${study}_L${level}_P${ranks}_T${threads}_r${run}"
@@ -253,22 +279,14 @@ run_one() { # study level ranks threads run
   # /usr/bin/time; the machine's busy time minus ours is what other users' processes
   # took: "others_cores" is how many cores they kept busy on average during the run.
   local cpu="" rss="" others=""
-  if [[ -s "$dir/time.txt" ]]; then
-    read -r u sy rss < <(tail -n 1 "$dir/time.txt") || true
-    cpu=$(awk -v u="$u" -v s="$sy" 'BEGIN { printf "%.3f", u + s }')
-    others=$(awk -v b0="$b0" -v b1="$b1" -v c="$cpu" -v a="$t0" -v b="$t1" \
-      'BEGIN { o = (b1 - b0 - c) / (b - a); printf "%.2f", (o < 0 ? 0 : o) }')
-  fi
+  read -r cpu rss < <(cpu_rss "$dir") || true
+  [[ -z "$cpu" ]] || others=$(others_cores "$b0" "$b1" "$cpu" "$t0" "$t1")
   local wall
   wall=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
-  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$study" "$CASE" "$level" "$ranks" \
-    "$threads" "$run" "$code" "$wall" "$cpu" "$others" "$rss" "runs/$(basename "$dir")" >>"$INDEX"
+  record "$study" "$level" "$ranks" "$threads" "$run" "$code" "$wall" "$cpu" "$others" "$rss" "$dir"
   printf '  %-6s level %-2s %2s rank(s) x %s thread(s)  run %s: %7ss  exit %s  (others kept %s cores busy)\n' \
     "$study" "$level" "$ranks" "$threads" "$run" "$wall" "$code" "${others:-?}"
-  if [[ $code != 0 && $code != 3 ]]; then
-    echo "    failed; see $dir/stderr.txt:" >&2
-    grep -m 2 '^contact-par' "$dir/stderr.txt" >&2 || tail -n 3 "$dir/stderr.txt" >&2 || true
-  fi
+  report_failure "$code" "$dir"
 }
 
 run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
@@ -304,35 +322,26 @@ run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
   wait
   t1=$(date +%s.%N)
   b1=$(busy_s)
-  # Others' cores: the machine's busy time minus every copy's own CPU time, per second.
-  local cpu_all=0 u sy rss
+  # Others' cores: the machine's busy time minus every copy's own CPU time.
+  local cpus=() rsss=() cpu rss cpu_all=0
   for k in $(seq 1 "$copies"); do
-    if [[ -s "${base}_c$k/time.txt" ]]; then
-      read -r u sy rss < <(tail -n 1 "${base}_c$k/time.txt") || true
-      cpu_all=$(awk -v a="$cpu_all" -v u="$u" -v s="$sy" 'BEGIN { print a + u + s }')
-    fi
+    cpu="" rss=""
+    read -r cpu rss < <(cpu_rss "${base}_c$k") || true
+    cpus+=("$cpu") rsss+=("$rss")
+    cpu_all=$(awk -v a="$cpu_all" -v c="${cpu:-0}" 'BEGIN { print a + c }')
   done
   local others
-  others=$(awk -v b0="$b0" -v b1="$b1" -v c="$cpu_all" -v a="$t0" -v b="$t1" \
-    'BEGIN { o = (b1 - b0 - c) / (b - a); printf "%.2f", (o < 0 ? 0 : o) }')
+  others=$(others_cores "$b0" "$b1" "$cpu_all" "$t0" "$t1")
   for k in $(seq 1 "$copies"); do
-    local dir="${base}_c$k" a b code cpu="" wall
+    local dir="${base}_c$k" a b code wall
     read -r a b code <"$dir/wall.txt"
     wall=$(awk -v a="$a" -v b="$b" 'BEGIN { printf "%.3f", b - a }')
-    rss=""
-    if [[ -s "$dir/time.txt" ]]; then
-      read -r u sy rss < <(tail -n 1 "$dir/time.txt") || true
-      cpu=$(awk -v u="$u" -v s="$sy" 'BEGIN { printf "%.3f", u + s }')
-    fi
+    cpu=${cpus[k - 1]} rss=${rsss[k - 1]}
     rm -f "$dir"/*.vtu "$dir"/*.pvtu
-    printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' copies "$CASE" "$level" "$copies" \
-      1 "$run" "$code" "$wall" "$cpu" "$others" "$rss" "runs/$(basename "$dir")" >>"$INDEX"
+    record copies "$level" "$copies" 1 "$run" "$code" "$wall" "$cpu" "$others" "$rss" "$dir"
     printf '  %-6s level %-2s %2s copies of 1x1    run %s copy %s: %7ss  exit %s  (others kept %s cores busy)\n' \
       copies "$level" "$copies" "$run" "$k" "$wall" "$code" "$others"
-    if [[ $code != 0 && $code != 3 ]]; then
-      echo "    failed; see $dir/stderr.txt:" >&2
-      grep -m 2 '^contact-par' "$dir/stderr.txt" >&2 || tail -n 3 "$dir/stderr.txt" >&2 || true
-    fi
+    report_failure "$code" "$dir"
   done
 }
 
