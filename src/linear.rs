@@ -474,7 +474,7 @@ impl LocalFactor {
         let ordering = ordering.resolve(n_interior);
         let perm = match ordering {
             Ordering::NestedDissection => interior_nd_then_boundary(a, n_interior, groups)?,
-            _ => interior_amd_then_boundary(a, n_interior)?,
+            _ => interior_amd_then_boundary(a, n_interior, groups)?,
         };
         let ordering_s = t0.elapsed().as_secs_f64();
         let (fwd, inv) = (&perm.0, &perm.1);
@@ -651,7 +651,7 @@ impl LocalFactor {
 }
 
 /// The graph between the nodes of the interior block of a matrix (in CSR form), the
-/// input of the nested-dissection ordering.
+/// input of the fill-reducing orderings.
 pub struct NodeGraph {
     pub xadj: Vec<usize>,
     pub adjncy: Vec<usize>,
@@ -736,7 +736,7 @@ fn interior_nd_then_boundary(
     let graph = NodeGraph::new(a, n_interior, groups);
     let node_perm = match partition::nested_dissection(&graph.xadj, &graph.adjncy) {
         Ok(p) => p,
-        Err(_) => return interior_amd_then_boundary(a, n_interior),
+        Err(_) => return interior_amd_then_boundary(a, n_interior, groups),
     };
     let mut fwd = graph.expand(&node_perm);
     fwd.extend(n_interior..n);
@@ -747,40 +747,44 @@ fn interior_nd_then_boundary(
     Ok((fwd, inv))
 }
 
-/// Minimum degree (AMD) on the interior block, the boundary equations kept last in their order.
+/// Minimum degree (AMD) on the interior block's node graph, the boundary equations kept
+/// last in their order. The node graph has a quarter of the dof graph's entries, and AMD
+/// finds the dofs of a node indistinguishable anyway: the same ordering in about half
+/// the time.
 fn interior_amd_then_boundary(
     a: SparseColMatRef<'_, usize, f64>,
     n_interior: usize,
+    groups: &[usize],
 ) -> Result<(Vec<usize>, Vec<usize>)> {
     use faer::sparse::linalg::amd;
     use faer::sparse::SymbolicSparseColMat;
     let n = a.nrows();
-    let mut col_ptr = Vec::with_capacity(n_interior + 1);
-    let mut row_idx = Vec::new();
-    col_ptr.push(0);
-    for j in 0..n_interior {
-        row_idx.extend(a.symbolic().row_idx_of_col(j).filter(|&i| i < n_interior));
-        col_ptr.push(row_idx.len());
+    let graph = NodeGraph::new(a, n_interior, groups);
+    let ng = graph.first_eq.len() - 1;
+    let mut row_idx = graph.adjncy.clone();
+    for v in 0..ng {
+        row_idx[graph.xadj[v]..graph.xadj[v + 1]].sort_unstable();
     }
-    let interior =
-        SymbolicSparseColMat::new_checked(n_interior, n_interior, col_ptr, None, row_idx);
-    let mut fwd = vec![0usize; n];
-    let mut inv = vec![0usize; n];
-    if n_interior > 0 {
-        let nnz = interior.row_idx().len();
-        let mut mem = MemBuffer::new(amd::order_scratch::<usize>(n_interior, nnz));
+    let pattern = SymbolicSparseColMat::new_checked(ng, ng, graph.xadj.clone(), None, row_idx);
+    let mut node_fwd = vec![0usize; ng];
+    let mut node_inv = vec![0usize; ng];
+    if ng > 0 {
+        let nnz = pattern.row_idx().len();
+        let mut mem = MemBuffer::new(amd::order_scratch::<usize>(ng, nnz));
         amd::order(
-            &mut fwd[..n_interior],
-            &mut inv[..n_interior],
-            interior.as_ref(),
+            &mut node_fwd,
+            &mut node_inv,
+            pattern.as_ref(),
             amd::Control::default(),
             MemStack::new(&mut mem),
         )
         .map_err(|e| Error::Numerical(format!("AMD ordering failed: {e:?}")))?;
     }
-    for i in n_interior..n {
-        fwd[i] = i;
-        inv[i] = i;
+    let mut fwd = graph.expand(&node_fwd);
+    fwd.extend(n_interior..n);
+    let mut inv = vec![0usize; n];
+    for (new, &old) in fwd.iter().enumerate() {
+        inv[old] = new;
     }
     Ok((fwd, inv))
 }
