@@ -311,12 +311,16 @@ run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
     (
       timer=()
       [[ -x /usr/bin/time ]] && timer=(/usr/bin/time -f '%U %S %M' -o "$dir/time.txt")
+      # mpiruns started together race to create one shared session directory in TMPDIR
+      # (Open MPI 4: "File exists", orte_init failed); each copy gets its own.
+      session=$(mktemp -d)
       a=$(date +%s.%N) code=0
       # shellcheck disable=SC2086
-      "${timer[@]}" mpirun -n 1 --bind-to "$BIND" $MPI_ARGS \
+      TMPDIR="$session" "${timer[@]}" mpirun -n 1 --bind-to "$BIND" $MPI_ARGS \
         "$EXE" --builtin "$CASE" --level "$level" --threads 1 --out "$dir" \
         >"$dir/stdout.txt" 2>"$dir/stderr.txt" || code=$?
       echo "$a $(date +%s.%N) $code" >"$dir/wall.txt"
+      rm -rf "$session"
     ) &
   done
   wait

@@ -155,6 +155,9 @@ fn run(dir: &Path, ranks: Option<usize>, args: &[&str]) -> Outcome {
             let mut c = Command::new("mpirun");
             c.args(["-n", &n.to_string(), "--oversubscribe", BIN]);
             c.env("OMPI_MCA_rmaps_base_oversubscribe", "1");
+            // A session directory of its own: parallel mpiruns race on a shared one (see
+            // `mpirun` in tests/common).
+            c.env("TMPDIR", dir);
             c
         }
         None => Command::new(BIN),

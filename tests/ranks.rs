@@ -5,21 +5,14 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-const BIN: &str = env!("CARGO_BIN_EXE_contact-par");
+use std::process::Output;
 
 /// Iterations, contact.csv rows and nodes.csv rows of one run.
 type RunResult = (i64, Vec<Vec<f64>>, Vec<Vec<f64>>);
 
 fn mpirun(np: usize, args: &[&str], dir: &Path) -> Output {
-    Command::new("mpirun")
-        .args(["-n", &np.to_string(), "--oversubscribe", BIN])
+    common::mpirun(np, dir)
         .args(args)
-        .current_dir(dir)
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
         .output()
         .expect("mpirun must be installed (openmpi-bin)")
 }

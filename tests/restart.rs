@@ -8,17 +8,8 @@ use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-fn mpirun(np: usize) -> Command {
-    let mut c = Command::new("mpirun");
-    c.args(["-n", &np.to_string(), "--oversubscribe", common::BIN])
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .env("OMPI_MCA_rmaps_base_oversubscribe", "1");
-    c
-}
-
 fn run(np: usize, args: &[&str], dir: &Path) -> Output {
-    mpirun(np).args(args).current_dir(dir).output().unwrap()
+    common::mpirun(np, dir).args(args).output().unwrap()
 }
 
 fn numbers(path: &Path) -> Vec<f64> {
@@ -188,7 +179,7 @@ fn ranks_of(mpirun_pid: u32) -> Vec<u32> {
 fn killing_one_rank_ends_the_job_within_ten_seconds() {
     let tmp = tempfile::tempdir().unwrap();
     // Plain ALG2 with a far too small r crawls: the loop runs for a minute or more.
-    let mut child = mpirun(2)
+    let mut child = common::mpirun(2, tmp.path())
         .args([
             "--builtin",
             "block",
@@ -204,7 +195,6 @@ fn killing_one_rank_ends_the_job_within_ten_seconds() {
             "--out",
             "o",
         ])
-        .current_dir(tmp.path())
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()

@@ -10,6 +10,23 @@ use tempfile::TempDir;
 
 pub const BIN: &str = env!("CARGO_BIN_EXE_contact-par");
 
+/// `mpirun -n NP --oversubscribe BIN` started in `dir`, allowed to run as root.
+///
+/// `TMPDIR` is `dir` too. Open MPI 4 makes its session directory `$TMPDIR/ompi.HOST.UID`
+/// by testing and then creating it, and fails ("File exists", orte_init failed) when
+/// another mpirun creates it in between, which tests running in parallel do now and
+/// then. A directory of its own per run cannot race.
+pub fn mpirun(np: usize, dir: &Path) -> Command {
+    let mut c = Command::new("mpirun");
+    c.args(["-n", &np.to_string(), "--oversubscribe", BIN])
+        .current_dir(dir)
+        .env("TMPDIR", dir)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_rmaps_base_oversubscribe", "1");
+    c
+}
+
 /// Directory of the committed Gmsh fixtures.
 pub fn gmsh_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gmsh")
