@@ -749,8 +749,9 @@ fn interior_nd_then_boundary(
 
 /// Minimum degree (AMD) on the interior block's node graph, the boundary equations kept
 /// last in their order. The node graph has a quarter of the dof graph's entries, and AMD
-/// finds the dofs of a node indistinguishable anyway: the same ordering in about half
-/// the time.
+/// finds the dofs of a node indistinguishable anyway. Measured against the dof graph:
+/// factors within 3% of the same size either way, the ordering 40-60% faster up to
+/// level 4 (hertz level 4, one rank: 0.46-0.72 s to 0.24-0.28 s), about as fast at level 5.
 fn interior_amd_then_boundary(
     a: SparseColMatRef<'_, usize, f64>,
     n_interior: usize,
