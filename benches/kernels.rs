@@ -176,7 +176,7 @@ impl Fixture {
     /// The condensed contact response of the one-rank path: the condensed loads and the
     /// contact rows against the trailing block of the factor.
     fn condensed(&self, factor: &mut LocalFactor, base: &[f64]) -> LocalResponse {
-        let g = factor.condensed_rhs(base);
+        let (g, _) = factor.condensed_rhs(base);
         let rows = ContactRows::new(
             &self.prob.contact_nodes,
             &self.prob.fixed,

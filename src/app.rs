@@ -9,8 +9,7 @@ use crate::dd::split::{split, SubProblem};
 use crate::error::{Error, Result};
 use crate::fem::{self, assemble, DofMap};
 use crate::linear::{
-    add_contact_forces, contact_blocks, interior_groups, ContactDofs, DirectStep, LocalFactor,
-    Ordering,
+    contact_blocks, interior_groups, ContactDofs, DirectStep, LocalFactor, Ordering,
 };
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::{self, ContactRow, HistoryRow};
@@ -625,7 +624,8 @@ struct Phases {
     ordering_used: Ordering,
     schur: f64,
     factor_nnz: usize,
-    /// One sparse forward+backward solve with this rank's factor.
+    /// One sparse forward+backward solve with this rank's factor (on the condensed
+    /// path, its forward half in the condensation plus its backward half in the recovery).
     one_solve: f64,
 }
 
@@ -669,7 +669,8 @@ fn solve_condensed(
     let frictional = Problem::is_frictional(&setup.case);
     let mut local = mpi.agree(LocalSystem::new(setup, sub))?;
     let t_condense = Instant::now();
-    let g_local = local.factor.condensed_rhs(&local.base);
+    let (g_local, interior_forward) = local.factor.condensed_rhs(&local.base);
+    let forward_s = t_condense.elapsed().as_secs_f64();
     let s_local = local.factor.interface_schur();
     let rows = mpi.agree(ContactRows::new(
         &sub.contact_nodes,
@@ -721,8 +722,8 @@ fn solve_condensed(
     let outcome = run_loop(&mut step, mpi, sub, params, monitor, ckpt)?;
     let loop_s = t_loop.elapsed().as_secs_f64();
 
-    // Recover the displacement from the forces of the last sweep, whose boundary values
-    // every rank holds: one sparse solve for the interior.
+    // Recover the displacement from the boundary values of the last sweep, which every
+    // rank holds: the backward half of a sparse solve for the interior.
     let t_recover = Instant::now();
     if outcome.iterations == 0 {
         // A loop that never solved: the boundary values of zero forces.
@@ -731,33 +732,10 @@ fn solve_condensed(
         step.solve(&zero, &zero, &mut un, &mut ut)?;
     }
     let x_b = step.response.boundary_values();
-    let mut g = step.response.constant_rhs().to_vec();
-    let forces = std::mem::take(&mut step.forces);
     drop(step);
-    let mut f = local.base.clone();
-    let (fn_, ft) = forces.split_at(n_own);
-    let ft = if frictional {
-        ft.to_vec()
-    } else {
-        vec![0.0; n_own]
-    };
-    add_contact_forces(
-        &local.dofs,
-        &sub.contact_nodes,
-        setup.normal,
-        setup.tangent,
-        fn_,
-        &ft,
-        &mut f,
-    );
-    // The contact forces sit on B dofs, where they add to the condensed right-hand side.
-    let n_interior = f.len() - g.len();
-    for (k, gk) in g.iter_mut().enumerate() {
-        *gk += f[n_interior + k] - local.base[n_interior + k];
-    }
     let t_solves = Instant::now();
-    let u_free = local.factor.recover_with(&f, &g, &x_b);
-    let one_solve = t_solves.elapsed().as_secs_f64();
+    let u_free = local.factor.recover(&interior_forward, &x_b);
+    let one_solve = forward_s + t_solves.elapsed().as_secs_f64();
     let u_local: Vec<[f64; 2]> = local
         .dofs
         .expand(&u_free)

@@ -95,6 +95,68 @@ impl SparseCholesky {
         );
     }
 
+    /// The first half of a solve: `x` (one column) becomes L^-1 P x, in the factor's
+    /// permuted order.
+    pub fn forward_in_place(&mut self, mut x: MatMut<'_, f64>) {
+        use faer::sparse::linalg::cholesky::{supernodal, SymbolicCholeskyRaw};
+        use faer::sparse::linalg::triangular_solve;
+        let par = faer::get_global_parallelism();
+        if let Some(perm) = self.symbolic.perm() {
+            let fwd = perm.arrays().0;
+            let old: Vec<f64> = (0..x.nrows()).map(|i| x[(i, 0)]).collect();
+            for (i, &p) in fwd.iter().enumerate() {
+                x[(i, 0)] = old[p];
+            }
+        }
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(s) => {
+                let l = SparseColMatRef::new(s.factor(), &self.values);
+                triangular_solve::solve_lower_triangular_in_place(l, Conj::No, x, par);
+            }
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                supernodal::SupernodalLltRef::new(s, &self.values).l_solve_with_conj(
+                    Conj::No,
+                    x,
+                    par,
+                    MemStack::new(&mut self.scratch),
+                );
+            }
+        }
+    }
+
+    /// The second half: `x`, in the factor's order, becomes P' L^-T x.
+    pub fn backward_in_place(&mut self, mut x: MatMut<'_, f64>) {
+        use faer::sparse::linalg::cholesky::{supernodal, SymbolicCholeskyRaw};
+        use faer::sparse::linalg::triangular_solve;
+        let par = faer::get_global_parallelism();
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(s) => {
+                let l = SparseColMatRef::new(s.factor(), &self.values);
+                triangular_solve::solve_lower_triangular_transpose_in_place(
+                    l,
+                    Conj::No,
+                    x.as_mut(),
+                    par,
+                );
+            }
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                supernodal::SupernodalLltRef::new(s, &self.values).l_transpose_solve_with_conj(
+                    Conj::No,
+                    x.as_mut(),
+                    par,
+                    MemStack::new(&mut self.scratch),
+                );
+            }
+        }
+        if let Some(perm) = self.symbolic.perm() {
+            let inv = perm.arrays().1;
+            let permuted: Vec<f64> = (0..x.nrows()).map(|i| x[(i, 0)]).collect();
+            for (i, &p) in inv.iter().enumerate() {
+                x[(i, 0)] = permuted[p];
+            }
+        }
+    }
+
     pub fn dim(&self) -> usize {
         self.symbolic.nrows()
     }
@@ -604,51 +666,44 @@ impl LocalFactor {
         solve_upper_triangular_in_place(self.l_bb.submatrix(0, 0, nc, nc).transpose(), b_c, par);
     }
 
-    /// Full solve with the shifted matrix; the solution stays in `self.rhs`.
-    fn solve_shifted(&mut self, f: &[f64]) {
+    /// The condensed right-hand side g = f_B - A_BI A_II^-1 f_I, from the first half of
+    /// a solve only: with y = L^-1 P f, g = L_BB y_B (the shift cancels). The interior
+    /// part of y is returned for [`LocalFactor::recover`].
+    pub fn condensed_rhs(&mut self, f: &[f64]) -> (Vec<f64>, InteriorForward) {
+        let ni = self.n_interior;
         for (i, v) in f.iter().enumerate() {
             self.rhs[(i, 0)] = *v;
         }
-        self.chol.solve_in_place(self.rhs.as_mut());
+        self.chol.forward_in_place(self.rhs.as_mut());
+        let y_b = self.rhs.subrows(ni, self.n_boundary());
+        let g = &self.l_bb * y_b.col(0);
+        let interior = (0..ni).map(|i| self.rhs[(i, 0)]).collect();
+        (g.iter().copied().collect(), InteriorForward(interior))
     }
 
-    /// S~ x for the shifted Schur complement S~ = L_BB L_BB'.
-    fn shifted_schur_times(&self, x: &[f64]) -> Vec<f64> {
-        let nb = self.n_boundary();
-        let xb = faer::Col::<f64>::from_fn(nb, |i| x[i]);
-        let y = &self.l_bb * (self.l_bb.transpose() * &xb);
-        (0..nb).map(|i| y[i]).collect()
-    }
-
-    /// The condensed right-hand side g = f_B - A_BI A_II^-1 f_I, computed as S~ u_B with
-    /// u = A~^-1 f (the shift cancels).
-    pub fn condensed_rhs(&mut self, f: &[f64]) -> Vec<f64> {
-        self.solve_shifted(f);
-        let ub: Vec<f64> = (self.n_interior..self.rhs.nrows())
-            .map(|i| self.rhs[(i, 0)])
-            .collect();
-        self.shifted_schur_times(&ub)
-    }
-
-    /// The subdomain solution whose boundary values are `x_b`: u_I = A_II^-1 (f_I - A_IB x_B).
-    /// Solves A~ u = f + [0; z] with z = S~ x_B - g, which pins u_B = x_B.
-    pub fn recover(&mut self, f: &[f64], x_b: &[f64]) -> Vec<f64> {
-        let g = self.condensed_rhs(f);
-        self.recover_with(f, &g, x_b)
-    }
-
-    /// [`LocalFactor::recover`] with g = condensed_rhs(f) known: one sparse solve. (Forces
-    /// on B dofs only add to g, so g is known from that of the forces without them.)
-    pub fn recover_with(&mut self, f: &[f64], g: &[f64], x_b: &[f64]) -> Vec<f64> {
-        let sx = self.shifted_schur_times(x_b);
-        let mut f2 = f.to_vec();
-        for k in 0..x_b.len() {
-            f2[self.n_interior + k] += sx[k] - g[k];
+    /// The subdomain solution whose boundary values are `x_b`: u_I = A_II^-1 (f_I - A_IB x_B),
+    /// from the second half of a solve only. The forward solve of [f_I; f_B + z] with
+    /// z = S~ x_B - g (which pins u_B = x_B) is [y_I; L_BB' x_B]: y_I comes from
+    /// `condensed_rhs(f)`, and no value of f on B matters, so the contact forces on B
+    /// need not be added to f.
+    pub fn recover(&mut self, interior: &InteriorForward, x_b: &[f64]) -> Vec<f64> {
+        let ni = self.n_interior;
+        let xb = faer::Col::<f64>::from_fn(x_b.len(), |k| x_b[k]);
+        let y_b = self.l_bb.transpose() * &xb;
+        for (i, v) in interior.0.iter().enumerate() {
+            self.rhs[(i, 0)] = *v;
         }
-        self.solve_shifted(&f2);
+        for (k, v) in y_b.iter().enumerate() {
+            self.rhs[(ni + k, 0)] = *v;
+        }
+        self.chol.backward_in_place(self.rhs.as_mut());
         (0..self.rhs.nrows()).map(|i| self.rhs[(i, 0)]).collect()
     }
 }
+
+/// The interior part of L^-1 P f: what [`LocalFactor::condensed_rhs`] leaves for
+/// [`LocalFactor::recover`].
+pub struct InteriorForward(Vec<f64>);
 
 /// The graph between the nodes of the interior block of a matrix (in CSR form), the
 /// input of the fill-reducing orderings.
@@ -1110,7 +1165,7 @@ mod tests {
         let f: Vec<f64> = (0..dofs.n_free)
             .map(|i| ((i * 7919) % 13) as f64 - 6.0)
             .collect();
-        let g = lf.condensed_rhs(&f);
+        let (g, interior) = lf.condensed_rhs(&f);
         let f_i = faer::Col::<f64>::from_fn(ni, |i| f[i]);
         let y = llt.solve(&f_i);
         let g_ref = faer::Col::<f64>::from_fn(nb, |k| f[ni + k]) - a_ib.transpose() * &y;
@@ -1119,14 +1174,23 @@ mod tests {
         }
 
         let xb: Vec<f64> = (0..nb).map(|k| 1e-3 * (k as f64).sin()).collect();
-        let u = lf.recover(&f, &xb);
         let xbc = faer::Col::<f64>::from_fn(nb, |k| xb[k]);
         let ui_ref = llt.solve(&(f_i - &a_ib * &xbc));
-        for i in 0..ni {
-            assert!((u[i] - ui_ref[i]).abs() < 1e-9 * ui_ref.norm_max());
+        // Loads on B (the contact forces) change g but not the recovery.
+        let mut f_b_loaded = f.clone();
+        for v in &mut f_b_loaded[ni..] {
+            *v += 1e3;
         }
-        for k in 0..nb {
-            assert!((u[ni + k] - xb[k]).abs() < 1e-12);
+        let (g_loaded, interior_loaded) = lf.condensed_rhs(&f_b_loaded);
+        assert!((g_loaded[0] - g[0] - 1e3).abs() < 1e-9 * g_ref.norm_max().max(1e3));
+        for interior in [&interior, &interior_loaded] {
+            let u = lf.recover(interior, &xb);
+            for i in 0..ni {
+                assert!((u[i] - ui_ref[i]).abs() < 1e-9 * ui_ref.norm_max());
+            }
+            for k in 0..nb {
+                assert!((u[ni + k] - xb[k]).abs() < 1e-12 * xb[k].abs().max(1e-3));
+            }
         }
     }
 

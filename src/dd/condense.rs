@@ -181,11 +181,6 @@ impl LocalResponse {
     pub fn boundary_values(&self) -> Vec<f64> {
         (0..self.b.nrows()).map(|i| self.b[(i, 0)]).collect()
     }
-
-    /// The condensed constant loads on B.
-    pub fn constant_rhs(&self) -> &[f64] {
-        &self.g
-    }
 }
 
 /// The interface system of all ranks, summed and factored once on the first rank.
