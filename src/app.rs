@@ -206,6 +206,8 @@ pub struct RankStats {
     /// would have without condensation).
     one_solve_s: f64,
     output_s: f64,
+    /// `.vtu` files this rank wrote (its piece, split as [`output::file_ranges`] says).
+    vtu_files: usize,
 }
 
 /// How step 1 is solved inside the loop.
@@ -546,6 +548,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         loop_s: phases.uzawa,
         one_solve_s: phases.one_solve,
         output_s: 0.0,
+        vtu_files: 0,
     };
     let times = Timings {
         read: setup.read_s,
@@ -947,7 +950,13 @@ pub fn element_stresses(case: &Case, mesh: &Mesh, u: &[[f64; 2]]) -> (Vec<[f64; 
 /// (x, y, u_n, u_t, p_n, p_t, gap, status, w), owned nodes (global id; x, y, ux, uy), figures.
 type RankOutput = (Vec<[f64; 9]>, Vec<(usize, [f64; 4])>, RankStats);
 
-/// Writes every output; collective (each rank its .vtu piece, the first rank the rest).
+/// The `k`-th `.vtu` file of rank `rank`'s piece.
+fn vtu_file_name(rank: usize, k: usize) -> String {
+    format!("solution_{rank}_{k}.vtu")
+}
+
+/// Writes every output; collective (each rank the .vtu files of its piece, the first rank
+/// the rest).
 #[allow(clippy::too_many_arguments)]
 fn write_outputs(
     opts: &Options,
@@ -999,10 +1008,15 @@ fn write_outputs(
         tangential_traction: &traction,
         contact_status: &status,
     };
-    output::write_atomic(
-        &dir.join(format!("solution_{}.vtu", mpi.rank)),
-        &output::vtu_bytes(&piece)?,
-    )?;
+    let ranges = output::file_ranges(&piece)?;
+    for (k, range) in ranges.iter().enumerate() {
+        let part = output::SubPiece::new(&piece, range.clone());
+        output::write_atomic(
+            &dir.join(vtu_file_name(mpi.rank, k)),
+            &output::vtu_bytes(&part.piece())?,
+        )?;
+    }
+    stats.vtu_files = ranges.len();
 
     // Contact rows and owned nodes travel to the first rank.
     let rows: Vec<[f64; 9]> = sub
@@ -1096,7 +1110,10 @@ fn write_outputs(
         &dir.join("history.csv"),
         output::history_csv(&history).as_bytes(),
     )?;
-    let sources: Vec<String> = (0..mpi.size).map(|r| format!("solution_{r}.vtu")).collect();
+    let sources: Vec<String> = all_stats
+        .iter()
+        .flat_map(|st| (0..st.vtu_files).map(|k| vtu_file_name(st.rank, k)))
+        .collect();
     output::write_atomic(&dir.join("solution.pvtu"), &output::pvtu_bytes(&sources)?)?;
 
     let with_status = |s: Status| all_rows.iter().filter(|r| r[7] == s as i32 as f64).count();
