@@ -368,7 +368,7 @@ struct CondensedStep<'a> {
     /// The interface system, on the first rank only.
     interface: Option<InterfaceSystem>,
     interface_counts: Vec<usize>,
-    /// The packed own forces of the last sweep.
+    /// Scratch: the packed own forces of the sweep being solved.
     forces: Vec<f64>,
     gathered: Vec<f64>,
     solved: Vec<f64>,
@@ -715,8 +715,7 @@ fn solve_condensed(
         response: LocalResponse::new(rows, g_local),
         interface,
         interface_counts,
-        // Sized for the (never expected) case of a loop that solves nothing.
-        forces: vec![0.0; if frictional { 2 * n_own } else { n_own }],
+        forces: Vec::new(),
         gathered: Vec::new(),
         solved: Vec::new(),
         x_g: Vec::new(),
