@@ -135,9 +135,16 @@ fn duplicate_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
     };
     let mut first: Option<(usize, usize)> = None;
     let mut pairs = 0usize;
+    // The first entry at or after (column + 1, y - tol): that bound only grows along the
+    // sorted order, so one pointer walks it for all nodes.
+    let mut next = 0;
     for (pos, &(column, y, i)) in order.iter().enumerate() {
-        let next =
-            order.partition_point(|e| e.0 < column + 1 || (e.0 == column + 1 && e.1 < y - tol));
+        while next < order.len()
+            && (order[next].0 < column + 1
+                || (order[next].0 == column + 1 && order[next].1 < y - tol))
+        {
+            next += 1;
+        }
         let same = order[pos + 1..]
             .iter()
             .take_while(|e| e.0 == column && e.1 <= y + tol);
