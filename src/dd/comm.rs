@@ -37,6 +37,29 @@ impl Mpi {
         self.rank == 0
     }
 
+    /// Returns once every rank has called it, having slept, not spun, while waiting.
+    ///
+    /// MPI's blocking calls poll a core at full speed. Where the first rank works alone
+    /// (it factors the interface system), the others wait here instead, so that the
+    /// cores they would burn are the first rank's to use (on a node shared by several
+    /// ranks, or one of oversubscribed ranks). Polling every 100 us costs nothing next
+    /// to that work.
+    pub fn barrier_sleeping(&self) {
+        if self.size == 1 {
+            return;
+        }
+        let mut request = self.world.immediate_barrier();
+        loop {
+            match request.test() {
+                Ok(_) => return,
+                Err(pending) => {
+                    request = pending;
+                    std::thread::sleep(std::time::Duration::from_micros(100));
+                }
+            }
+        }
+    }
+
     /// Concatenation over ranks of `local` (rank r contributes `counts[r]` values).
     pub fn all_gather(&self, local: &[f64], counts: &[usize], out: &mut Vec<f64>) {
         let total: usize = counts.iter().sum();

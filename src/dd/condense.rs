@@ -191,10 +191,37 @@ pub struct InterfaceSystem {
     x: Mat<f64>,
 }
 
+/// The Cholesky factor of `s` on `threads` threads of a pool of its own, whatever the
+/// threads of this rank (faer's factorization reads the process-wide parallelism, which
+/// is set for the call and put back).
+fn factor_with_threads(
+    s: &Mat<f64>,
+    threads: usize,
+) -> std::result::Result<
+    faer::linalg::solvers::Llt<f64>,
+    faer::linalg::cholesky::llt::factor::LltError,
+> {
+    let factor = || faer::linalg::solvers::Llt::new(s.as_ref(), Side::Lower);
+    let pool = match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
+        Ok(pool) if threads > 1 => pool,
+        _ => return factor(),
+    };
+    let previous = faer::get_global_parallelism();
+    faer::set_global_parallelism(faer::Par::rayon(threads));
+    let result = pool.install(factor);
+    faer::set_global_parallelism(previous);
+    result
+}
+
 impl InterfaceSystem {
     /// Sums the pieces (one per rank, in rank order: global indices and the dense
-    /// interface Schur complement) and factors the sum (n^3 / 3 flops, n^2 doubles).
-    pub fn new(n: usize, pieces: impl IntoIterator<Item = (Vec<usize>, Mat<f64>)>) -> Result<Self> {
+    /// interface Schur complement) and factors the sum (n^3 / 3 flops, n^2 doubles) with
+    /// `threads` threads.
+    pub fn new(
+        n: usize,
+        pieces: impl IntoIterator<Item = (Vec<usize>, Mat<f64>)>,
+        threads: usize,
+    ) -> Result<Self> {
         let mut s = Mat::<f64>::zeros(n, n);
         let mut index = Vec::new();
         for (idx, piece) in pieces {
@@ -208,7 +235,7 @@ impl InterfaceSystem {
         let llt = if n == 0 {
             None
         } else {
-            Some(s.llt(Side::Lower).map_err(|_| {
+            Some(factor_with_threads(&s, threads).map_err(|_| {
                 Error::Numerical(
                     "the condensed stiffness matrix is singular: the body can still move rigidly; add Dirichlet conditions that fix the rigid motions (with frictionless contact, also the sliding along the foundation)".into(),
                 )
@@ -274,7 +301,8 @@ mod tests {
     fn interface_system_sums_overlapping_pieces() {
         // Pieces on global dofs {0, 1} and {1, 2}: the sum is tridiagonal [2 -1 0; ...].
         let p = Mat::from_fn(2, 2, |i, j| if i == j { 1.5 } else { -1.0 });
-        let mut sys = InterfaceSystem::new(3, [(vec![0, 1], p.clone()), (vec![1, 2], p)]).unwrap();
+        let mut sys =
+            InterfaceSystem::new(3, [(vec![0, 1], p.clone()), (vec![1, 2], p)], 1).unwrap();
         assert_eq!(sys.counts(), vec![2, 2]);
         // Right-hand sides split between the ranks on the shared dof 1.
         let mut out = Vec::new();
@@ -294,6 +322,39 @@ mod tests {
         }
         // A singular sum is reported.
         let z = Mat::<f64>::zeros(1, 1);
-        assert!(InterfaceSystem::new(1, [(vec![0], z)]).is_err());
+        assert!(InterfaceSystem::new(1, [(vec![0], z.clone())], 1).is_err());
+        assert!(InterfaceSystem::new(1, [(vec![0], z)], 2).is_err());
+    }
+
+    /// Factored on several threads (the first rank's cores while the others sleep), the
+    /// system gives the answer of the one-thread factor, to round-off, and leaves the
+    /// process-wide parallelism as it was.
+    #[test]
+    fn interface_factor_on_several_threads_agrees_with_one() {
+        let n = 700;
+        let a = Mat::<f64>::from_fn(n, n, |i, j| ((i * 31 + j * 17) % 13) as f64 / 13.0 - 0.5);
+        let spd = &a * a.transpose() + Mat::<f64>::identity(n, n) * (n as f64);
+        let rhs: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
+        let before = faer::get_global_parallelism();
+        let solve = |threads: usize| {
+            let mut sys =
+                InterfaceSystem::new(n, [((0..n).collect(), spd.clone())], threads).expect("SPD");
+            let mut out = Vec::new();
+            sys.solve_packed(&rhs, &mut out);
+            out
+        };
+        let (one, four) = (solve(1), solve(4));
+        let scale = one.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (x, y) in one.iter().zip(&four) {
+            assert!((x - y).abs() <= 1e-12 * scale, "{x} {y}");
+        }
+        let r: Vec<f64> = (0..n)
+            .map(|i| (0..n).map(|j| spd[(i, j)] * four[j]).sum::<f64>() - rhs[i])
+            .collect();
+        assert!(r.iter().all(|v| v.abs() < 1e-10), "residual");
+        assert_eq!(
+            format!("{:?}", faer::get_global_parallelism()),
+            format!("{before:?}")
+        );
     }
 }

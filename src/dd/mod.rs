@@ -40,7 +40,7 @@
 //! | factor (each rank) | sparse Cholesky, O(n_s^1.5) in 2D with a good ordering, + b_s^3 / 3 for the dense trailing block | nnz(L_s) + b_s^2 | - |
 //! | condensed loads (each rank) | the forward half of a sparse solve, 2 nnz(L_s), + b_s^2 | n_s | - |
 //! | interface part L_gg L_gg' (each rank) | g_s^3 / 3 | g_s^2 | one message of g_s^2 doubles to rank 0 |
-//! | interface factor (rank 0) | n_G^3 / 3 | n_G^2 | - |
+//! | interface factor (rank 0, on every core of its CPU set while the others sleep) | n_G^3 / 3 | n_G^2 | - |
 //! | one sweep | each rank: 2 c_s^2 + 4 c_s g_s + O(own contact nodes); rank 0: 2 n_G^2 | - | MPI_Gatherv + MPI_Scatterv of the interface values (sum g_s values), one MPI_Allreduce of 11 + m(m+1)/2 + m doubles; with one rank, no interface and only the allreduce |
 //! | recovery | each rank: the backward half of a sparse solve, 2 nnz(L_s), + b_s^2 (the forward half is kept from the condensed loads) | - | - |
 //!
