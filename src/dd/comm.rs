@@ -42,8 +42,8 @@ impl Mpi {
     /// MPI's blocking calls poll a core at full speed. Where the first rank works alone
     /// (it factors the interface system), the others wait here instead, so that the
     /// cores they would burn are the first rank's to use (on a node shared by several
-    /// ranks, or one of oversubscribed ranks). Polling every 100 us costs nothing next
-    /// to that work.
+    /// ranks, or with more ranks than cores). Polling every 100 us costs nothing next to
+    /// that work.
     pub fn barrier_sleeping(&self) {
         if self.size == 1 {
             return;

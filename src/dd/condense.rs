@@ -202,9 +202,11 @@ fn factor_with_threads(
     faer::linalg::cholesky::llt::factor::LltError,
 > {
     let factor = || faer::linalg::solvers::Llt::new(s.as_ref(), Side::Lower);
-    let pool = match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
-        Ok(pool) if threads > 1 => pool,
-        _ => return factor(),
+    if threads <= 1 {
+        return factor();
+    }
+    let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(threads).build() else {
+        return factor();
     };
     let previous = faer::get_global_parallelism();
     faer::set_global_parallelism(faer::Par::rayon(threads));
