@@ -103,15 +103,14 @@ impl<'a> SubPiece<'a> {
                 })
             })
             .collect();
-        let pick = |a: &[f64]| used.iter().map(|&v| a[v]).collect();
         SubPiece {
             whole: *whole,
-            nodes: used.iter().map(|&v| whole.nodes[v]).collect(),
+            nodes: pick(whole.nodes, &used),
             triangles,
-            displacement: used.iter().map(|&v| whole.displacement[v]).collect(),
-            contact_pressure: pick(whole.contact_pressure),
-            tangential_traction: pick(whole.tangential_traction),
-            contact_status: used.iter().map(|&v| whole.contact_status[v]).collect(),
+            displacement: pick(whole.displacement, &used),
+            contact_pressure: pick(whole.contact_pressure, &used),
+            tangential_traction: pick(whole.tangential_traction, &used),
+            contact_status: pick(whole.contact_status, &used),
             range,
         }
     }
@@ -130,6 +129,11 @@ impl<'a> SubPiece<'a> {
             contact_status: &self.contact_status,
         }
     }
+}
+
+/// The values of `a` at `at`, in that order.
+fn pick<T: Copy>(a: &[T], at: &[usize]) -> Vec<T> {
+    at.iter().map(|&v| a[v]).collect()
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
