@@ -9,7 +9,7 @@
 //! Every error is an [`Error::Input`] of one line naming the file, the place (line number in
 //! ASCII files, byte offset in binary ones), what is wrong and how to fix it.
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 use std::str::FromStr;
 
@@ -884,13 +884,11 @@ struct Builder {
     entities: Option<HashMap<(i32, i32), Vec<i32>>>,
     nodes_read: bool,
     elements_read: bool,
-    node_index: HashMap<u64, usize>,
+    node_index: TagIndex,
     node_tags: Vec<u64>,
     nodes: Vec<[f64; 3]>,
+    /// Every triangle as read; [`Builder::finish`] drops the repeats.
     triangles: Vec<[usize; 3]>,
-    /// MSH 2.2 repeats an element once per physical group, so a triangle in two physical
-    /// surfaces appears twice; a mesh never holds the same triangle twice on purpose.
-    seen_triangles: HashSet<[usize; 3]>,
     lines: BTreeMap<i32, Vec<[usize; 2]>>,
     points: BTreeMap<i32, Vec<usize>>,
 }
@@ -927,11 +925,11 @@ impl Builder {
     fn reserve_nodes(&mut self, n: usize) {
         self.nodes.reserve(n);
         self.node_tags.reserve(n);
-        self.node_index.reserve(n);
+        self.node_index.expect(n);
     }
 
     fn add_node(&mut self, r: &Reader, at: usize, tag: u64, xyz: [f64; 3]) -> Result<()> {
-        if self.node_index.insert(tag, self.nodes.len()).is_some() {
+        if !self.node_index.insert(tag, self.nodes.len()) {
             return r.fail(at, format!("node {tag} is defined twice; {REEXPORT}"));
         }
         self.nodes.push(xyz);
@@ -940,8 +938,8 @@ impl Builder {
     }
 
     fn node(&self, r: &Reader, at: usize, element: u64, tag: u64) -> Result<usize> {
-        match self.node_index.get(&tag) {
-            Some(&index) => Ok(index),
+        match self.node_index.get(tag) {
+            Some(index) => Ok(index),
             None => r.fail(
                 at,
                 format!(
@@ -971,13 +969,7 @@ impl Builder {
     fn add_element(&mut self, kind: Kind, nodes: [usize; 3], physicals: &[i32]) {
         let [a, b, _] = nodes;
         match kind {
-            Kind::Triangle => {
-                let mut key = nodes;
-                key.sort_unstable();
-                if self.seen_triangles.insert(key) {
-                    self.triangles.push(nodes);
-                }
-            }
+            Kind::Triangle => self.triangles.push(nodes),
             Kind::Line => {
                 for &p in physicals {
                     self.lines.entry(p).or_default().push([a, b]);
@@ -1019,7 +1011,8 @@ impl Builder {
         }
     }
 
-    fn finish(self, name: &str) -> Result<Mesh> {
+    fn finish(mut self, name: &str) -> Result<Mesh> {
+        drop_repeated_triangles(self.nodes.len(), &mut self.triangles);
         if self.triangles.is_empty() {
             return input(format!(
                 "{name}: the mesh has no triangles (3-node, element type 2); mesh the surface \
@@ -1034,6 +1027,113 @@ impl Builder {
             line_groups: named(self.lines, 1, &self.names),
             point_groups: named(self.points, 0, &self.names),
         })
+    }
+}
+
+/// Node tag -> node index. Gmsh numbers nodes 1..N, or nearly, so a table indexed by the
+/// tag serves nearly every file; a tag far beyond the node count (a file renumbered by
+/// hand, or merged) goes to a hash map instead. Hashing every tag took 70% of the parse of
+/// a 2.2M-node mesh.
+#[derive(Debug, Default)]
+struct TagIndex {
+    table: Vec<usize>,
+    others: HashMap<u64, usize>,
+    /// Tags below it use the table: a few times the announced node count, so the table
+    /// stays a few bytes per node whatever the tags.
+    table_limit: u64,
+}
+
+impl TagIndex {
+    const NONE: usize = usize::MAX;
+
+    /// Sizes the table for `n` nodes; call it before the first insert.
+    fn expect(&mut self, n: usize) {
+        self.table_limit = (n as u64).saturating_mul(4).max(1 << 16);
+    }
+
+    /// Records `tag` at `index`; false if the tag was already there.
+    fn insert(&mut self, tag: u64, index: usize) -> bool {
+        if tag >= self.table_limit {
+            return match self.others.entry(tag) {
+                std::collections::hash_map::Entry::Occupied(_) => false,
+                std::collections::hash_map::Entry::Vacant(v) => {
+                    v.insert(index);
+                    true
+                }
+            };
+        }
+        let t = tag as usize;
+        if t >= self.table.len() {
+            self.table.resize(t + 1, Self::NONE);
+        }
+        let slot = &mut self.table[t];
+        let new = *slot == Self::NONE;
+        if new {
+            *slot = index;
+        }
+        new
+    }
+
+    fn get(&self, tag: u64) -> Option<usize> {
+        if tag >= self.table_limit {
+            return self.others.get(&tag).copied();
+        }
+        match self.table.get(tag as usize) {
+            Some(&i) if i != Self::NONE => Some(i),
+            _ => None,
+        }
+    }
+}
+
+/// Keeps the first of triangles with the same three nodes (in any order), in file order.
+/// MSH 2.2 repeats an element once per physical group, so a triangle in two physical
+/// surfaces appears twice; a mesh never holds the same triangle twice on purpose.
+///
+/// Repeats share their smallest node, so triangles are bucketed by it (a counting sort:
+/// a couple of triangles per node) and each bucket is sorted on its own.
+fn drop_repeated_triangles(num_nodes: usize, triangles: &mut Vec<[usize; 3]>) {
+    let key = |t: &[usize; 3]| {
+        let mut k = *t;
+        k.sort_unstable();
+        k
+    };
+    let mut start = vec![0usize; num_nodes + 1];
+    for t in triangles.iter() {
+        start[key(t)[0] + 1] += 1;
+    }
+    for i in 0..num_nodes {
+        start[i + 1] += start[i];
+    }
+    let mut next = start.clone();
+    let mut bucketed = vec![([0usize; 3], 0usize); triangles.len()];
+    for (i, t) in triangles.iter().enumerate() {
+        let k = key(t);
+        bucketed[next[k[0]]] = (k, i);
+        next[k[0]] += 1;
+    }
+    drop(next);
+    let mut repeated = vec![false; triangles.len()];
+    let mut any = false;
+    for w in start.windows(2) {
+        let bucket = &mut bucketed[w[0]..w[1]];
+        if bucket.len() < 2 {
+            continue;
+        }
+        // By key, then by position in the file: the first of equal keys is the one kept.
+        bucket.sort_unstable();
+        for pair in bucket.windows(2) {
+            if pair[0].0 == pair[1].0 {
+                repeated[pair[1].1] = true;
+                any = true;
+            }
+        }
+    }
+    if any {
+        let mut k = 0;
+        triangles.retain(|_| {
+            k += 1;
+            !repeated[k - 1]
+        });
     }
 }
 
@@ -1468,6 +1568,84 @@ mod tests {
         // The surface is in two physical groups: MSH 2.2 lists each triangle twice.
         assert_eq!(v41.triangles.len(), 14);
         assert_eq!(text(OVERLAP_22).matches(" 2 2 9 1 ").count(), 14);
+    }
+
+    #[test]
+    fn far_node_tags_read_like_near_ones() {
+        // Tags from 65536 on are beyond the table of a 4-node file: they go to the map.
+        let far: Vec<(i32, [f64; 3])> = SQUARE_NODES
+            .iter()
+            .zip([70_000, 3, i32::MAX, 65_536])
+            .map(|(&(_, p), tag)| (tag, p))
+            .collect();
+        let retag = |t: i32| far[SQUARE_NODES.iter().position(|n| n.0 == t).unwrap()].0;
+        let nodes: Vec<Vec<i32>> = SQUARE_ELEMENTS
+            .iter()
+            .map(|e| e.2.iter().map(|&t| retag(t)).collect())
+            .collect();
+        let elements: Vec<(i32, i32, &[i32])> = SQUARE_ELEMENTS
+            .iter()
+            .zip(&nodes)
+            .map(|(e, n)| (e.0, e.1, &n[..]))
+            .collect();
+        let spec = Spec {
+            nodes: &far,
+            elements: &elements,
+            names: &SQUARE_NAMES,
+        };
+        let expected = parse_msh(&msh41(Enc::Ascii, 8, &square()), "near.msh").unwrap();
+        for (label, bytes) in all_variants(&spec) {
+            let mesh = parse_msh(&bytes, "far.msh").unwrap_or_else(|e| panic!("{label}: {e}"));
+            assert_eq!(mesh, expected, "{label}");
+        }
+    }
+
+    #[test]
+    fn tag_index_finds_each_tag_once_near_and_far() {
+        let mut index = TagIndex::default();
+        index.expect(4);
+        let tags = [1u64, 9, 1 << 16, u64::MAX, 0, 70_000];
+        for (i, &t) in tags.iter().enumerate() {
+            assert!(index.insert(t, i), "tag {t}");
+        }
+        for (i, &t) in tags.iter().enumerate() {
+            assert_eq!(index.get(t), Some(i), "tag {t}");
+            assert!(!index.insert(t, 99), "tag {t} twice");
+            assert_eq!(index.get(t), Some(i), "tag {t} kept");
+        }
+        for t in [2u64, 8, 10, 65_535, 1 << 40] {
+            assert_eq!(index.get(t), None, "tag {t}");
+        }
+    }
+
+    #[test]
+    fn repeated_triangles_keep_the_first_in_file_order() {
+        // Few nodes, many triangles: repeats in every orientation, big buckets.
+        let mut seed = 12345u64;
+        let mut next = |n: u64| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 33) % n) as usize
+        };
+        for (nodes, count) in [(4, 10), (6, 200), (30, 2000)] {
+            let triangles: Vec<[usize; 3]> = (0..count)
+                .map(|_| [next(nodes), next(nodes), next(nodes)])
+                .collect();
+            let mut seen = std::collections::HashSet::new();
+            let expected: Vec<[usize; 3]> = triangles
+                .iter()
+                .filter(|t| {
+                    let mut k = **t;
+                    k.sort_unstable();
+                    seen.insert(k)
+                })
+                .copied()
+                .collect();
+            let mut kept = triangles.clone();
+            drop_repeated_triangles(nodes as usize, &mut kept);
+            assert_eq!(kept, expected, "{nodes} nodes, {count} triangles");
+        }
     }
 
     #[test]
