@@ -222,13 +222,16 @@ pub fn orient(mesh: &mut Mesh, name: &str) -> Result<Vec<bool>> {
     for t in 0..mesh.triangles.len() {
         let a2 = mesh.signed_area2(t);
         let [i, j, k] = mesh.triangles[t];
-        let length = |a: usize, b: usize| {
+        // Squared lengths: hypot took a third of this check on millions of triangles.
+        // The doubled area is a product of coordinate differences as well, so the squares
+        // overflow or underflow no sooner than it does.
+        let length2 = |a: usize, b: usize| {
             let (p, q) = (mesh.nodes[a], mesh.nodes[b]);
-            (q[0] - p[0]).hypot(q[1] - p[1])
+            (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
         };
-        let longest = length(i, j).max(length(j, k)).max(length(k, i));
+        let longest2 = length2(i, j).max(length2(j, k)).max(length2(k, i));
         // Relative to the element's own size (and the mesh's, for zero-length edges).
-        if a2.abs() <= 1e-12 * longest * longest || longest <= 1e-14 * size {
+        if a2.abs() <= 1e-12 * longest2 || longest2 <= (1e-14 * size).powi(2) {
             let p = mesh.nodes[i];
             return input(format!(
                 "{name}: triangle {} (nodes {}, {}, {}, near ({}, {})) is degenerate (zero area); fix the mesh",
