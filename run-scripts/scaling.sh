@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# Strong and weak scaling studies of contact-par on a built-in case.
+# Strong and weak scaling studies of contact-par on a built-in case, or a strong scaling
+# study on a case file of yours.
 #
 #   bash run-scripts/scaling.sh                          # block, level 4, 3 runs, out: scaling-out
 #   bash run-scripts/scaling.sh --case block --level 4 --runs 3 --out DIR
+#   bash run-scripts/scaling.sh --case-file my.toml --runs 3 --out DIR   # your mesh, strong
 #   bash run-scripts/scaling.sh --smoke --out DIR        # seconds: level 0, 1 run, 1 and 2 ranks
 #
 # Strong scaling (fixed mesh at --level): ranks x threads = 1x1, 1x2, 2x1, 2x2, then 4x1
@@ -28,6 +30,9 @@
 #
 # Options:
 #   --case NAME          built-in case (hertz, block, block_flat); default block
+#   --case-file FILE     a case file (TOML, its Gmsh mesh) instead: strong scaling and
+#                        ceiling only, as a weak study needs meshes that grow with the
+#                        ranks; the case's name in the CSV files is FILE's name, level 0
 #   --level N            strong-scaling level; default 4
 #   --weak-level N       weak-scaling level of the 1-rank point; default level - 1
 #   --weak-max-ranks N   largest weak-scaling rank count (a power of 4); default 4
@@ -57,6 +62,7 @@ CMDLINE="bash run-scripts/scaling.sh"
 [[ $# -eq 0 ]] || CMDLINE+="$(printf ' %q' "$@")"
 
 CASE=block
+CASE_FILE=
 LEVEL=4
 WEAK_LEVEL=
 WEAK_MAX=4
@@ -64,6 +70,7 @@ RUNS=3
 OUT=scaling-out
 BIN="$ROOT/target/release/contact-par"
 STUDY=both
+STUDY_GIVEN=0
 COPIES=
 BIND=none
 VENV=
@@ -78,13 +85,14 @@ need_arg() { [[ $# -ge 2 && -n "$2" ]] || die "$1 needs a value"; }
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --case) need_arg "$@"; CASE="$2"; shift 2 ;;
+    --case-file) need_arg "$@"; CASE_FILE="$2"; shift 2 ;;
     --level) need_arg "$@"; LEVEL="$2"; shift 2 ;;
     --weak-level) need_arg "$@"; WEAK_LEVEL="$2"; shift 2 ;;
     --weak-max-ranks) need_arg "$@"; WEAK_MAX="$2"; shift 2 ;;
     --runs) need_arg "$@"; RUNS="$2"; shift 2 ;;
     --out) need_arg "$@"; OUT="$2"; shift 2 ;;
     --bin) need_arg "$@"; BIN="$2"; shift 2 ;;
-    --study) need_arg "$@"; STUDY="$2"; shift 2 ;;
+    --study) need_arg "$@"; STUDY="$2"; STUDY_GIVEN=1; shift 2 ;;
     --copies) need_arg "$@"; COPIES="$2"; shift 2 ;;
     --bind) need_arg "$@"; BIND="$2"; shift 2 ;;
     --venv) need_arg "$@"; VENV="$2"; shift 2 ;;
@@ -108,6 +116,14 @@ case "$STUDY" in strong|weak|both) ;; *) die "--study must be strong, weak or bo
 [[ -z "$COPIES" || "$COPIES" == none || "$COPIES" =~ ^[0-9]+( [0-9]+)*$ ]] ||
   die "--copies must be whole numbers separated by spaces, or none, not '$COPIES'"
 
+if [[ -n "$CASE_FILE" ]]; then
+  [[ -f "$CASE_FILE" && -r "$CASE_FILE" ]] || die "--case-file $CASE_FILE: no such readable file"
+  [[ $STUDY_GIVEN == 0 || $STUDY == strong ]] ||
+    die "--case-file: a weak study needs meshes that grow with the ranks, which only the built-in cases (--case) have; use --study strong"
+  CASE_FILE="$(cd "$(dirname "$CASE_FILE")" && pwd)/$(basename "$CASE_FILE")"
+  CASE="$(basename "$CASE_FILE" .toml)"
+  LEVEL=0 STUDY=strong
+fi
 if [[ $SMOKE == 1 ]]; then
   LEVEL=0 RUNS=1 STUDY=strong
 fi
@@ -157,8 +173,19 @@ mkdir -p "$OUT/bin" "$OUT/runs"
 OUT="$(cd "$OUT" && pwd)"
 cp "$BIN" "$OUT/bin/contact-par"
 EXE="$OUT/bin/contact-par"
-"$EXE" --builtin "$CASE" --print-case >/dev/null ||
-  die "the binary does not know the built-in case '$CASE' (see its message above)"
+if [[ -z "$CASE_FILE" ]]; then
+  "$EXE" --builtin "$CASE" --print-case >/dev/null ||
+    die "the binary does not know the built-in case '$CASE' (see its message above)"
+fi
+
+# The case arguments of the binary at a level: the case file, or the built-in case.
+case_args() { # level
+  if [[ -n "$CASE_FILE" ]]; then
+    CASE_ARGS=("$CASE_FILE")
+  else
+    CASE_ARGS=(--builtin "$CASE" --level "$1")
+  fi
+}
 INDEX="$OUT/runs.tsv"
 printf 'study\tcase\tlevel\tranks\tthreads\trun\texit_code\twall_s\tcpu_s\tothers_cores\ttime_maxrss_kb\tdir\n' >"$INDEX"
 HZ=$(getconf CLK_TCK 2>/dev/null || echo 100)
@@ -171,7 +198,7 @@ export OMPI_MCA_rmaps_base_oversubscribe=1
 
 # The machine and the command, for the report (python3 writes valid JSON).
 META_COMMAND="$CMDLINE" META_CORES="$CORES" META_BIND="$BIND" META_MPI_ARGS="$MPI_ARGS" \
-META_BIN="$BIN" META_SHA="$(sha256sum "$EXE" | cut -c1-16)" META_CASE="$CASE" META_LEVEL="$LEVEL" META_WEAK_LEVEL="$WEAK_LEVEL" \
+META_BIN="$BIN" META_SHA="$(sha256sum "$EXE" | cut -c1-16)" META_CASE="$CASE" META_CASE_FILE="$CASE_FILE" META_LEVEL="$LEVEL" META_WEAK_LEVEL="$WEAK_LEVEL" \
 META_RUNS="$RUNS" META_SMOKE="$SMOKE" META_WAIT_IDLE="$WAIT_IDLE" META_COPIES="$COPIES" \
 META_CPU="$(lscpu 2>/dev/null | sed -n 's/^Model name: *//p' | head -1)" \
 META_MPIRUN="$(mpirun --version 2>/dev/null | head -1)" \
@@ -200,6 +227,7 @@ meta = {
     "git_dirty_files": int(e["META_DIRTY"]),
     "load_average_at_start": load,
     "case": e["META_CASE"],
+    "case_file": e["META_CASE_FILE"] or None,
     "level": int(e["META_LEVEL"]),
     "weak_level": int(e["META_WEAK_LEVEL"]),
     "runs": int(e["META_RUNS"]),
@@ -265,12 +293,13 @@ run_one() { # study level ranks threads run
   local t0 t1 b0 b1 code=0
   local timer=()
   [[ -x /usr/bin/time ]] && timer=(/usr/bin/time -f '%U %S %M' -o "$dir/time.txt")
+  case_args "$level"
   wait_idle
   b0=$(busy_s)
   t0=$(date +%s.%N)
   # shellcheck disable=SC2086
   "${timer[@]}" mpirun -n "$ranks" --oversubscribe --bind-to "$BIND" $MPI_ARGS \
-    "$EXE" --builtin "$CASE" --level "$level" --threads "$threads" --out "$dir" \
+    "$EXE" "${CASE_ARGS[@]}" --threads "$threads" --out "$dir" \
     >"$dir/stdout.txt" 2>"$dir/stderr.txt" || code=$?
   t1=$(date +%s.%N)
   b1=$(busy_s)
@@ -301,6 +330,7 @@ run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
     echo "  copies level $level: $copies copies of a ${one_kb} kB run do not fit in ${avail_kb} kB available; skipped" >&2
     return 0
   fi
+  case_args "$level"
   wait_idle
   local b0 b1 t0 t1
   b0=$(busy_s)
@@ -317,7 +347,7 @@ run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
       a=$(date +%s.%N) code=0
       # shellcheck disable=SC2086
       TMPDIR="$session" "${timer[@]}" mpirun -n 1 --bind-to "$BIND" $MPI_ARGS \
-        "$EXE" --builtin "$CASE" --level "$level" --threads 1 --out "$dir" \
+        "$EXE" "${CASE_ARGS[@]}" --threads 1 --out "$dir" \
         >"$dir/stdout.txt" 2>"$dir/stderr.txt" || code=$?
       echo "$a $(date +%s.%N) $code" >"$dir/wall.txt"
       rm -rf "$session"
@@ -350,7 +380,20 @@ run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
 }
 
 echo "contact-par scaling: case $CASE, ${#POINTS[@]} points x $RUNS run(s), $CORES core(s), out $OUT"
-# One untimed run first: the binary and the libraries come into the page cache.
+# One untimed run first: the binary and the libraries come into the page cache (and a
+# case file's mesh, so that the first timed run does not read it from disk).
+if [[ -n "$CASE_FILE" ]]; then
+  python3 - "$CASE_FILE" <<'PY' || true
+import os, sys, tomllib
+with open(sys.argv[1], "rb") as f:
+    mesh = tomllib.load(f).get("mesh", {}).get("file")
+if mesh:
+    path = os.path.join(os.path.dirname(sys.argv[1]), mesh)
+    with open(path, "rb") as f:
+        while f.read(1 << 24):
+            pass
+PY
+fi
 if [[ $SMOKE == 0 ]]; then
   # shellcheck disable=SC2086
   mpirun -n 1 --bind-to "$BIND" $MPI_ARGS "$EXE" --builtin "$CASE" --level 0 --quiet \

@@ -260,7 +260,9 @@ def report(out, meta, runs, rows, phases, plots):
         if not rs:
             continue
         if study == "strong":
-            L.append(f"## Strong scaling (fixed mesh, level {rs[0]['level']}, {rs[0]['nodes']} nodes, "
+            mesh = (f"case file {meta['case_file']}" if meta.get("case_file")
+                    else f"level {rs[0]['level']}")
+            L.append(f"## Strong scaling (fixed mesh, {mesh}, {rs[0]['nodes']} nodes, "
                      f"{rs[0]['dofs']} dofs)\n")
         else:
             L.append("## Weak scaling (each rank keeps about the same number of nodes)\n")
@@ -361,7 +363,7 @@ def report(out, meta, runs, rows, phases, plots):
         f.write("\n".join(L) + "\n")
 
 
-def plot(out, rows, phases, cores):
+def plot(out, rows, phases, cores, case_file=None):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -395,8 +397,8 @@ def plot(out, rows, phases, cores):
         ax_s.plot([c[0] for c in ceil], [c[1] for c in ceil], "k*", ms=10,
                   label="ceiling: copies of 1x1 at once")
     if strong:
-        lvl = strong[0]["level"]
-        ax_s.set_title(f"strong scaling, level {lvl} ({strong[0]['nodes']} nodes)")
+        mesh = case_file or f"level {strong[0]['level']}"
+        ax_s.set_title(f"strong scaling, {mesh} ({strong[0]['nodes']} nodes)")
     ax_s.set_xlabel("ranks x threads")
     ax_s.set_ylabel("speed-up (median total time)")
     ax_s.legend(fontsize=8)
@@ -494,7 +496,7 @@ def main(argv):
     plotted = False
     if want_plots:
         try:
-            plotted = plot(out, rows, phases, cores)
+            plotted = plot(out, rows, phases, cores, meta.get("case_file"))
         except ImportError:
             print("scaling_report.py: matplotlib is not available; no plots", file=sys.stderr)
     report(out, meta, runs, rows, phases, plotted)

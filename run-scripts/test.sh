@@ -10,6 +10,8 @@ cargo fmt --all -- --check
 cargo clippy --release --workspace --all-targets -- -D warnings
 # The scaling study's smoke mode: the scripts of run-scripts/ keep working (seconds).
 bash run-scripts/scaling.sh --smoke --out "$(mktemp -d)/smoke"
+bash run-scripts/scaling.sh --smoke --case-file tests/data/gmsh/quarter_disc.toml \
+  --out "$(mktemp -d)/smoke-case-file"
 if cargo nextest --version >/dev/null 2>&1; then
   cargo nextest run --release --workspace --no-fail-fast
 else
