@@ -218,7 +218,9 @@ def report(out, meta, runs, rows, phases, plots):
              f"bin/ before the runs); the scripts' checkout is at git {meta.get('git_commit')}"
              + (f" with {meta.get('git_dirty_files')} uncommitted file(s) in src/, partition/, "
                 "Cargo.toml" if meta.get("git_dirty_files") else ""))
-    L.append(f"* case: built-in `{meta.get('case')}`; every point is the median of "
+    case = (f"case file `{meta['case_file']}`" if meta.get("case_file")
+            else f"built-in `{meta.get('case')}`")
+    L.append(f"* case: {case}; every point is the median of "
              f"{meta.get('runs')} run(s), repetitions interleaved across points"
              + (f"; each run started once other processes used less than "
                 f"{meta['wait_idle_cores']} core(s)" if meta.get("wait_idle_cores") else ""))
