@@ -15,6 +15,7 @@ use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::{self, ContactRow, HistoryRow};
 use crate::problem::{self, Problem};
 use faer::Mat;
+use rayon::prelude::*;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -938,7 +939,6 @@ fn print_timings(print: &Printer, t: &Timings, iterations: usize) {
 
 /// Element stresses (sxx, syy, sxy, szz) and von Mises, in parallel.
 pub fn element_stresses(case: &Case, mesh: &Mesh, u: &[[f64; 2]]) -> (Vec<[f64; 4]>, Vec<f64>) {
-    use rayon::prelude::*;
     let d = fem::elasticity_matrix(&case.material);
     let stress: Vec<[f64; 4]> = mesh
         .triangles
@@ -1019,13 +1019,16 @@ fn write_outputs(
         contact_status: &status,
     };
     let ranges = output::file_ranges(&piece)?;
-    for (k, range) in ranges.iter().enumerate() {
+    // The files are independent and vtkio encodes on one thread: a rank with several
+    // threads encodes and writes several files at once.
+    let rank = mpi.rank;
+    ranges.par_iter().enumerate().try_for_each(|(k, range)| {
         let part = output::SubPiece::new(&piece, range.clone());
         output::write_atomic(
-            &dir.join(vtu_file_name(mpi.rank, k)),
+            &dir.join(vtu_file_name(rank, k)),
             &output::vtu_bytes(&part.piece())?,
-        )?;
-    }
+        )
+    })?;
     stats.vtu_files = ranges.len();
 
     // Contact rows and owned nodes travel to the first rank.
