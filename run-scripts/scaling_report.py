@@ -71,6 +71,8 @@ def load_runs(out):
                 peak_mem_sum_bytes=sum(mem) if mem else None,
                 factor_nnz_max=max((p.get("factor_nnz", 0) for p in per), default=None),
                 factor_nnz_sum=sum(p.get("factor_nnz", 0) for p in per) if per else None,
+                factor_gflop_max=max((p.get("factor_gflop", 0.0) for p in per), default=None),
+                factor_gflop_sum=sum(p.get("factor_gflop", 0.0) for p in per) if per else None,
                 interface_nodes_max=max((p.get("interface_nodes", 0) for p in per), default=None),
                 assemble_max_s=max((p.get("assemble_s", 0.0) for p in per), default=None),
                 factor_max_s=max((p.get("factor_s", 0.0) for p in per), default=None),
@@ -127,9 +129,13 @@ def summarise(runs, phases, cores):
         iters = sorted({r.get("iterations") for r in ok})
         row["iterations"] = iters[0] if len(iters) == 1 else "/".join(map(str, iters))
         for c in timed + ["peak_mem_max_bytes", "peak_mem_sum_bytes", "factor_nnz_max",
-                          "factor_nnz_sum", "interface_nodes_max", "assemble_max_s",
-                          "factor_max_s", "loop_max_s"]:
+                          "factor_nnz_sum", "factor_gflop_max", "factor_gflop_sum",
+                          "interface_nodes_max", "assemble_max_s", "factor_max_s", "loop_max_s"]:
             row[c] = median([r.get(c) for r in ok])
+        # The work of the factorization, counted from its structure: the same on every
+        # run of a point, whatever the machine's load.
+        if row.get("factor_gflop_max") and row.get("factor_gflop_sum"):
+            row["work_imbalance"] = row["factor_gflop_max"] / (row["factor_gflop_sum"] / row["ranks"])
         totals = [r["t_total"] for r in ok if r.get("t_total") is not None]
         row["t_total_min"] = min(totals) if totals else None
         row["t_total_max"] = max(totals) if totals else None
@@ -317,6 +323,27 @@ def report(out, meta, runs, rows, phases, plots):
                           r.get("ceiling"), r.get("ceiling_best"), r.get("others_cores")]
                          for r in cs]
                 L.append(table(header, lines))
+            ws = [r for r in rs if r.get("factor_gflop_max")]
+            ref = next((r for r in ws if r["ranks"] == 1 and r["threads"] == 1), None)
+            if ws and ref:
+                L.append("\n### The factorization's work\n")
+                L.append("Floating-point operations of the numeric factorizations, counted from "
+                         "their structure (`factor_gflop` in summary.json: the same on every run, "
+                         "free of the machine's load). The ranks' total may exceed one rank's "
+                         "(each rank's boundary rows ride along to the end of its factor) or "
+                         "fall below it (smaller pieces fill less); `imbalance` is the largest "
+                         "rank's work over the mean; `work speed-up` = Gflop(1x1) / the largest "
+                         "rank's Gflop is what the work alone predicts for the factor phase, "
+                         "whose measured speed-up S(factor) also holds the ordering (not "
+                         "counted here), memory bandwidth, and the kernels' speed on fronts of "
+                         "each size:\n")
+                header = ["ranks", "threads", "Gflop (all ranks)", "Gflop (largest rank)",
+                          "imbalance", "work speed-up", "S(factor)"]
+                lines = [[r["ranks"], r["threads"], r["factor_gflop_sum"], r["factor_gflop_max"],
+                          r.get("work_imbalance"), ref["factor_gflop_max"] / r["factor_gflop_max"],
+                          r.get("speedup_factor")]
+                         for r in ws]
+                L.append(table(header, lines))
         else:
             L.append("Weak-scaling efficiency T(1 rank) / T(P ranks) of the total time; "
                      "`eff/cores` is relative to the best time possible on this machine's "
@@ -479,7 +506,8 @@ def main(argv):
                 + ["t_" + p for p in phases]
                 + ["t_total", "ms_per_sweep", "cpu_s", "others_cores", "peak_mem_max_bytes",
                    "peak_mem_sum_bytes", "time_maxrss_bytes",
-                   "factor_nnz_max", "factor_nnz_sum", "boundary_dofs", "interface_nodes_max",
+                   "factor_nnz_max", "factor_nnz_sum", "factor_gflop_max", "factor_gflop_sum",
+                   "boundary_dofs", "interface_nodes_max",
                    "assemble_max_s", "factor_max_s", "loop_max_s", "reported_threads", "dir"])
     write_csv(os.path.join(out, "runs.csv"), runs, run_cols)
     rows = summarise(runs, phases, cores)
@@ -491,7 +519,8 @@ def main(argv):
                    "efficiency_vs_cores", "work_ratio", "ceiling", "ceiling_best", "of_ceiling"]
                 + ["speedup_" + p for p in phases]
                 + ["peak_mem_max_bytes", "peak_mem_sum_bytes", "time_maxrss_bytes",
-                   "factor_nnz_max", "factor_nnz_sum",
+                   "factor_nnz_max", "factor_nnz_sum", "factor_gflop_max", "factor_gflop_sum",
+                   "work_imbalance",
                    "boundary_dofs", "interface_nodes_max", "assemble_max_s", "factor_max_s",
                    "loop_max_s"])
     write_csv(os.path.join(out, "summary.csv"), rows, sum_cols)

@@ -193,6 +193,9 @@ pub struct RankStats {
     boundary_dofs: usize,
     contact_nodes: usize,
     factor_nnz: usize,
+    /// The numeric factorization's floating-point operations, 1e9 (`factor_flops`): the
+    /// ranks' work and its balance, free of the machine's noise.
+    factor_gflop: f64,
     peak_memory_bytes: u64,
     assemble_s: f64,
     factor_s: f64,
@@ -540,6 +543,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         boundary_dofs: sub.boundary_dofs.len(),
         contact_nodes: sub.contact_nodes.len(),
         factor_nnz: phases.factor_nnz,
+        factor_gflop: phases.factor_flops / 1e9,
         peak_memory_bytes: 0,
         assemble_s: phases.assemble,
         factor_s: phases.factor,
@@ -628,6 +632,7 @@ struct Phases {
     ordering_used: Ordering,
     schur: f64,
     factor_nnz: usize,
+    factor_flops: f64,
     /// One sparse forward+backward solve with this rank's factor (on the condensed
     /// path, its forward half in the condensation plus its backward half in the recovery).
     one_solve: f64,
@@ -769,6 +774,7 @@ fn solve_condensed(
             ordering_used: local.factor.ordering,
             schur: schur_s,
             factor_nnz: local.factor.factor_nnz(),
+            factor_flops: local.factor.factor_flops(),
             one_solve,
         },
     ))
@@ -906,6 +912,7 @@ fn solve_full(
             ordering_used: Ordering::Amd,
             schur: 0.0,
             factor_nnz: step.factor_nnz(),
+            factor_flops: step.factor_flops(),
             one_solve,
         },
     ))

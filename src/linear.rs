@@ -186,6 +186,35 @@ impl SparseCholesky {
     pub fn factor_nnz(&self) -> usize {
         self.values.len()
     }
+
+    /// Floating-point operations of one numeric factorization, about: the sum over the
+    /// columns of L of the square of their non-zero count (a column of c entries updates
+    /// c(c-1)/2 entries to its right with one multiply and one add each). A count of the
+    /// work from the symbolic structure alone, so that the work of the ranks and its
+    /// balance can be compared free of the machine's noise.
+    pub fn factor_flops(&self) -> f64 {
+        use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
+        let squared = |c: usize| (c as f64) * (c as f64);
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(s) => {
+                s.col_ptr().windows(2).map(|w| squared(w[1] - w[0])).sum()
+            }
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                let (begin, end) = (s.supernode_begin(), s.supernode_end());
+                let rows = s.col_ptr_for_row_idx();
+                (0..s.n_supernodes())
+                    .map(|sn| {
+                        // Column j of a supernode holds the diagonal block's rows j..end
+                        // and every row of the supernode's pattern below it.
+                        let below = rows[sn + 1] - rows[sn];
+                        (1..=end[sn] - begin[sn])
+                            .map(|d| squared(d + below))
+                            .sum::<f64>()
+                    })
+                    .sum()
+            }
+        }
+    }
 }
 
 /// The contact geometry a linear step needs: which nodes, their weights, the normal.
@@ -295,6 +324,11 @@ impl DirectStep {
 
     pub fn factor_nnz(&self) -> usize {
         self.chol.factor_nnz()
+    }
+
+    /// See [`SparseCholesky::factor_flops`].
+    pub fn factor_flops(&self) -> f64 {
+        self.chol.factor_flops()
     }
 
     fn dof_value(&self, dof: usize) -> f64 {
@@ -595,6 +629,11 @@ impl LocalFactor {
 
     pub fn factor_nnz(&self) -> usize {
         self.chol.factor_nnz()
+    }
+
+    /// See [`SparseCholesky::factor_flops`].
+    pub fn factor_flops(&self) -> f64 {
+        self.chol.factor_flops()
     }
 
     /// The subdomain's Schur complement onto its boundary dofs (dense, symmetric).
@@ -1270,6 +1309,52 @@ mod tests {
     #[test]
     fn schur_of_a_floating_subdomain() {
         check(12, 6, false);
+    }
+
+    /// Column counts of the factor, read through the factor's entries one by one.
+    fn column_counts(chol: &SparseCholesky) -> Vec<usize> {
+        let mut counts = vec![0usize; chol.dim()];
+        for_each_trailing_entry(&chol.symbolic, 0, |_, _, j| counts[j] += 1);
+        counts
+    }
+
+    #[test]
+    fn factor_flops_count_the_columns_of_the_factor() {
+        use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
+        use faer::sparse::{SparseColMat, Triplet};
+        // Dense: column k has n - k entries, sum (n - k)^2 = n(n+1)(2n+1)/6.
+        let n = 30;
+        let (a, _) = spd(n);
+        let triplets: Vec<Triplet<usize, usize, f64>> = (0..n)
+            .flat_map(|j| (j..n).map(move |i| (i, j)))
+            .map(|(i, j)| Triplet::new(i, j, a[(i, j)]))
+            .collect();
+        let lower = SparseColMat::try_new_from_triplets(n, n, &triplets).unwrap();
+        let dense = SparseCholesky::factor(lower.as_ref(), SymmetricOrdering::Amd).unwrap();
+        assert_eq!(dense.factor_flops(), (n * (n + 1) * (2 * n + 1) / 6) as f64);
+        // Mesh matrices, small (simplicial) and larger (supernodal): the same count as
+        // the entries of each column, counted one by one.
+        let mut kinds = Vec::new();
+        for (nx, ny) in [(4, 3), (40, 20), (120, 60)] {
+            let mesh = builtin::block(2.0, 1.0, nx, ny);
+            let mut fixed = vec![None; 2 * mesh.num_nodes()];
+            for node in mesh.group_nodes("bottom").unwrap() {
+                fixed[2 * node] = Some(0.0);
+                fixed[2 * node + 1] = Some(0.0);
+            }
+            let dofs = DofMap::new(&fixed);
+            let k = assemble(&mesh.nodes, &mesh.triangles, &material(), &dofs, &[]).unwrap();
+            let chol = SparseCholesky::factor(k.matrix.as_ref(), SymmetricOrdering::Amd).unwrap();
+            let expected: f64 = column_counts(&chol).iter().map(|&c| (c * c) as f64).sum();
+            assert_eq!(chol.factor_flops(), expected, "{nx} x {ny}");
+            // The storage also holds the upper half of each supernode's diagonal block.
+            assert!(column_counts(&chol).iter().sum::<usize>() <= chol.factor_nnz());
+            kinds.push(matches!(
+                chol.symbolic.raw(),
+                SymbolicCholeskyRaw::Supernodal(_)
+            ));
+        }
+        assert!(kinds.contains(&true) && kinds.contains(&false), "{kinds:?}");
     }
 
     /// A dense SPD test matrix and its lower Cholesky factor.

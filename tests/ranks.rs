@@ -125,6 +125,17 @@ fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: 
         let s = summary(&out);
         assert_eq!(s["ranks"], np as i64);
         assert_eq!(s["converged"], true);
+        // Every rank reports the work of its factorization, at least one square per column.
+        let per_rank = s["per_rank"].as_array().unwrap();
+        assert_eq!(per_rank.len(), np);
+        for r in per_rank {
+            let flops = r["factor_gflop"].as_f64().unwrap() * 1e9;
+            let nodes = r["nodes"].as_f64().unwrap();
+            assert!(
+                flops.is_finite() && flops >= nodes,
+                "{name} {friction}: {r}"
+            );
+        }
         // Every built-in case settles and retunes r: the test covers the refactored
         // dense blocks and interface system on every rank count.
         assert!(
