@@ -268,9 +268,7 @@ def report(out, meta, runs, rows, phases, plots):
         if not rs:
             continue
         if study == "strong":
-            mesh = (f"case file {meta['case_file']}" if meta.get("case_file")
-                    else f"level {rs[0]['level']}")
-            L.append(f"## Strong scaling (fixed mesh, {mesh}, {rs[0]['nodes']} nodes, "
+            L.append(f"## Strong scaling (fixed mesh, {mesh_label(meta.get('case_file'), rs[0])}, {rs[0]['nodes']} nodes, "
                      f"{rs[0]['dofs']} dofs)\n")
         else:
             L.append("## Weak scaling (each rank keeps about the same number of nodes)\n")
@@ -392,6 +390,11 @@ def report(out, meta, runs, rows, phases, plots):
         f.write("\n".join(L) + "\n")
 
 
+def mesh_label(case_file, row):
+    """What a strong study's fixed mesh is called: its case file, or the built-in level."""
+    return f"case file {case_file}" if case_file else f"level {row['level']}"
+
+
 def plot(out, rows, phases, cores, case_file=None):
     import matplotlib
 
@@ -426,8 +429,8 @@ def plot(out, rows, phases, cores, case_file=None):
         ax_s.plot([c[0] for c in ceil], [c[1] for c in ceil], "k*", ms=10,
                   label="ceiling: copies of 1x1 at once")
     if strong:
-        mesh = case_file or f"level {strong[0]['level']}"
-        ax_s.set_title(f"strong scaling, {mesh} ({strong[0]['nodes']} nodes)")
+        ax_s.set_title(f"strong scaling, {mesh_label(case_file, strong[0])} "
+                       f"({strong[0]['nodes']} nodes)")
     ax_s.set_xlabel("ranks x threads")
     ax_s.set_ylabel("speed-up (median total time)")
     ax_s.legend(fontsize=8)
