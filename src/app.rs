@@ -268,6 +268,30 @@ fn prepare(opts: &Options, nparts: usize) -> Result<(Setup, Vec<SubProblem>)> {
     Ok((setup, subs))
 }
 
+/// Runs `work` with the threads of every rank of this node, `node_ranks` of them each
+/// with this rank's thread count, while the others wait asleep: as many as the cores
+/// this rank may run on allow (its CPU set, all of the node's cores under
+/// `--bind-to none`, one under `--bind-to core`). Only where that is more than its own
+/// threads; otherwise, or should the pool not start, on its own threads.
+fn on_idle_cores<T: Send>(node_ranks: usize, work: impl FnOnce() -> T + Send) -> T {
+    let own = rayon::current_num_threads();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = idle_core_threads(own, node_ranks, cores);
+    if threads <= own {
+        return work();
+    }
+    match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
+        Ok(pool) => pool.install(work),
+        Err(_) => work(),
+    }
+}
+
+/// Threads for the first rank's work alone: its own `own` times the `node_ranks` ranks
+/// of its node, within the `cores` it may run on, and never fewer than its own.
+fn idle_core_threads(own: usize, node_ranks: usize, cores: usize) -> usize {
+    own.saturating_mul(node_ranks).min(cores).max(own)
+}
+
 /// The first rank sends every rank its subproblem; every rank returns its own.
 fn distribute(
     mpi: &Mpi,
@@ -455,10 +479,15 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         )));
     }
 
-    // 1. First rank: read and validate the case and the mesh, partition, split.
+    // 1. First rank: read and validate the case and the mesh, partition, split. The
+    // other ranks sleep meanwhile, so that the cores of those on its node are its to use.
     let prepared = if mpi.is_root() {
-        Some(prepare(opts, mpi.size))
+        let nparts = mpi.size;
+        let prepared = on_idle_cores(mpi.node_ranks, || prepare(opts, nparts));
+        mpi.barrier_sleeping();
+        Some(prepared)
     } else {
+        mpi.barrier_sleeping();
         None
     };
     let prepared = mpi.agree(prepared.transpose())?;
@@ -1196,4 +1225,24 @@ fn write_outputs(
         .map_err(|e| Error::Output(format!("cannot format summary.json: {e}")))?;
     output::write_atomic(&dir.join("summary.json"), json.as_bytes())?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::idle_core_threads;
+
+    #[test]
+    fn the_first_rank_borrows_only_the_cores_of_its_node_it_may_run_on() {
+        // Two ranks of one thread, unbound on two cores: both cores.
+        assert_eq!(idle_core_threads(1, 2, 2), 2);
+        // One rank told to use one thread: no other rank's cores to borrow.
+        assert_eq!(idle_core_threads(1, 1, 2), 1);
+        // Bound to one core (Open MPI's default for two ranks): that core.
+        assert_eq!(idle_core_threads(1, 2, 1), 1);
+        // More threads than cores asked for: never fewer than its own.
+        assert_eq!(idle_core_threads(4, 2, 2), 4);
+        // A cluster node of 64 cores with 16 ranks of 4 threads.
+        assert_eq!(idle_core_threads(4, 16, 64), 64);
+        assert_eq!(idle_core_threads(1, 32, 64), 32);
+    }
 }

@@ -72,7 +72,8 @@ struct Cli {
     /// Print a monitor line every K sweeps.
     #[arg(long, default_value_t = 10)]
     monitor_every: usize,
-    /// Threads per rank (assembly, factorization, sweep); default: cores / ranks.
+    /// Threads per rank (assembly, factorization, sweep); default: the cores this rank
+    /// may run on / the ranks on its node.
     #[arg(long)]
     threads: Option<usize>,
     /// Linear solve in the loop: condensed (default) or full (one rank only, for
@@ -166,10 +167,12 @@ fn run() -> i32 {
         }
         return 0;
     }
+    let mpi = Mpi::new(world);
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    // Per node, not per job: on a cluster the ranks of other nodes use other cores.
     let threads = cli
         .threads
-        .unwrap_or_else(|| (cores / world.size() as usize).max(1))
+        .unwrap_or_else(|| (cores / mpi.node_ranks).max(1))
         .max(1);
     let _ = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -200,7 +203,6 @@ fn run() -> i32 {
     let print = Printer {
         enabled: rank == 0 && !opts.quiet,
     };
-    let mpi = Mpi::new(world);
     match app::run(&opts, &mpi, &print) {
         Ok(report) if report.converged => 0,
         Ok(_) => 3,

@@ -5,6 +5,7 @@
 
 use crate::PartitionError;
 use metis::Idx;
+use rayon::prelude::*;
 use std::ops::Range;
 
 /// A graph in METIS' CSR form with optional vertex and edge weights (absent: all 1).
@@ -85,42 +86,59 @@ impl Stars {
 /// The triangles across edge `(a, b)` are the other triangles of the star of `a` that
 /// contain `b`: about six candidates, all numbered close to the triangle itself in any
 /// mesh numbering with locality. Rows come out in triangle order, so the CSR arrays are
-/// filled in one pass, with no edge list to sort.
+/// filled with no edge list to sort: each block of triangles builds its rows on its own
+/// thread, and the blocks are joined in order.
 pub(crate) fn dual_from_stars(
     triangles: &[[usize; 3]],
     stars: &Stars,
 ) -> Result<Graph, PartitionError> {
+    const BLOCK: usize = 1 << 15;
     let ne = triangles.len();
+    to_idx(ne)?;
+    let blocks: Vec<(Vec<Idx>, Vec<Idx>)> = triangles
+        .par_chunks(BLOCK)
+        .enumerate()
+        .map(|(blk, block)| {
+            let mut row_len = Vec::with_capacity(block.len());
+            // Exact for a manifold mesh (at most three neighbours per triangle).
+            let mut adjncy: Vec<Idx> = Vec::with_capacity(3 * block.len());
+            for (k, t) in block.iter().enumerate() {
+                let row_start = adjncy.len();
+                let e = (blk * BLOCK + k) as Idx;
+                for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                    for &f in stars.of(a) {
+                        let tf = &triangles[f as usize];
+                        if f != e && (tf[0] == b || tf[1] == b || tf[2] == b) {
+                            adjncy.push(f);
+                        }
+                    }
+                }
+                // Two triangles with the same three nodes meet once per common edge, and
+                // METIS rejects multi-edges.
+                let row = &mut adjncy[row_start..];
+                row.sort_unstable();
+                let mut kept = row.len().min(1);
+                for i in 1..row.len() {
+                    if row[i] != row[kept - 1] {
+                        row[kept] = row[i];
+                        kept += 1;
+                    }
+                }
+                adjncy.truncate(row_start + kept);
+                row_len.push(kept as Idx);
+            }
+            (row_len, adjncy)
+        })
+        .collect();
+    to_idx(blocks.iter().map(|b| b.1.len()).sum())?;
     let mut xadj = Vec::with_capacity(ne + 1);
     xadj.push(0 as Idx);
-    // Exact for a manifold mesh (at most three neighbours per triangle).
-    let mut adjncy: Vec<Idx> = Vec::with_capacity(3 * ne);
-    for (e, t) in triangles.iter().enumerate() {
-        let row_start = adjncy.len();
-        let e = e as Idx;
-        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            for &f in stars.of(a) {
-                let tf = &triangles[f as usize];
-                if f != e && (tf[0] == b || tf[1] == b || tf[2] == b) {
-                    adjncy.push(f);
-                }
-            }
+    let mut adjncy = Vec::with_capacity(blocks.iter().map(|b| b.1.len()).sum());
+    for (row_len, block) in blocks {
+        for len in row_len {
+            xadj.push(xadj[xadj.len() - 1] + len);
         }
-        // Two triangles with the same three nodes meet once per common edge, and
-        // METIS rejects multi-edges.
-        let row = &mut adjncy[row_start..];
-        if row.len() > 1 {
-            row.sort_unstable();
-            let mut k = 1;
-            for i in 1..row.len() {
-                if row[i] != row[k - 1] {
-                    row[k] = row[i];
-                    k += 1;
-                }
-            }
-            adjncy.truncate(row_start + k);
-        }
-        xadj.push(to_idx(adjncy.len())?);
+        adjncy.extend_from_slice(&block);
     }
     Ok(Graph {
         xadj,

@@ -251,6 +251,35 @@ fn deterministic_across_threads() {
 }
 
 #[test]
+fn same_graph_and_parts_on_any_number_of_threads() {
+    // The dual graph is built in blocks of triangles on rayon's threads: 234 000
+    // triangles make several blocks, and past 200 000 the coarsening runs as well.
+    let (nx, ny) = (450, 260);
+    let mesh = rectangle(nx, ny);
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                (
+                    dual_graph(mesh.0, &mesh.1).unwrap(),
+                    partition_mesh(mesh.0, &mesh.1, &mesh.2, 3).unwrap(),
+                )
+            })
+    };
+    let (graph, parts) = on(1);
+    assert_eq!(graph.num_vertices(), mesh.1.len());
+    assert_eq!(graph.num_edges(), nx * ny + (nx - 1) * ny + nx * (ny - 1));
+    for threads in [2, 4] {
+        let (g, p) = on(threads);
+        assert_eq!(g, graph, "dual graph on {threads} threads");
+        assert_eq!(p, parts, "partition on {threads} threads");
+    }
+    check_dual_graph_symmetric(mesh.0, &mesh.1);
+}
+
+#[test]
 fn errors_are_reported() {
     let (n, tris, contact) = rectangle(2, 1);
     assert_eq!(

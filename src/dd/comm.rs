@@ -13,6 +13,8 @@ pub struct Mpi {
     pub world: SimpleCommunicator,
     pub rank: usize,
     pub size: usize,
+    /// Ranks on this rank's node (those that share its memory), itself included.
+    pub node_ranks: usize,
 }
 
 impl Reduce for Mpi {
@@ -30,7 +32,22 @@ impl Mpi {
     pub fn new(world: SimpleCommunicator) -> Self {
         let rank = world.rank() as usize;
         let size = world.size() as usize;
-        Mpi { world, rank, size }
+        let node_ranks = Self::ranks_on_node(&world);
+        Mpi {
+            world,
+            rank,
+            size,
+            node_ranks,
+        }
+    }
+
+    /// The number of ranks that share this rank's node (MPI_Comm_split_type, shared
+    /// memory), itself included. Collective.
+    fn ranks_on_node(world: &SimpleCommunicator) -> usize {
+        if world.size() == 1 {
+            return 1;
+        }
+        world.split_shared(0).size().max(1) as usize
     }
 
     pub fn is_root(&self) -> bool {

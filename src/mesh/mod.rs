@@ -20,6 +20,12 @@ pub struct Mesh {
     pub point_groups: BTreeMap<String, Vec<usize>>,
 }
 
+/// Twice the signed area of the triangle on `nodes` (positive when counter-clockwise).
+pub fn signed_area2(nodes: &[[f64; 2]], [a, b, c]: [usize; 3]) -> f64 {
+    let (pa, pb, pc) = (nodes[a], nodes[b], nodes[c]);
+    (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pc[0] - pa[0]) * (pb[1] - pa[1])
+}
+
 impl Mesh {
     pub fn num_nodes(&self) -> usize {
         self.nodes.len()
@@ -27,9 +33,7 @@ impl Mesh {
 
     /// Twice the signed area of triangle `t` (positive when counter-clockwise).
     pub fn signed_area2(&self, t: usize) -> f64 {
-        let [a, b, c] = self.triangles[t];
-        let (pa, pb, pc) = (self.nodes[a], self.nodes[b], self.nodes[c]);
-        (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pc[0] - pa[0]) * (pb[1] - pa[1])
+        signed_area2(&self.nodes, self.triangles[t])
     }
 
     /// The nodes of a group (line or point group), sorted and without repeats.

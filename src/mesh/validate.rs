@@ -7,7 +7,8 @@
 //! also give coordinates.
 
 use crate::error::{input, Result};
-use crate::mesh::Mesh;
+use crate::mesh::{signed_area2, Mesh};
+use rayon::prelude::*;
 use std::collections::HashSet;
 
 /// Two nodes within this fraction of the mesh size (in x and in y) are one point.
@@ -124,12 +125,14 @@ fn duplicate_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
     // one, within tol in y. Sorting keeps this O(n log n) for any mesh, even one whose
     // nodes share a few x values (structured meshes).
     let width = tol.max(f64::MIN_POSITIVE);
+    // Ties (one column, one y) may come in any order: the pairs found and the first one
+    // reported do not depend on it.
     let mut order: Vec<(i64, f64, usize)> = nodes
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(i, p)| (((p[0] - lo[0]) / width).floor() as i64, p[1], i))
         .collect();
-    order.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    order.par_sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
     let close = |i: usize, j: usize| {
         (nodes[i][0] - nodes[j][0]).abs() <= tol && (nodes[i][1] - nodes[j][1]).abs() <= tol
     };
@@ -218,37 +221,54 @@ fn unused_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
 /// for a 2D body. Whether the flipped triangles fit their neighbours is [`edges`]' job.
 pub fn orient(mesh: &mut Mesh, name: &str) -> Result<Vec<bool>> {
     let size = size(mesh);
-    let mut listed_cw = vec![false; mesh.triangles.len()];
-    for t in 0..mesh.triangles.len() {
-        let a2 = mesh.signed_area2(t);
-        let [i, j, k] = mesh.triangles[t];
+    let nodes = &mesh.nodes;
+    // Whether a triangle is listed clockwise; None for a degenerate one.
+    let clockwise = |&[i, j, k]: &[usize; 3]| {
+        let a2 = signed_area2(nodes, [i, j, k]);
         // Squared lengths: hypot took a third of this check on millions of triangles.
         // The doubled area is a product of coordinate differences as well, so the squares
         // overflow or underflow no sooner than it does.
         let length2 = |a: usize, b: usize| {
-            let (p, q) = (mesh.nodes[a], mesh.nodes[b]);
+            let (p, q) = (nodes[a], nodes[b]);
             (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
         };
         let longest2 = length2(i, j).max(length2(j, k)).max(length2(k, i));
         // Relative to the element's own size (and the mesh's, for zero-length edges).
-        if a2.abs() <= 1e-12 * longest2 || longest2 <= (1e-14 * size).powi(2) {
-            let p = mesh.nodes[i];
-            return input(format!(
-                "{name}: triangle {} (nodes {}, {}, {}, near ({}, {})) is degenerate (zero area); fix the mesh",
-                t + 1,
-                i + 1,
-                j + 1,
-                k + 1,
-                p[0],
-                p[1]
-            ));
-        }
-        if a2 < 0.0 {
-            mesh.triangles[t].swap(1, 2);
-            listed_cw[t] = true;
-        }
+        let degenerate = a2.abs() <= 1e-12 * longest2 || longest2 <= (1e-14 * size).powi(2);
+        (!degenerate).then_some(a2 < 0.0)
+    };
+    let listed_cw: Option<Vec<bool>> = mesh
+        .triangles
+        .par_iter_mut()
+        .map(|t| {
+            let cw = clockwise(t)?;
+            if cw {
+                t.swap(1, 2);
+            }
+            Some(cw)
+        })
+        .collect();
+    if let Some(listed_cw) = listed_cw {
+        return Ok(listed_cw);
     }
-    Ok(listed_cw)
+    // The threads stop at a degenerate triangle, not necessarily the first: the message
+    // names the first in file order (never turned round, being degenerate).
+    let t = mesh
+        .triangles
+        .iter()
+        .position(|t| clockwise(t).is_none())
+        .unwrap_or(0);
+    let [i, j, k] = mesh.triangles[t];
+    let p = nodes[i];
+    input(format!(
+        "{name}: triangle {} (nodes {}, {}, {}, near ({}, {})) is degenerate (zero area); fix the mesh",
+        t + 1,
+        i + 1,
+        j + 1,
+        k + 1,
+        p[0],
+        p[1]
+    ))
 }
 
 /// After [`orient`]: rejects a mesh that folds over itself (inverted triangles) and
@@ -294,59 +314,96 @@ fn edges(mesh: &Mesh, listed_cw: &[bool], name: &str) -> Result<HashSet<(usize, 
         }
     }
     let cw_majority = 2 * listed_cw.iter().filter(|&&c| c).count() > nt;
-    let mut boundary = HashSet::new();
-    for low in 0..n {
-        let row = &mut entries[start[low] as usize..start[low + 1] as usize];
-        row.sort_unstable();
-        for run in row.chunk_by(|x, y| x.0 == y.0) {
-            let high = run[0].0 as usize;
-            match run {
-                [_] => {
-                    boundary.insert((low, high));
-                }
-                [x, y] if (x.1 ^ y.1) & 1 == 1 => {}
-                _ => {
-                    // Two triangles that run this edge the same way (there are two among
-                    // three or more, whatever their directions).
-                    let (x, y) = run
-                        .iter()
-                        .enumerate()
-                        .find_map(|(k, x)| {
-                            run[k + 1..]
+    // The rows in runs of consecutive nodes, each run sorted and scanned on its own
+    // thread; the runs are taken in node order again, so the first fold reported is the
+    // one a scan in order would meet first.
+    let run_nodes = n.div_ceil(8 * rayon::current_num_threads()).max(1 << 14);
+    let mut runs = Vec::new();
+    let mut rest = &mut entries[..];
+    for first in (0..n).step_by(run_nodes) {
+        let last = (first + run_nodes).min(n);
+        let (rows, tail) = rest.split_at_mut((start[last] - start[first]) as usize);
+        runs.push((first..last, rows));
+        rest = tail;
+    }
+    let scanned: Vec<std::result::Result<Vec<(usize, usize)>, Fold>> = runs
+        .into_par_iter()
+        .map(|(nodes, rows)| {
+            let base = start[nodes.start] as usize;
+            let mut found = Vec::new();
+            for low in nodes {
+                let row = &mut rows[start[low] as usize - base..start[low + 1] as usize - base];
+                row.sort_unstable();
+                for run in row.chunk_by(|x, y| x.0 == y.0) {
+                    let high = run[0].0 as usize;
+                    match run {
+                        [_] => found.push((low, high)),
+                        [x, y] if (x.1 ^ y.1) & 1 == 1 => {}
+                        _ => {
+                            // Two triangles that run this edge the same way (there are
+                            // two among three or more, whatever their directions).
+                            let (x, y) = run
                                 .iter()
-                                .find(|y| (x.1 ^ y.1) & 1 == 0)
-                                .map(|y| (x.1 >> 1, y.1 >> 1))
-                        })
-                        .unwrap_or((run[0].1 >> 1, run[1].1 >> 1));
-                    let (x, y) = (x as usize, y as usize);
-                    let against = |t: usize| listed_cw[t] != cw_majority;
-                    let (bad, other) = match (against(x), against(y)) {
-                        (true, false) => (x, y),
-                        (false, true) => (y, x),
-                        _ => (x.max(y), x.min(y)),
-                    };
-                    let [i, j, k] = mesh.triangles[bad];
-                    let (p, q) = (mesh.nodes[low], mesh.nodes[high]);
-                    let c = centroid(mesh, bad);
-                    return input(format!(
-                        "{name}: triangle {} (nodes {}, {}, {}, near ({}, {})) is inverted: it lies on the same side of its edge ({}, {}) - ({}, {}) as triangle {}, so the mesh folds over itself; move the misplaced nodes back or re-mesh",
-                        bad + 1,
-                        i + 1,
-                        j + 1,
-                        k + 1,
-                        c[0],
-                        c[1],
-                        p[0],
-                        p[1],
-                        q[0],
-                        q[1],
-                        other + 1
-                    ));
+                                .enumerate()
+                                .find_map(|(k, x)| {
+                                    run[k + 1..]
+                                        .iter()
+                                        .find(|y| (x.1 ^ y.1) & 1 == 0)
+                                        .map(|y| (x.1 >> 1, y.1 >> 1))
+                                })
+                                .unwrap_or((run[0].1 >> 1, run[1].1 >> 1));
+                            return Err(Fold {
+                                edge: (low, high),
+                                triangles: (x as usize, y as usize),
+                            });
+                        }
+                    }
                 }
+            }
+            Ok(found)
+        })
+        .collect();
+    let mut boundary = HashSet::new();
+    for scan in scanned {
+        match scan {
+            Ok(found) => boundary.extend(found),
+            Err(Fold {
+                edge: (low, high),
+                triangles: (x, y),
+            }) => {
+                let against = |t: usize| listed_cw[t] != cw_majority;
+                let (bad, other) = match (against(x), against(y)) {
+                    (true, false) => (x, y),
+                    (false, true) => (y, x),
+                    _ => (x.max(y), x.min(y)),
+                };
+                let [i, j, k] = mesh.triangles[bad];
+                let (p, q) = (mesh.nodes[low], mesh.nodes[high]);
+                let c = centroid(mesh, bad);
+                return input(format!(
+                    "{name}: triangle {} (nodes {}, {}, {}, near ({}, {})) is inverted: it lies on the same side of its edge ({}, {}) - ({}, {}) as triangle {}, so the mesh folds over itself; move the misplaced nodes back or re-mesh",
+                    bad + 1,
+                    i + 1,
+                    j + 1,
+                    k + 1,
+                    c[0],
+                    c[1],
+                    p[0],
+                    p[1],
+                    q[0],
+                    q[1],
+                    other + 1
+                ));
             }
         }
     }
     Ok(boundary)
+}
+
+/// An edge run the same way by two triangles (see [`edges`]).
+struct Fold {
+    edge: (usize, usize),
+    triangles: (usize, usize),
 }
 
 fn centroid(mesh: &Mesh, t: usize) -> [f64; 2] {
@@ -612,6 +669,58 @@ mod tests {
         mesh.nodes[4] = [0.75, 0.25];
         let msg = error(mesh);
         assert!(msg.contains("degenerate"), "{msg}");
+    }
+
+    /// `f` on a pool of `threads` threads.
+    fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(f)
+    }
+
+    #[test]
+    fn on_several_threads_the_first_bad_triangle_is_named() {
+        // 103 201 nodes, 204 800 triangles: the rows of the edge scan fall in several runs
+        // and the triangles in several blocks; a fault is planted early and late in both
+        // orders, and the message must name the one a scan in file order meets first.
+        let block = builtin::block_for_level(40.0, 10.0, 4);
+        let nt = block.triangles.len();
+        for threads in [1, 4] {
+            let mut mesh = block.clone();
+            let boundary = on_threads(threads, || check(&mut mesh, "m.msh")).unwrap();
+            assert_eq!(mesh.triangles, {
+                let mut serial = block.clone();
+                check(&mut serial, "m.msh").unwrap();
+                serial.triangles
+            });
+            assert!(!boundary.is_empty());
+
+            // Degenerate (a corner repeated): triangles 7 and nt - 3 (1-based).
+            let mut mesh = block.clone();
+            for t in [nt - 4, 6] {
+                let [a, b, _] = mesh.triangles[t];
+                mesh.triangles[t] = [a, b, a];
+            }
+            let msg = on_threads(threads, || error(mesh));
+            assert!(
+                msg.contains("triangle 7 ") && msg.contains("degenerate"),
+                "{msg}"
+            );
+
+            // Folds: the last triangle listed again, then the first one. The scan goes by
+            // node, so the fold at the first triangle's edges comes first.
+            let mut mesh = block.clone();
+            mesh.triangles.push(block.triangles[nt - 1]);
+            mesh.triangles.push(block.triangles[0]);
+            let msg = on_threads(threads, || error(mesh));
+            assert!(
+                msg.contains(&format!("triangle {} ", nt + 2))
+                    && msg.contains("as triangle 1, so the mesh folds"),
+                "{threads} threads: {msg}"
+            );
+        }
     }
 
     #[test]
