@@ -481,15 +481,11 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
 
     // 1. First rank: read and validate the case and the mesh, partition, split. The
     // other ranks sleep meanwhile, so that the cores of those on its node are its to use.
-    let prepared = if mpi.is_root() {
-        let nparts = mpi.size;
-        let prepared = on_idle_cores(mpi.node_ranks, || prepare(opts, nparts));
-        mpi.barrier_sleeping();
-        Some(prepared)
-    } else {
-        mpi.barrier_sleeping();
-        None
-    };
+    let nparts = mpi.size;
+    let prepared = mpi
+        .is_root()
+        .then(|| on_idle_cores(mpi.node_ranks, || prepare(opts, nparts)));
+    mpi.barrier_sleeping();
     let prepared = mpi.agree(prepared.transpose())?;
     let t_scatter = Instant::now();
     let (setup, sub) = distribute(mpi, prepared)?;

@@ -130,10 +130,11 @@ pub(crate) fn dual_from_stars(
             (row_len, adjncy)
         })
         .collect();
-    to_idx(blocks.iter().map(|b| b.1.len()).sum())?;
+    let total = blocks.iter().map(|b| b.1.len()).sum();
+    to_idx(total)?;
     let mut xadj = Vec::with_capacity(ne + 1);
     xadj.push(0 as Idx);
-    let mut adjncy = Vec::with_capacity(blocks.iter().map(|b| b.1.len()).sum());
+    let mut adjncy = Vec::with_capacity(total);
     for (row_len, block) in blocks {
         for len in row_len {
             xadj.push(xadj[xadj.len() - 1] + len);
