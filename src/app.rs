@@ -43,6 +43,8 @@ pub struct Options {
     pub restart: bool,
     /// Fill-reducing ordering of the subdomain interiors.
     pub ordering: Ordering,
+    /// Subdomains per rank, each on its own thread; `None`: [`subdomains_per_rank`].
+    pub subdomains_per_rank: Option<usize>,
 }
 
 /// Prints on the first rank only, and not at all with --quiet.
@@ -179,13 +181,17 @@ struct Setup {
     contact_nodes: usize,
     partition: String,
     ordering: Ordering,
+    /// Subdomains per rank.
+    per_rank: usize,
     read_s: f64,
     partition_s: f64,
 }
 
-/// Per-rank figures, gathered for summary.json.
+/// Per-subdomain figures, gathered for summary.json.
 #[derive(Serialize, serde::Deserialize, Clone, Default)]
 pub struct RankStats {
+    subdomain: usize,
+    /// The MPI rank that ran it.
     rank: usize,
     elements: usize,
     nodes: usize,
@@ -223,18 +229,26 @@ pub enum LinearMode {
     Full,
 }
 
-fn prepare(opts: &Options, nparts: usize) -> Result<(Setup, Vec<SubProblem>)> {
+fn prepare(opts: &Options, ranks: usize) -> Result<(Setup, Vec<SubProblem>)> {
     let t0 = Instant::now();
     let case = load_case(opts)?;
     let (mesh, mesh_name) = load_mesh(&case)?;
     let prob = problem::build(&case, mesh, &mesh_name)?;
     let read_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    if nparts > prob.mesh.triangles.len() {
-        return Err(Error::Input(format!(
-            "{mesh_name}: {nparts} ranks for {} triangles; use at most as many ranks as triangles (better: thousands of triangles per rank)",
-            prob.mesh.triangles.len()
-        )));
+    let triangles = prob.mesh.triangles.len();
+    let per_rank = match opts.subdomains_per_rank {
+        Some(k) => k.max(1),
+        None if opts.linear == LinearMode::Full => 1,
+        None => subdomains_per_rank(rayon::current_num_threads(), ranks, triangles),
+    };
+    let nparts = ranks * per_rank;
+    if nparts > triangles {
+        return Err(Error::Input(if per_rank == 1 {
+            format!("{mesh_name}: {ranks} ranks for {triangles} triangles; use at most as many ranks as triangles (better: thousands of triangles per rank)")
+        } else {
+            format!("{mesh_name}: {nparts} subdomains ({ranks} rank(s) x --subdomains-per-rank {per_rank}) for {triangles} triangles; use at most as many subdomains as triangles (better: thousands of triangles each): fewer ranks or subdomains per rank")
+        }));
     }
     let part = partition::partition_mesh(
         prob.mesh.num_nodes(),
@@ -261,6 +275,7 @@ fn prepare(opts: &Options, nparts: usize) -> Result<(Setup, Vec<SubProblem>)> {
         contact_nodes: prob.contact_nodes.len(),
         partition: part.quality.to_string(),
         ordering: opts.ordering,
+        per_rank,
         read_s,
         partition_s,
         case,
@@ -286,34 +301,44 @@ fn on_idle_cores<T: Send>(node_ranks: usize, work: impl FnOnce() -> T + Send) ->
     }
 }
 
+/// Triangles per subdomain from which [`subdomains_per_rank`] gives a thread a
+/// subdomain of its own (see there).
+pub const MIN_TRIANGLES_PER_SUBDOMAIN: usize = 5_000;
+
+/// Subdomains of the whole job beyond which [`subdomains_per_rank`] splits no rank
+/// further (see there).
+pub const MAX_DEFAULT_SUBDOMAINS: usize = 8;
+
+/// Subdomains per rank by default: one per thread of the rank, as long as each keeps
+/// [`MIN_TRIANGLES_PER_SUBDOMAIN`] triangles and the job [`MAX_DEFAULT_SUBDOMAINS`]
+/// subdomains; at least one.
+///
+/// Why split: a sparse Cholesky factorization spreads over threads only inside its
+/// fronts (faer: 1 rank x 2 threads factored hertz level 5 1.14 times faster than one
+/// thread), whereas k subdomains factor on k threads at once, each a piece whose factor
+/// costs less than 1/k of the whole (O(n^1.5) flops in 2D). Measured with 2 threads,
+/// one rank, 2 subdomains against 1 (whole runs, medians of 9): 0.99 at 1600 and 1200
+/// triangles per subdomain, 0.98 at 4700, 0.91 at 6400, 0.82 at 18700, 0.77 at 25600,
+/// 0.84 at 1.2M; below the threshold the partition and the interface cost what the
+/// threads save.
+///
+/// Why stop at a few subdomains: the interface system is dense and solved by the first
+/// rank (`dd`). In 2D its size grows as sqrt(nodes x subdomains), so its n_G^3 / 3 flops
+/// grow as P^1.5 times those of the whole mesh while each subdomain's factor shrinks as
+/// P^-1.5: their ratio grows as P^3, about 1.7e-3 P^3 from the hertz level 5 factors
+/// (one subdomain's factor at P = 8). With many ranks each rank keeps one subdomain, as
+/// before; more can still be asked for with `--subdomains-per-rank`.
+pub fn subdomains_per_rank(threads: usize, ranks: usize, triangles: usize) -> usize {
+    let ranks = ranks.max(1);
+    let by_size = triangles / (ranks * MIN_TRIANGLES_PER_SUBDOMAIN);
+    let by_interface = MAX_DEFAULT_SUBDOMAINS / ranks;
+    threads.min(by_size).min(by_interface).max(1)
+}
+
 /// Threads for the first rank's work alone: its own `own` times the `node_ranks` ranks
 /// of its node, within the `cores` it may run on, and never fewer than its own.
 fn idle_core_threads(own: usize, node_ranks: usize, cores: usize) -> usize {
     own.saturating_mul(node_ranks).min(cores).max(own)
-}
-
-/// The first rank sends every rank its subproblem; every rank returns its own.
-fn distribute(
-    mpi: &Mpi,
-    prepared: Option<(Setup, Vec<SubProblem>)>,
-) -> Result<(Setup, SubProblem)> {
-    let (setup, subs) = match prepared {
-        Some((s, subs)) => (Some(s), Some(subs)),
-        None => (None, None),
-    };
-    let setup = mpi.broadcast(setup)?;
-    let mine = match subs {
-        Some(subs) => {
-            let mut it = subs.into_iter();
-            let own = it.next().unwrap_or_default();
-            for (r, sub) in it.enumerate() {
-                mpi.send_bytes(r + 1, &encode(&sub)?);
-            }
-            own
-        }
-        None => decode(&mpi.recv_bytes(0))?,
-    };
-    Ok((setup, mine))
 }
 
 /// This rank's factored subdomain and its condensed contribution.
@@ -470,29 +495,85 @@ impl LinearStep for CondensedStep<'_> {
     }
 }
 
-/// The whole run, on any number of ranks.
-pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
+/// The whole run, on any number of ranks, each running its subdomains on threads of
+/// its own (`mpi` is this rank's; on return every thread of the rank has ended).
+pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     let t_start = Instant::now();
-    if opts.linear == LinearMode::Full && mpi.size > 1 {
+    if opts.linear == LinearMode::Full
+        && (mpi.size > 1 || opts.subdomains_per_rank.is_some_and(|k| k > 1))
+    {
         return mpi.agree(Err(Error::Input(
-            "--linear full runs on one rank only; use the default (condensed) with mpirun".into(),
+            "--linear full runs on one rank and one subdomain only; use the default (condensed) with mpirun or --subdomains-per-rank"
+                .into(),
         )));
     }
 
     // 1. First rank: read and validate the case and the mesh, partition, split. The
     // other ranks sleep meanwhile, so that the cores of those on its node are its to use.
-    let nparts = mpi.size;
     let prepared = mpi
         .is_root()
-        .then(|| on_idle_cores(mpi.node_ranks, || prepare(opts, nparts)));
+        .then(|| on_idle_cores(mpi.node_ranks, || prepare(opts, mpi.size)));
     mpi.barrier_sleeping();
     let prepared = mpi.agree(prepared.transpose())?;
     let t_scatter = Instant::now();
-    let (setup, sub) = distribute(mpi, prepared)?;
+    let (setup, subs) = match prepared {
+        Some((setup, subs)) => (Some(setup), Some(subs)),
+        None => (None, None),
+    };
+    let setup = mpi.broadcast(setup)?;
+
+    // 2. Every subdomain of this rank on a thread of its own, this one included.
+    let threads = rayon::current_num_threads();
+    faer::set_global_parallelism(match threads / setup.per_rank {
+        0 | 1 => faer::Par::Seq,
+        t => faer::Par::rayon(t),
+    });
+    let (leader, members) = mpi.into_team(setup.per_rank);
+    let setup = &setup;
+    std::thread::scope(|scope| {
+        for (i, m) in members.into_iter().enumerate() {
+            let name = format!("subdomain {}", leader.rank + i + 1);
+            let work = move || {
+                let mpi = Mpi::member(m);
+                let quiet = Printer { enabled: false };
+                if let Err(e) = run_subdomain(opts, &mpi, setup, None, t_start, t_scatter, &quiet) {
+                    // The first subdomain to fail holds the message (see Mpi::agree).
+                    if !matches!(e, Error::Silent(_)) {
+                        eprintln!("contact-par: error: {e}");
+                    }
+                }
+            };
+            // A rank that cannot start its threads cannot run: the panic ends the job
+            // (main's hook) rather than leaving the other subdomains waiting.
+            std::thread::Builder::new()
+                .name(name)
+                .stack_size(SUBDOMAIN_STACK_BYTES)
+                .spawn_scoped(scope, work)
+                .expect("cannot start a subdomain thread");
+        }
+        run_subdomain(opts, &leader, setup, subs, t_start, t_scatter, print)
+    })
+}
+
+/// Stack of a subdomain thread: the main thread's usual 8 MiB.
+const SUBDOMAIN_STACK_BYTES: usize = 8 << 20;
+
+/// One subdomain's run, from its subproblem to its outputs (collective over all).
+fn run_subdomain(
+    opts: &Options,
+    mpi: &Mpi,
+    setup: &Setup,
+    subs: Option<Vec<SubProblem>>,
+    t_start: Instant,
+    t_scatter: Instant,
+    print: &Printer,
+) -> Result<RunReport> {
+    let sub = mpi.agree(mpi.scatter_parts(subs))?;
     let scatter_s = t_scatter.elapsed().as_secs_f64();
+    let sub = &sub;
     let case = &setup.case;
     print.line(format!(
-        "contact-par: {} | {} nodes, {} triangles, {} contact nodes | friction {} | r = {:e}, tol = {:e} | {} rank(s) x {} thread(s)",
+        "contact-par: {} | {} nodes, {} triangles, {} contact nodes | friction {} | r = {:e}, tol = {:e} | {} rank(s) x {} thread(s){}",
         if case.title.is_empty() { &case.origin } else { &case.title },
         setup.nodes,
         setup.elements,
@@ -500,8 +581,13 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         friction_name(&case.contact.friction),
         setup.r,
         case.solver.tol,
-        mpi.size,
-        rayon::current_num_threads()
+        mpi.mpi_size,
+        rayon::current_num_threads(),
+        if setup.per_rank > 1 {
+            format!(" | {} subdomains per rank, one thread each", setup.per_rank)
+        } else {
+            String::new()
+        }
     ));
     if mpi.size > 1 {
         print.line(format!("partition: {}", setup.partition));
@@ -543,8 +629,8 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         ranks: mpi.size,
     };
     let (mut outcome, u_local, phases) = match opts.linear {
-        LinearMode::Condensed => solve_condensed(mpi, &setup, &sub, &params, &mut monitor, &ckpt)?,
-        LinearMode::Full => solve_full(mpi, &setup, &sub, &params, &mut monitor, &ckpt)?,
+        LinearMode::Condensed => solve_condensed(mpi, setup, sub, &params, &mut monitor, &ckpt)?,
+        LinearMode::Full => solve_full(mpi, setup, sub, &params, &mut monitor, &ckpt)?,
     };
     // Report u_n and u_t of the recovered field (frictionless sweeps do not compute u_t).
     for (k, &node) in sub.contact_nodes.iter().enumerate() {
@@ -561,7 +647,8 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
     // 5. Outputs: each rank its piece, the first rank the gathered files.
     let t_out = Instant::now();
     let stats = RankStats {
-        rank: mpi.rank,
+        subdomain: mpi.rank,
+        rank: mpi.mpi_rank,
         elements: sub.triangles.len(),
         nodes: sub.nodes.len(),
         interface_nodes: sub.interface_nodes,
@@ -593,7 +680,7 @@ pub fn run(opts: &Options, mpi: &Mpi, print: &Printer) -> Result<RunReport> {
         total: 0.0,
     };
     let result = write_outputs(
-        opts, mpi, &setup, &sub, &u_local, &outcome, stats, times, t_out, t_start,
+        opts, mpi, setup, sub, &u_local, &outcome, stats, times, t_out, t_start,
     );
     mpi.agree(result)?;
 
@@ -671,32 +758,31 @@ fn build_interface(
     s_local: Mat<f64>,
     n_interface: usize,
 ) -> Result<Option<InterfaceSystem>> {
-    let interface = if mpi.is_root() {
-        let mut pieces = vec![(sub.interface_global.clone(), s_local)];
-        for r in 1..mpi.size {
-            let (index, flat): (Vec<usize>, Vec<f64>) = decode(&mpi.recv_bytes(r))?;
-            let n = index.len();
-            pieces.push((index, Mat::<f64>::from_fn(n, n, |i, j| flat[i + n * j])));
+    let n = s_local.nrows();
+    let flat: Vec<f64> = (0..n * n).map(|k| s_local[(k % n, k / n)]).collect();
+    drop(s_local);
+    let gathered = mpi.gather_parts((sub.interface_global.clone(), flat));
+    let interface = match gathered {
+        Ok(Some(parts)) => {
+            let pieces = parts.into_iter().map(|(index, flat)| {
+                let n = index.len();
+                (index, Mat::<f64>::from_fn(n, n, |i, j| flat[i + n * j]))
+            });
+            // The other subdomains sleep meanwhile (below): the factorization may use
+            // every core this rank can run on, not only its own threads, once it is
+            // worth a thread pool (n^3 / 3 flops: 0.36 Gflop, tens of milliseconds, at
+            // n = 1024).
+            let threads = if n_interface >= 1024 {
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            } else {
+                1
+            };
+            Some(InterfaceSystem::new(n_interface, pieces, threads))
         }
-        // The other ranks sleep meanwhile (below): the factorization may use every core
-        // this rank can run on, not only its own threads, once it is worth a thread pool
-        // (n^3 / 3 flops: 0.36 Gflop, tens of milliseconds, at n = 1024).
-        let threads = if n_interface >= 1024 {
-            std::thread::available_parallelism().map_or(1, |n| n.get())
-        } else {
-            1
-        };
-        let factored = InterfaceSystem::new(n_interface, pieces, threads);
-        mpi.barrier_sleeping();
-        Some(factored)
-    } else {
-        let n = s_local.nrows();
-        let flat: Vec<f64> = (0..n * n).map(|k| s_local[(k % n, k / n)]).collect();
-        drop(s_local);
-        mpi.send_bytes(0, &encode(&(&sub.interface_global, flat))?);
-        mpi.barrier_sleeping();
-        None
+        Ok(None) => None,
+        Err(e) => Some(Err(e)),
     };
+    mpi.barrier_sleeping();
     mpi.agree(interface.transpose())
 }
 
@@ -860,13 +946,7 @@ fn run_loop(
             });
         let snap = mpi.agree(read)?;
         let mut sweeps = [snap.history.len() as f64, -(snap.history.len() as f64)];
-        let mine = sweeps;
-        if mpi.size > 1 {
-            use mpi::collective::SystemOperation;
-            use mpi::traits::CommunicatorCollectives;
-            mpi.world
-                .all_reduce_into(&mine[..], &mut sweeps[..], SystemOperation::max());
-        }
+        mpi.max_in_place(&mut sweeps);
         if sweeps[0] != -sweeps[1] {
             return mpi.agree(Err(Error::Input(format!(
                 "{}: the ranks' checkpoints are from different sweeps (a crash while saving); run without --restart",
@@ -992,15 +1072,14 @@ pub fn element_stresses(case: &Case, mesh: &Mesh, u: &[[f64; 2]]) -> (Vec<[f64; 
 /// (x, y, u_n, u_t, p_n, p_t, gap, status, w), owned nodes (global id; x, y, ux, uy), figures.
 type RankOutput = (Vec<[f64; 9]>, Vec<(usize, [f64; 4])>, RankStats);
 
-/// The `k`-th `.vtu` file of rank `rank`'s piece.
-fn vtu_file_name(rank: usize, k: usize) -> String {
-    format!("solution_{rank}_{k}.vtu")
+/// The `k`-th `.vtu` file of subdomain `subdomain`'s piece.
+fn vtu_file_name(subdomain: usize, k: usize) -> String {
+    format!("solution_{subdomain}_{k}.vtu")
 }
 
-/// Writes every output; collective (each rank the .vtu files of its piece, the first rank
-/// the rest).
+/// This subdomain's .vtu files, and what the first subdomain needs of it for the rest.
 #[allow(clippy::too_many_arguments)]
-fn write_outputs(
+fn write_piece(
     opts: &Options,
     mpi: &Mpi,
     setup: &Setup,
@@ -1008,10 +1087,8 @@ fn write_outputs(
     u: &[[f64; 2]],
     o: &contact::Outcome,
     mut stats: RankStats,
-    mut times: Timings,
     t_out: Instant,
-    t_start: Instant,
-) -> Result<()> {
+) -> Result<RankOutput> {
     let case = &setup.case;
     let dir = &opts.out;
     keep_freed_blocks_for_reuse();
@@ -1098,15 +1175,46 @@ fn write_outputs(
     };
     stats.peak_memory_bytes = peak_memory_bytes();
     stats.output_s = t_out.elapsed().as_secs_f64();
-    if !mpi.is_root() {
-        mpi.send_bytes(0, &encode(&(rows, owned, stats))?);
-        return Ok(());
+    Ok((rows, owned, stats))
+}
+
+/// Every subdomain writes its piece; the first gathers the contact rows, the owned
+/// nodes and the figures and writes the files of the whole run.
+#[allow(clippy::too_many_arguments)]
+fn write_outputs(
+    opts: &Options,
+    mpi: &Mpi,
+    setup: &Setup,
+    sub: &SubProblem,
+    u: &[[f64; 2]],
+    o: &contact::Outcome,
+    stats: RankStats,
+    mut times: Timings,
+    t_out: Instant,
+    t_start: Instant,
+) -> Result<()> {
+    let case = &setup.case;
+    let dir = &opts.out;
+    // Every subdomain reaches the gather, failed or not, so that none waits for another.
+    let (mine, failure) = match write_piece(opts, mpi, setup, sub, u, o, stats, t_out) {
+        Ok(v) => (Some(v), None),
+        Err(e) => (None, Some(e)),
+    };
+    let gathered = mpi.gather_parts(mine);
+    if let Some(e) = failure {
+        return Err(e);
     }
-    let mut all_rows = rows;
-    let mut all_nodes = owned;
-    let mut all_stats = vec![stats];
-    for r in 1..mpi.size {
-        let (rr, nn, ss): RankOutput = decode(&mpi.recv_bytes(r))?;
+    let Some(gathered) = gathered? else {
+        return Ok(());
+    };
+    // A subdomain that failed reports its own error (the agreement after this call).
+    let Some(gathered) = gathered.into_iter().collect::<Option<Vec<RankOutput>>>() else {
+        return Ok(());
+    };
+    let mut all_rows = Vec::new();
+    let mut all_nodes = Vec::new();
+    let mut all_stats = Vec::new();
+    for (rr, nn, ss) in gathered {
         all_rows.extend(rr);
         all_nodes.extend(nn);
         all_stats.push(ss);
@@ -1157,7 +1265,7 @@ fn write_outputs(
     )?;
     let sources: Vec<String> = all_stats
         .iter()
-        .flat_map(|st| (0..st.vtu_files).map(|k| vtu_file_name(st.rank, k)))
+        .flat_map(|st| (0..st.vtu_files).map(|k| vtu_file_name(st.subdomain, k)))
         .collect();
     output::write_atomic(&dir.join("solution.pvtu"), &output::pvtu_bytes(&sources)?)?;
 
@@ -1171,6 +1279,17 @@ fn write_outputs(
         |f: &dyn Fn(&RankStats) -> f64| all_stats.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
     let min_over =
         |f: &dyn Fn(&RankStats) -> f64| all_stats.iter().map(f).fold(f64::INFINITY, f64::min);
+    // The subdomains of a rank share its process, so its peak.
+    let peak_per_rank: Vec<u64> = (0..mpi.mpi_size)
+        .map(|r| {
+            all_stats
+                .iter()
+                .filter(|s| s.rank == r)
+                .map(|s| s.peak_memory_bytes)
+                .max()
+                .unwrap_or(0)
+        })
+        .collect();
     let summary = serde_json::json!({
         "title": case.title,
         "case": case.origin,
@@ -1179,7 +1298,7 @@ fn write_outputs(
         "outer_iterations": o.outer_iterations,
         "acceleration": format!("{:?}", case.solver.acceleration),
         "refused_accelerations": o.refused,
-        "ranks": mpi.size,
+        "ranks": mpi.mpi_size,
         "threads": rayon::current_num_threads(),
         "linear": format!("{:?}", opts.linear).to_lowercase(),
         "nodes": setup.nodes,
@@ -1203,20 +1322,24 @@ fn write_outputs(
         "sweep_s": times.uzawa / o.iterations.max(1) as f64,
         "one_solve_s": max_over(&|s| s.one_solve_s),
         "peak_memory_bytes": all_stats.iter().map(|s| s.peak_memory_bytes).max().unwrap_or(0),
-        "peak_memory_bytes_per_rank": all_stats.iter().map(|s| s.peak_memory_bytes).collect::<Vec<_>>(),
-        "per_rank": all_stats,
-        "per_rank_max": {
+        "peak_memory_bytes_per_rank": peak_per_rank,
+        "per_subdomain": all_stats,
+        "per_subdomain_max": {
             "assemble_s": max_over(&|s| s.assemble_s), "factor_s": max_over(&|s| s.factor_s),
             "loop_s": max_over(&|s| s.loop_s), "elements": max_over(&|s| s.elements as f64),
             "interface_nodes": max_over(&|s| s.interface_nodes as f64),
         },
-        "per_rank_min": {
+        "per_subdomain_min": {
             "assemble_s": min_over(&|s| s.assemble_s), "factor_s": min_over(&|s| s.factor_s),
             "loop_s": min_over(&|s| s.loop_s), "elements": min_over(&|s| s.elements as f64),
             "interface_nodes": min_over(&|s| s.interface_nodes as f64),
         },
         "partition": setup.partition,
     });
+    // Past the json! macro's recursion limit.
+    let mut summary = summary;
+    summary["subdomains"] = mpi.size.into();
+    summary["subdomains_per_rank"] = setup.per_rank.into();
     let json = serde_json::to_string_pretty(&summary)
         .map_err(|e| Error::Output(format!("cannot format summary.json: {e}")))?;
     output::write_atomic(&dir.join("summary.json"), json.as_bytes())?;
@@ -1225,7 +1348,35 @@ fn write_outputs(
 
 #[cfg(test)]
 mod tests {
-    use super::idle_core_threads;
+    use super::{
+        idle_core_threads, subdomains_per_rank, MAX_DEFAULT_SUBDOMAINS, MIN_TRIANGLES_PER_SUBDOMAIN,
+    };
+
+    #[test]
+    fn a_rank_splits_into_one_subdomain_per_thread_while_they_stay_large_and_few() {
+        let m = MIN_TRIANGLES_PER_SUBDOMAIN;
+        // A laptop: one rank, its threads, a large mesh.
+        assert_eq!(subdomains_per_rank(2, 1, 2_400_000), 2);
+        assert_eq!(subdomains_per_rank(4, 1, 2_400_000), 4);
+        // Never more than the threads, never fewer than one.
+        assert_eq!(subdomains_per_rank(1, 1, 2_400_000), 1);
+        assert_eq!(subdomains_per_rank(0, 1, 2_400_000), 1);
+        // Small meshes: as many subdomains as keep the threshold each.
+        assert_eq!(subdomains_per_rank(8, 1, 3 * m + 1), 3);
+        assert_eq!(subdomains_per_rank(8, 2, 3 * m), 1);
+        assert_eq!(subdomains_per_rank(8, 1, m - 1), 1);
+        // Few subdomains in the whole job: many ranks keep one each.
+        assert_eq!(
+            subdomains_per_rank(16, 1, 100_000_000),
+            MAX_DEFAULT_SUBDOMAINS
+        );
+        assert_eq!(
+            subdomains_per_rank(16, 2, 100_000_000),
+            MAX_DEFAULT_SUBDOMAINS / 2
+        );
+        assert_eq!(subdomains_per_rank(16, 64, 100_000_000), 1);
+        assert_eq!(subdomains_per_rank(4, 0, 100_000_000), 4);
+    }
 
     #[test]
     fn the_first_rank_borrows_only_the_cores_of_its_node_it_may_run_on() {

@@ -76,6 +76,12 @@ struct Cli {
     /// may run on / the ranks on its node.
     #[arg(long)]
     threads: Option<usize>,
+    /// Subdomains per rank, each factored and swept on a thread of its own; default:
+    /// one per thread of the rank while each keeps 5000 triangles and the job has at
+    /// most 8 subdomains, else fewer (1 for --linear full). 1 gives a rank one
+    /// subdomain whose factorization uses its threads.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    subdomains_per_rank: Option<u64>,
     /// Linear solve in the loop: condensed (default) or full (one rank only, for
     /// comparison: a sparse forward and backward solve per sweep).
     #[arg(long, default_value = "condensed", value_parser = parse_linear)]
@@ -135,7 +141,9 @@ fn prefer_shared_memory_on_one_node() {
 
 fn run() -> i32 {
     prefer_shared_memory_on_one_node();
-    let Some(universe) = mpi::initialize() else {
+    // Only the main thread of a rank calls MPI, also when the rank runs several
+    // subdomains on threads (dd::comm): MPI_THREAD_FUNNELED.
+    let Some((universe, _)) = mpi::initialize_with_threading(mpi::Threading::Funneled) else {
         eprintln!("contact-par: MPI could not be initialised");
         return 1;
     };
@@ -199,11 +207,12 @@ fn run() -> i32 {
         checkpoint_every: cli.checkpoint_every,
         restart: cli.restart,
         ordering: cli.ordering,
+        subdomains_per_rank: cli.subdomains_per_rank.map(|k| k as usize),
     };
     let print = Printer {
         enabled: rank == 0 && !opts.quiet,
     };
-    match app::run(&opts, &mpi, &print) {
+    match app::run(&opts, mpi, &print) {
         Ok(report) if report.converged => 0,
         Ok(_) => 3,
         Err(Error::Silent(code)) => code,

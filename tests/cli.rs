@@ -219,7 +219,11 @@ fn contact_csv_numbers_round_trip_and_rows_are_sorted() {
 fn split_piece_written_by_several_threads_is_complete() {
     use vtkio::model::{DataSet, Piece};
     // Block level 4: 204800 triangles, two files on one rank.
-    let run = run_builtin("block", 4, &["--threads", "2"]);
+    let run = run_builtin(
+        "block",
+        4,
+        &["--threads", "2", "--subdomains-per-rank", "1"],
+    );
     run.expect_code(0);
     let mut names: Vec<String> = std::fs::read_dir(&run.out)
         .unwrap()

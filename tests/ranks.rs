@@ -1,5 +1,6 @@
 //! The answer must not depend on the number of ranks: every built-in case and friction
-//! law on 1, 2, 3 and 4 ranks (oversubscribed), compared node by node. Also the
+//! law on 1, 2, 3 and 4 ranks (oversubscribed), and on 3 and 4 subdomains run as
+//! threads of 1 and 2 ranks (`--subdomains-per-rank`), compared node by node. Also the
 //! condensed sweep against the full sparse solve, and clean failures under mpirun.
 
 mod common;
@@ -86,7 +87,11 @@ fn compare(
     assert!(d < tol, "{what}: p_n, p_t differ by {d:e}");
 }
 
-/// Runs the case on 1..=4 ranks and checks iteration counts (+-1), contact.csv and
+/// (ranks, subdomains per rank) of every run: one subdomain per rank on 1 to 4 ranks,
+/// then several per rank (threads of one process, and threads of two ranks).
+const LAYOUTS: [(usize, usize); 6] = [(1, 1), (2, 1), (3, 1), (4, 1), (1, 3), (2, 2)];
+
+/// Runs the case in every [`LAYOUTS`] and checks iteration counts (+-1), contact.csv and
 /// nodes.csv (1e-8 relative per column; u_n is compared through the gap column's scale
 /// because it sits at round-off level on flat contact).
 fn check_rank_independence(name: &str, level: u32, friction: &str) {
@@ -104,8 +109,10 @@ fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: 
         &format!("[solver]\ntol = 1e-10\n{solver}"),
     );
     let mut reference: Option<RunResult> = None;
-    for np in 1..=4 {
-        let out = tmp.path().join(format!("out{np}"));
+    for (np, k) in LAYOUTS {
+        let parts = np * k;
+        let out = tmp.path().join(format!("out{np}x{k}"));
+        let k_arg = k.to_string();
         let o = mpirun(
             np,
             &[
@@ -114,21 +121,31 @@ fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: 
                 out.to_str().unwrap(),
                 "--nodes-csv",
                 "--quiet",
+                "--subdomains-per-rank",
+                &k_arg,
             ],
             tmp.path(),
         );
         assert!(
             o.status.success(),
-            "{name} {friction} on {np} ranks: {}",
+            "{name} {friction} on {np} ranks x {k} subdomains: {}",
             String::from_utf8_lossy(&o.stderr)
         );
         let s = summary(&out);
         assert_eq!(s["ranks"], np as i64);
+        assert_eq!(s["subdomains"], parts as i64);
         assert_eq!(s["converged"], true);
-        // Every rank reports the work of its factorization, at least one square per column.
-        let per_rank = s["per_rank"].as_array().unwrap();
-        assert_eq!(per_rank.len(), np);
-        for r in per_rank {
+        assert_eq!(
+            s["peak_memory_bytes_per_rank"].as_array().unwrap().len(),
+            np
+        );
+        // Every subdomain reports the work of its factorization, at least one square per
+        // column, and the rank that ran it.
+        let per_subdomain = s["per_subdomain"].as_array().unwrap();
+        assert_eq!(per_subdomain.len(), parts);
+        for (i, r) in per_subdomain.iter().enumerate() {
+            assert_eq!(r["subdomain"], i as i64);
+            assert_eq!(r["rank"], (i / k) as i64);
             let flops = r["factor_gflop"].as_f64().unwrap() * 1e9;
             let nodes = r["nodes"].as_f64().unwrap();
             assert!(
@@ -151,7 +168,7 @@ fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: 
             Some((it1, c1, n1)) => {
                 assert!(
                     (iters - it1).abs() <= 1,
-                    "{name} {friction}: {iters} iterations on {np} ranks, {it1} on 1"
+                    "{name} {friction}: {iters} iterations on {np} ranks x {k}, {it1} on 1"
                 );
                 compare(
                     c1,
@@ -159,19 +176,19 @@ fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: 
                     &contact,
                     &nodes,
                     1e-8,
-                    &format!("{name} {friction} on {np} ranks"),
+                    &format!("{name} {friction} on {np} ranks x {k} subdomains"),
                 );
             }
         }
-        // The .pvtu index lists one .vtu file per rank (these meshes are far below the
-        // size at which a piece is split), every one on disk.
+        // The .pvtu index lists one .vtu file per subdomain (these meshes are far below
+        // the size at which a piece is split), every one on disk.
         let pvtu = std::fs::read_to_string(out.join("solution.pvtu")).unwrap();
         let sources: Vec<&str> = pvtu
             .split("Source=\"")
             .skip(1)
             .map(|s| s.split('"').next().unwrap())
             .collect();
-        let expected: Vec<String> = (0..np).map(|r| format!("solution_{r}_0.vtu")).collect();
+        let expected: Vec<String> = (0..parts).map(|r| format!("solution_{r}_0.vtu")).collect();
         assert_eq!(sources, expected);
         for s in sources {
             assert!(out.join(s).exists(), "{s}");
@@ -324,4 +341,38 @@ fn more_ranks_than_triangles_is_an_input_error() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("3 ranks for 2 triangles"), "{err}");
     assert!(!tmp.path().join("res").exists());
+}
+
+/// A failure after the subdomains have started on their threads (here the output
+/// directory, which only the end of the run creates) ends every rank and thread: one
+/// line, the output error's exit code, no hang.
+#[test]
+fn failure_inside_the_threads_of_two_ranks_is_reported_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(tmp.path().join("blocker"), "a file, not a directory").unwrap();
+    let start = std::time::Instant::now();
+    let o = mpirun(
+        2,
+        &[
+            "--builtin",
+            "block",
+            "--level",
+            "1",
+            "--subdomains-per-rank",
+            "2",
+            "--out",
+            "blocker/res",
+            "--quiet",
+        ],
+        tmp.path(),
+    );
+    assert!(start.elapsed().as_secs() < 60, "took {:?}", start.elapsed());
+    let err = String::from_utf8_lossy(&o.stderr);
+    let ours: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("contact-par:"))
+        .collect();
+    assert_eq!(ours.len(), 1, "{err}");
+    assert!(ours[0].contains("blocker/res"), "{}", ours[0]);
+    assert_eq!(o.status.code(), Some(5), "{err}");
 }

@@ -1,5 +1,12 @@
 //! The only place that calls MPI: collectives used by the set-up, the sweep and the
-//! outputs, and the agreement on errors so that no rank waits for one that failed.
+//! outputs, and the agreement on errors so that no subdomain waits for one that failed.
+//!
+//! A rank may run several subdomains, one per thread (`--subdomains-per-rank`): the
+//! threads of a rank form a [`Team`], and every collective here is one over subdomains.
+//! The team's members meet in shared memory and their leader (the rank's main thread,
+//! which alone calls MPI: MPI_THREAD_FUNNELED) stands for them in the MPI collective.
+//! Subdomain s lives on rank s / k, k the subdomains per rank, so that gathers in rank
+//! order are gathers in subdomain order.
 
 use crate::contact::Reduce;
 use crate::error::{Error, Result};
@@ -8,13 +15,120 @@ use mpi::datatype::PartitionMut;
 use mpi::point_to_point::{Destination, Source};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::traits::{CommunicatorCollectives, Root};
+use std::any::Any;
+use std::sync::{Arc, Barrier, Mutex, PoisonError};
 
+/// The threads of one rank, each running a subdomain, and where they meet.
+pub struct Team {
+    size: usize,
+    barrier: Barrier,
+    slots: Mutex<Vec<Option<Box<dyn Any + Send>>>>,
+}
+
+impl Team {
+    pub fn new(size: usize) -> Arc<Self> {
+        Arc::new(Team {
+            size,
+            barrier: Barrier::new(size),
+            slots: Mutex::new((0..size).map(|_| None).collect()),
+        })
+    }
+
+    pub fn size(&self) -> usize {
+        self.size
+    }
+
+    fn slots(&self) -> std::sync::MutexGuard<'_, Vec<Option<Box<dyn Any + Send>>>> {
+        self.slots.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Every member hands in a value; the leader (member 0) gets them all in member
+    /// order, the others `None`. Waiting members sleep (a futex), they do not spin.
+    pub fn gather<T: Send + 'static>(&self, me: usize, value: T) -> Option<Vec<T>> {
+        if self.size == 1 {
+            return Some(vec![value]);
+        }
+        self.slots()[me] = Some(Box::new(value));
+        self.barrier.wait();
+        let all = (me == 0).then(|| {
+            self.slots()
+                .iter_mut()
+                .map(|slot| take_as::<T>(slot))
+                .collect()
+        });
+        // The slots are free again before any member hands in its next value.
+        self.barrier.wait();
+        all
+    }
+
+    /// The leader hands each member its value (`values`, one per member, on the leader).
+    pub fn scatter<T: Send + 'static>(&self, me: usize, values: Option<Vec<T>>) -> T {
+        if self.size == 1 {
+            return values
+                .and_then(|v| v.into_iter().next())
+                .expect("the leader's value");
+        }
+        if let Some(values) = values {
+            let mut slots = self.slots();
+            for (slot, v) in slots.iter_mut().zip(values) {
+                *slot = Some(Box::new(v));
+            }
+        }
+        self.barrier.wait();
+        let mine = take_as::<T>(&mut self.slots()[me]);
+        self.barrier.wait();
+        mine
+    }
+
+    /// The leader's value to every member.
+    pub fn broadcast<T: Clone + Send + 'static>(&self, me: usize, value: Option<T>) -> T {
+        let copies = value.map(|v| vec![v; self.size]);
+        self.scatter(me, copies)
+    }
+
+    /// Returns once every member has called it (asleep meanwhile).
+    pub fn barrier(&self) {
+        if self.size > 1 {
+            self.barrier.wait();
+        }
+    }
+}
+
+fn take_as<T: 'static>(slot: &mut Option<Box<dyn Any + Send>>) -> T {
+    // The members call the same collective in the same order, so a slot holds the type
+    // its collective put there; anything else is a bug in this module.
+    *slot
+        .take()
+        .expect("a team slot filled by its member")
+        .downcast::<T>()
+        .expect("a team slot of the collective's type")
+}
+
+/// A subdomain's view of the job: its index among all subdomains, and the collectives
+/// over them.
 pub struct Mpi {
-    pub world: SimpleCommunicator,
+    /// The rank's communicator, on the team's leader only (the thread that calls MPI).
+    world: Option<SimpleCommunicator>,
+    /// This subdomain, of `size`.
     pub rank: usize,
     pub size: usize,
-    /// Ranks on this rank's node (those that share its memory), itself included.
+    /// Subdomains on this rank's node (those that share its memory), itself included.
     pub node_ranks: usize,
+    /// The MPI rank and the number of ranks.
+    pub mpi_rank: usize,
+    pub mpi_size: usize,
+    team: Arc<Team>,
+    member: usize,
+}
+
+/// What a member thread needs to build its [`Mpi`] (which holds no MPI handle).
+#[derive(Clone)]
+pub struct Membership {
+    team: Arc<Team>,
+    member: usize,
+    mpi_rank: usize,
+    mpi_size: usize,
+    node_ranks: usize,
 }
 
 impl Reduce for Mpi {
@@ -22,23 +136,89 @@ impl Reduce for Mpi {
         if self.size == 1 {
             return;
         }
-        let local = values.to_vec();
-        self.world
-            .all_reduce_into(&local[..], values, SystemOperation::sum());
+        let summed = self.leader_then_all(values.to_vec(), |s, parts| {
+            let mut acc = parts[0].clone();
+            for p in &parts[1..] {
+                for (a, v) in acc.iter_mut().zip(p) {
+                    *a += v;
+                }
+            }
+            if s.mpi_size > 1 {
+                let local = acc.clone();
+                s.world()
+                    .all_reduce_into(&local[..], &mut acc[..], SystemOperation::sum());
+            }
+            acc
+        });
+        values.copy_from_slice(&summed);
     }
 }
 
 impl Mpi {
+    /// One subdomain per rank (the set-up, before any team exists).
     pub fn new(world: SimpleCommunicator) -> Self {
         let rank = world.rank() as usize;
         let size = world.size() as usize;
         let node_ranks = Self::ranks_on_node(&world);
         Mpi {
-            world,
+            world: Some(world),
             rank,
             size,
             node_ranks,
+            mpi_rank: rank,
+            mpi_size: size,
+            team: Team::new(1),
+            member: 0,
         }
+    }
+
+    /// `k` subdomains on every rank, one per thread: this rank's main thread becomes
+    /// subdomain k x rank, its leader; the memberships are for the threads of the other
+    /// k - 1 (each builds its own with [`Mpi::member`]). Every rank must use the same k.
+    pub fn into_team(self, k: usize) -> (Mpi, Vec<Membership>) {
+        let k = k.max(1);
+        let team = Team::new(k);
+        let node_ranks = self.node_ranks * k;
+        let members = (1..k)
+            .map(|member| Membership {
+                team: team.clone(),
+                member,
+                mpi_rank: self.mpi_rank,
+                mpi_size: self.mpi_size,
+                node_ranks,
+            })
+            .collect();
+        let leader = Mpi {
+            world: self.world,
+            rank: self.mpi_rank * k,
+            size: self.mpi_size * k,
+            node_ranks,
+            mpi_rank: self.mpi_rank,
+            mpi_size: self.mpi_size,
+            team,
+            member: 0,
+        };
+        (leader, members)
+    }
+
+    /// The view of a member thread of a team (no MPI handle: its leader calls MPI).
+    pub fn member(m: Membership) -> Self {
+        let k = m.team.size();
+        Mpi {
+            world: None,
+            rank: m.mpi_rank * k + m.member,
+            size: m.mpi_size * k,
+            node_ranks: m.node_ranks,
+            mpi_rank: m.mpi_rank,
+            mpi_size: m.mpi_size,
+            team: m.team,
+            member: m.member,
+        }
+    }
+
+    /// Subdomains per rank.
+    pub fn per_rank(&self) -> usize {
+        self.team.size()
     }
 
     /// The number of ranks that share this rank's node (MPI_Comm_split_type, shared
@@ -54,151 +234,303 @@ impl Mpi {
         self.rank == 0
     }
 
-    /// Returns once every rank has called it, having slept, not spun, while waiting.
+    fn is_leader(&self) -> bool {
+        self.member == 0
+    }
+
+    fn world(&self) -> &SimpleCommunicator {
+        self.world
+            .as_ref()
+            .expect("MPI is called by a team's leader only")
+    }
+
+    /// The subdomains of rank r: r k .. (r + 1) k.
+    fn rank_counts(&self, counts: &[usize]) -> Vec<usize> {
+        counts
+            .chunks(self.per_rank())
+            .map(|c| c.iter().sum())
+            .collect()
+    }
+
+    /// The team hands its values to its leader, which runs `f` (MPI included) and hands
+    /// every member the result.
+    fn leader_then_all<T: Send + 'static, R: Clone + Send + 'static>(
+        &self,
+        local: T,
+        f: impl FnOnce(&Self, Vec<T>) -> R,
+    ) -> R {
+        let all = self.team.gather(self.member, local);
+        let result = all.map(|all| f(self, all));
+        self.team.broadcast(self.member, result)
+    }
+
+    /// Returns once every subdomain has called it, having slept, not spun, while
+    /// waiting.
     ///
-    /// MPI's blocking calls poll a core at full speed. Where the first rank works alone
-    /// (it factors the interface system), the others wait here instead, so that the
-    /// cores they would burn are the first rank's to use (on a node shared by several
+    /// MPI's blocking calls poll a core at full speed. Where the first subdomain works
+    /// alone (it factors the interface system), the others wait here instead, so that
+    /// the cores they would burn are the first one's to use (on a node shared by several
     /// ranks, or with more ranks than cores). Polling every 100 us costs nothing next to
-    /// that work.
+    /// that work; the members of a team wait on a futex.
     pub fn barrier_sleeping(&self) {
         if self.size == 1 {
             return;
         }
-        let mut request = self.world.immediate_barrier();
-        loop {
-            match request.test() {
-                Ok(_) => return,
-                Err(pending) => {
-                    request = pending;
-                    std::thread::sleep(std::time::Duration::from_micros(100));
+        self.leader_then_all((), |s, _| {
+            if s.mpi_size == 1 {
+                return;
+            }
+            let mut request = s.world().immediate_barrier();
+            loop {
+                match request.test() {
+                    Ok(_) => return,
+                    Err(pending) => {
+                        request = pending;
+                        std::thread::sleep(std::time::Duration::from_micros(100));
+                    }
                 }
             }
-        }
+        })
     }
 
-    /// Concatenation over ranks of `local` (rank r contributes `counts[r]` values).
+    /// Concatenation over subdomains of `local` (subdomain s contributes `counts[s]`
+    /// values).
     pub fn all_gather(&self, local: &[f64], counts: &[usize], out: &mut Vec<f64>) {
-        let total: usize = counts.iter().sum();
-        out.resize(total, 0.0);
-        if self.size == 1 {
-            out.copy_from_slice(local);
-            return;
-        }
-        let c: Vec<i32> = counts.iter().map(|&c| c as i32).collect();
-        let d: Vec<i32> = counts
-            .iter()
-            .scan(0i32, |acc, &c| {
-                let d = *acc;
-                *acc += c as i32;
-                Some(d)
-            })
-            .collect();
-        let mut part = PartitionMut::new(&mut out[..], &c[..], &d[..]);
-        self.world.all_gather_varcount_into(local, &mut part);
+        let all = self.leader_then_all(local.to_vec(), |s, parts| {
+            let mine = parts.concat();
+            if s.mpi_size == 1 {
+                return mine;
+            }
+            let rank_counts = s.rank_counts(counts);
+            let mut all = vec![0.0; rank_counts.iter().sum()];
+            let (c, d) = counts_displs(&rank_counts);
+            let mut part = PartitionMut::new(&mut all[..], &c[..], &d[..]);
+            s.world().all_gather_varcount_into(&mine[..], &mut part);
+            all
+        });
+        *out = all;
     }
 
-    fn counts_displs(counts: &[usize]) -> (Vec<i32>, Vec<i32>) {
-        let c: Vec<i32> = counts.iter().map(|&c| c as i32).collect();
-        let mut d = Vec::with_capacity(c.len());
-        let mut acc = 0;
-        for &x in &c {
-            d.push(acc);
-            acc += x;
-        }
-        (c, d)
-    }
-
-    /// Concatenation over ranks of `local`, on the first rank only.
+    /// Concatenation over subdomains of `local`, on the first subdomain only.
     pub fn gather_to_root(&self, local: &[f64], counts: &[usize], out: &mut Vec<f64>) {
-        if self.size == 1 {
-            out.clear();
-            out.extend_from_slice(local);
+        let Some(parts) = self.team.gather(self.member, local.to_vec()) else {
+            return;
+        };
+        let mine = parts.concat();
+        if self.mpi_size == 1 {
+            *out = mine;
             return;
         }
-        let root = self.world.process_at_rank(0);
+        let root = self.world().process_at_rank(0);
         if self.is_root() {
-            out.resize(counts.iter().sum(), 0.0);
-            let (c, d) = Self::counts_displs(counts);
+            let rank_counts = self.rank_counts(counts);
+            out.resize(rank_counts.iter().sum(), 0.0);
+            let (c, d) = counts_displs(&rank_counts);
             let mut part = PartitionMut::new(&mut out[..], &c[..], &d[..]);
-            root.gather_varcount_into_root(local, &mut part);
+            root.gather_varcount_into_root(&mine[..], &mut part);
         } else {
-            root.gather_varcount_into(local);
+            root.gather_varcount_into(&mine[..]);
         }
     }
 
-    /// The first rank's `all` cut by `counts`: each rank receives its part in `mine`.
+    /// The first subdomain's `all` cut by `counts`: each subdomain receives its part in
+    /// `mine`.
     pub fn scatter_from_root(&self, all: &[f64], counts: &[usize], mine: &mut [f64]) {
-        if self.size == 1 {
-            mine.copy_from_slice(all);
-            return;
+        let k = self.per_rank();
+        let first = self.mpi_rank * k;
+        let segment = self.is_leader().then(|| {
+            if self.mpi_size == 1 {
+                return all.to_vec();
+            }
+            let rank_counts = self.rank_counts(counts);
+            let mut segment = vec![0.0; rank_counts[self.mpi_rank]];
+            let root = self.world().process_at_rank(0);
+            if self.is_root() {
+                let (c, d) = counts_displs(&rank_counts);
+                let part = mpi::datatype::Partition::new(all, &c[..], &d[..]);
+                root.scatter_varcount_into_root(&part, &mut segment[..]);
+            } else {
+                root.scatter_varcount_into(&mut segment[..]);
+            }
+            segment
+        });
+        let segment = self.team.broadcast(self.member, segment);
+        let offset: usize = counts[first..self.rank].iter().sum();
+        mine.copy_from_slice(&segment[offset..offset + counts[self.rank]]);
+    }
+
+    /// Every subdomain's `value`, in subdomain order, on the first subdomain (`None`
+    /// elsewhere). Within a rank the values move; between ranks they travel encoded, one
+    /// message per rank.
+    pub fn gather_parts<T>(&self, value: T) -> Result<Option<Vec<T>>>
+    where
+        T: serde::Serialize + serde::de::DeserializeOwned + Send + 'static,
+    {
+        let Some(mut all) = self.team.gather(self.member, value) else {
+            return Ok(None);
+        };
+        if self.mpi_size == 1 {
+            return Ok(Some(all));
         }
-        let root = self.world.process_at_rank(0);
-        if self.is_root() {
-            let (c, d) = Self::counts_displs(counts);
-            let part = mpi::datatype::Partition::new(all, &c[..], &d[..]);
-            root.scatter_varcount_into_root(&part, mine);
-        } else {
-            root.scatter_varcount_into(mine);
+        if !self.is_root() {
+            // On a failed encoding an empty message still goes, so that the first rank
+            // does not wait for it; decoding it fails there and the error is agreed on.
+            let (bytes, result) = match encode(&all) {
+                Ok(b) => (b, Ok(None)),
+                Err(e) => (Vec::new(), Err(e)),
+            };
+            self.world().process_at_rank(0).send(&bytes[..]);
+            return result;
+        }
+        let mut failure = None;
+        for r in 1..self.mpi_size {
+            let (bytes, _) = self.world().process_at_rank(r as i32).receive_vec::<u8>();
+            match decode::<Vec<T>>(&bytes) {
+                Ok(v) => all.extend(v),
+                Err(e) => failure = failure.or(Some(e)),
+            }
+        }
+        match failure {
+            Some(e) => Err(e),
+            None => Ok(Some(all)),
         }
     }
 
-    pub fn send_bytes(&self, dest: usize, bytes: &[u8]) {
-        self.world.process_at_rank(dest as i32).send(bytes);
+    /// The first subdomain's `all` (one value per subdomain, in order) handed out: each
+    /// subdomain returns its own. The counterpart of [`Mpi::gather_parts`].
+    pub fn scatter_parts<T>(&self, all: Option<Vec<T>>) -> Result<T>
+    where
+        T: serde::Serialize + serde::de::DeserializeOwned + Send + 'static,
+    {
+        let k = self.per_rank();
+        let team_values: Option<Vec<Result<T>>> = self.is_leader().then(|| {
+            if self.is_root() {
+                let mut all = all.unwrap_or_default().into_iter();
+                let own: Vec<T> = all.by_ref().take(k).collect();
+                let rest: Vec<T> = all.collect();
+                let mut rest = rest.into_iter();
+                for r in 1..self.mpi_size {
+                    let chunk: Vec<T> = rest.by_ref().take(k).collect();
+                    let bytes = encode(&chunk).unwrap_or_default();
+                    self.world().process_at_rank(r as i32).send(&bytes[..]);
+                }
+                pad(own.into_iter().map(Ok).collect(), k)
+            } else {
+                let (bytes, _) = self.world().process_at_rank(0).receive_vec::<u8>();
+                match decode::<Vec<T>>(&bytes) {
+                    Ok(v) => pad(v.into_iter().map(Ok).collect(), k),
+                    Err(e) => (0..k)
+                        .map(|_| Err(Error::Numerical(e.to_string())))
+                        .collect(),
+                }
+            }
+        });
+        self.team.scatter(self.member, team_values)
     }
 
-    pub fn recv_bytes(&self, src: usize) -> Vec<u8> {
-        self.world.process_at_rank(src as i32).receive_vec::<u8>().0
-    }
-
-    /// Sends a value from the root to every other rank.
-    pub fn broadcast<T: serde::Serialize + serde::de::DeserializeOwned>(
-        &self,
-        value: Option<T>,
-    ) -> Result<T> {
-        let root = self.world.process_at_rank(0);
+    /// Sends a value from the first subdomain to every other one.
+    pub fn broadcast<T>(&self, value: Option<T>) -> Result<T>
+    where
+        T: serde::Serialize + serde::de::DeserializeOwned,
+    {
         let mut bytes = match &value {
             Some(v) if self.is_root() => encode(v)?,
             _ => Vec::new(),
         };
-        if self.size > 1 {
+        if self.is_leader() && self.mpi_size > 1 {
+            let root = self.world().process_at_rank(0);
             let mut len = bytes.len() as u64;
             root.broadcast_into(&mut len);
             bytes.resize(len as usize, 0);
             root.broadcast_into(&mut bytes[..]);
         }
+        let bytes = self
+            .team
+            .broadcast(self.member, self.is_leader().then_some(bytes));
         match value {
             Some(v) if self.is_root() => Ok(v),
             _ => decode(&bytes),
         }
     }
 
-    /// Collective error agreement: every rank learns whether any rank failed. The first
-    /// failing rank prints its message (the caller prints nothing more), all return Err.
+    /// The largest of each entry over all subdomains.
+    pub fn max_in_place(&self, values: &mut [f64]) {
+        if self.size == 1 {
+            return;
+        }
+        let max = self.leader_then_all(values.to_vec(), |s, parts| {
+            let mut acc = parts[0].clone();
+            for p in &parts[1..] {
+                for (a, v) in acc.iter_mut().zip(p) {
+                    *a = a.max(*v);
+                }
+            }
+            if s.mpi_size > 1 {
+                let local = acc.clone();
+                s.world()
+                    .all_reduce_into(&local[..], &mut acc[..], SystemOperation::max());
+            }
+            acc
+        });
+        values.copy_from_slice(&max);
+    }
+
+    /// Collective error agreement: every subdomain learns whether any failed. The first
+    /// failing one prints its message (the caller prints nothing more), all return Err.
     pub fn agree<T>(&self, local: Result<T>) -> Result<T> {
         if self.size == 1 {
             return local;
         }
         let code = local.as_ref().err().map_or(0, |e| e.exit_code());
-        let mut worst = 0i32;
-        self.world
-            .all_reduce_into(&code, &mut worst, SystemOperation::max());
-        if worst == 0 {
-            return local;
-        }
         let me = if local.is_err() {
             self.rank as i32
         } else {
             i32::MAX
         };
-        let mut first = 0i32;
-        self.world
-            .all_reduce_into(&me, &mut first, SystemOperation::min());
+        let (worst, first) = self.leader_then_all((code, me), |s, parts| {
+            let mut worst = parts.iter().map(|p| p.0).max().unwrap_or(0);
+            let mut first = parts.iter().map(|p| p.1).min().unwrap_or(i32::MAX);
+            if s.mpi_size > 1 {
+                let (w, f) = (worst, first);
+                s.world()
+                    .all_reduce_into(&w, &mut worst, SystemOperation::max());
+                if worst != 0 {
+                    s.world()
+                        .all_reduce_into(&f, &mut first, SystemOperation::min());
+                }
+            }
+            (worst, first)
+        });
+        if worst == 0 {
+            return local;
+        }
         match local {
             Err(e) if first as usize == self.rank => Err(e),
             _ => Err(Error::Silent(worst)),
         }
     }
+}
+
+fn counts_displs(counts: &[usize]) -> (Vec<i32>, Vec<i32>) {
+    let c: Vec<i32> = counts.iter().map(|&c| c as i32).collect();
+    let mut d = Vec::with_capacity(c.len());
+    let mut acc = 0;
+    for &x in &c {
+        d.push(acc);
+        acc += x;
+    }
+    (c, d)
+}
+
+/// `v` made `k` long: missing entries are an internal error for their member.
+fn pad<T>(mut v: Vec<Result<T>>, k: usize) -> Vec<Result<T>> {
+    v.truncate(k);
+    while v.len() < k {
+        v.push(Err(Error::Numerical(
+            "internal: a subdomain was not sent".into(),
+        )));
+    }
+    v
 }
 
 pub fn encode<T: serde::Serialize>(v: &T) -> Result<Vec<u8>> {
@@ -209,4 +541,60 @@ pub fn encode<T: serde::Serialize>(v: &T) -> Result<Vec<u8>> {
 pub fn decode<T: serde::de::DeserializeOwned>(b: &[u8]) -> Result<T> {
     postcard::from_bytes(b)
         .map_err(|e| Error::Numerical(format!("internal: cannot decode a message: {e}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Runs `f(member)` on every member of a team of `k`, each on its own thread.
+    fn on_team<R: Send>(k: usize, f: impl Fn(&Team, usize) -> R + Sync) -> Vec<R> {
+        let team = Team::new(k);
+        std::thread::scope(|s| {
+            let handles: Vec<_> = (0..k)
+                .map(|m| {
+                    let (team, f) = (&team, &f);
+                    s.spawn(move || f(team, m))
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        })
+    }
+
+    #[test]
+    fn the_leader_gathers_in_member_order_and_hands_out_in_turn() {
+        for k in [1, 2, 5] {
+            let results = on_team(k, |team, me| {
+                let mut seen = Vec::new();
+                // Many rounds in a row: a fast member must not overwrite a slot that a
+                // slow leader has yet to read.
+                for round in 0..200 {
+                    let all = team.gather(me, (me, round));
+                    if me == 0 {
+                        let all = all.unwrap();
+                        assert_eq!(all, (0..k).map(|m| (m, round)).collect::<Vec<_>>());
+                    } else {
+                        assert!(all.is_none());
+                    }
+                    let values = (me == 0).then(|| (0..k).map(|m| 10 * m + round).collect());
+                    seen.push(team.scatter(me, values));
+                    let b = team.broadcast(me, (me == 0).then(|| vec![round; 3]));
+                    assert_eq!(b, vec![round; 3]);
+                    team.barrier();
+                }
+                seen
+            });
+            for (m, seen) in results.iter().enumerate() {
+                assert_eq!(*seen, (0..200).map(|r| 10 * m + r).collect::<Vec<_>>());
+            }
+        }
+    }
+
+    #[test]
+    fn counts_and_displacements_follow_each_other() {
+        assert_eq!(counts_displs(&[3, 0, 2]), (vec![3, 0, 2], vec![0, 3, 3]));
+        let padded = pad(vec![Ok(1)], 3);
+        assert_eq!(padded.len(), 3);
+        assert!(padded[0].is_ok() && padded[1].is_err() && padded[2].is_err());
+    }
 }
