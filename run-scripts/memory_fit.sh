@@ -7,7 +7,7 @@
 #
 # One run per (level, ranks), 1 thread per rank (memory does not depend on the thread
 # count beyond a few MB of stacks). Peak memory is each rank's VmHWM as reported in
-# summary.json ("per_rank"[].peak_memory_bytes). Writes DIR/memory.csv (one row per rank
+# summary.json ("per_subdomain"[].peak_memory_bytes; one subdomain per rank here). Writes DIR/memory.csv (one row per rank
 # of every run) and DIR/memory.md (the table and the fits), and prints memory.md.
 #
 # Options: --case NAME (default block), --levels "L ..." (default "3 4 5"),
@@ -63,7 +63,7 @@ for path in sorted(glob.glob(os.path.join(out, "runs", "*", "summary.json"))):
     with open(path) as f:
         s = json.load(f)
     level = int(os.path.basename(os.path.dirname(path)).split("_")[0][1:])
-    for r in s["per_rank"]:
+    for r in s.get("per_subdomain", s.get("per_rank")):
         rows.append({
             "level": level, "nodes": s["nodes"], "ranks": s["ranks"], "rank": r["rank"],
             "rank_nodes": r["nodes"], "interface_dofs": s.get("interface_dofs", 0),

@@ -57,7 +57,9 @@ def load_runs(out):
                 s = json.load(f)
         run["ok"] = s is not None and run["exit_code"] in (0, 3)
         if s is not None:
-            per = s.get("per_rank", [])
+            # One entry per subdomain (several per rank with --subdomains-per-rank);
+            # "per_rank" in the summaries of earlier versions.
+            per = s.get("per_subdomain", s.get("per_rank", []))
             mem = s.get("peak_memory_bytes_per_rank") or [p.get("peak_memory_bytes", 0) for p in per]
             run.update(
                 nodes=s.get("nodes"),
@@ -67,6 +69,7 @@ def load_runs(out):
                 converged=s.get("converged"),
                 iterations=s.get("iterations"),
                 reported_threads=s.get("threads"),
+                subdomains=s.get("subdomains", s.get("ranks")),
                 peak_mem_max_bytes=max(mem) if mem else None,
                 peak_mem_sum_bytes=sum(mem) if mem else None,
                 factor_nnz_max=max((p.get("factor_nnz", 0) for p in per), default=None),
@@ -124,7 +127,7 @@ def summarise(runs, phases, cores):
         row["runs"] = len(rs)
         row["runs_ok"] = len(ok)
         row["all_converged"] = all(r.get("converged") for r in ok) if ok else False
-        for c in ("nodes", "dofs", "boundary_dofs", "contact_nodes"):
+        for c in ("nodes", "dofs", "boundary_dofs", "contact_nodes", "subdomains"):
             row[c] = ok[0].get(c) if ok else None
         iters = sorted({r.get("iterations") for r in ok})
         row["iterations"] = iters[0] if len(iters) == 1 else "/".join(map(str, iters))
@@ -135,7 +138,8 @@ def summarise(runs, phases, cores):
         # The work of the factorization, counted from its structure: the same on every
         # run of a point, whatever the machine's load.
         if row.get("factor_gflop_max") and row.get("factor_gflop_sum"):
-            row["work_imbalance"] = row["factor_gflop_max"] / (row["factor_gflop_sum"] / row["ranks"])
+            parts = row.get("subdomains") or row["ranks"]
+            row["work_imbalance"] = row["factor_gflop_max"] / (row["factor_gflop_sum"] / parts)
         totals = [r["t_total"] for r in ok if r.get("t_total") is not None]
         row["t_total_min"] = min(totals) if totals else None
         row["t_total_max"] = max(totals) if totals else None
@@ -273,13 +277,13 @@ def report(out, meta, runs, rows, phases, plots):
         else:
             L.append("## Weak scaling (each rank keeps about the same number of nodes)\n")
         L.append("Medians, seconds:\n")
-        header = (["level", "nodes", "ranks", "threads", "ok runs", "sweeps"] + phases
+        header = (["level", "nodes", "ranks", "threads", "subdomains", "ok runs", "sweeps"] + phases
                   + ["total", "total min-max", "wall", "ms/sweep", "peak MB/rank", "others' cores"])
         lines = []
         for r in rs:
             spread = (f"{r['t_total_min']:.3f}-{r['t_total_max']:.3f}"
                       if r.get("t_total_min") is not None else "")
-            lines.append([r["level"], r["nodes"], r["ranks"], r["threads"],
+            lines.append([r["level"], r["nodes"], r["ranks"], r["threads"], r.get("subdomains"),
                           f"{r['runs_ok']}/{r['runs']}", r["iterations"]] + cols_phase(r)
                          + [r.get("t_total"), spread, r.get("wall_s"), r.get("ms_per_sweep"),
                             mb(r.get("peak_mem_max_bytes")), r.get("others_cores")])
@@ -327,17 +331,19 @@ def report(out, meta, runs, rows, phases, plots):
                 L.append("\n### The factorization's work\n")
                 L.append("Floating-point operations of the numeric factorizations, counted from "
                          "their structure (`factor_gflop` in summary.json: the same on every run, "
-                         "free of the machine's load). The ranks' total may exceed one rank's "
-                         "(each rank's boundary rows ride along to the end of its factor) or "
-                         "fall below it (smaller pieces fill less); `imbalance` is the largest "
-                         "rank's work over the mean; `work speed-up` = Gflop(1x1) / the largest "
-                         "rank's Gflop is what the work alone predicts for the factor phase, "
+                         "free of the machine's load), per subdomain (one per rank, or one per "
+                         "thread of a rank: see `subdomains`). The subdomains' total may exceed "
+                         "one subdomain's (each one's boundary rows ride along to the end of its "
+                         "factor) or fall below it (smaller pieces fill less); `imbalance` is the "
+                         "largest subdomain's work over the mean; `work speed-up` = Gflop(1x1) / "
+                         "the largest subdomain's Gflop is what the work alone predicts for the factor phase, "
                          "whose measured speed-up S(factor) also holds the ordering (not "
                          "counted here), memory bandwidth, and the kernels' speed on fronts of "
                          "each size:\n")
-                header = ["ranks", "threads", "Gflop (all ranks)", "Gflop (largest rank)",
+                header = ["ranks", "threads", "subdomains", "Gflop (all)", "Gflop (largest)",
                           "imbalance", "work speed-up", "S(factor)"]
-                lines = [[r["ranks"], r["threads"], r["factor_gflop_sum"], r["factor_gflop_max"],
+                lines = [[r["ranks"], r["threads"], r.get("subdomains"), r["factor_gflop_sum"],
+                          r["factor_gflop_max"],
                           r.get("work_imbalance"), ref["factor_gflop_max"] / r["factor_gflop_max"],
                           r.get("speedup_factor")]
                          for r in ws]
@@ -504,7 +510,8 @@ def main(argv):
             meta = json.load(f)
     cores = meta.get("cores") or os.cpu_count() or 1
     runs, phases = load_runs(out)
-    run_cols = (["study", "case", "level", "nodes", "dofs", "ranks", "threads", "run", "exit_code",
+    run_cols = (["study", "case", "level", "nodes", "dofs", "ranks", "threads", "subdomains", "run",
+                 "exit_code",
                  "converged", "iterations", "wall_s"]
                 + ["t_" + p for p in phases]
                 + ["t_total", "ms_per_sweep", "cpu_s", "others_cores", "peak_mem_max_bytes",
@@ -514,7 +521,8 @@ def main(argv):
                    "assemble_max_s", "factor_max_s", "loop_max_s", "reported_threads", "dir"])
     write_csv(os.path.join(out, "runs.csv"), runs, run_cols)
     rows = summarise(runs, phases, cores)
-    sum_cols = (["study", "case", "level", "nodes", "dofs", "ranks", "threads", "ranks_x_threads",
+    sum_cols = (["study", "case", "level", "nodes", "dofs", "ranks", "threads", "subdomains",
+                 "ranks_x_threads",
                  "runs", "runs_ok", "all_converged", "iterations", "wall_s"]
                 + ["t_" + p for p in phases]
                 + ["t_total", "t_total_min", "t_total_max", "ms_per_sweep", "cpu_s", "others_cores",
