@@ -229,7 +229,8 @@ pub enum LinearMode {
     Full,
 }
 
-fn prepare(opts: &Options, ranks: usize) -> Result<(Setup, Vec<SubProblem>)> {
+/// `threads`: of each rank (for the default number of subdomains per rank).
+fn prepare(opts: &Options, ranks: usize, threads: usize) -> Result<(Setup, Vec<SubProblem>)> {
     let t0 = Instant::now();
     let case = load_case(opts)?;
     let (mesh, mesh_name) = load_mesh(&case)?;
@@ -240,7 +241,7 @@ fn prepare(opts: &Options, ranks: usize) -> Result<(Setup, Vec<SubProblem>)> {
     let per_rank = match opts.subdomains_per_rank {
         Some(k) => k.max(1),
         None if opts.linear == LinearMode::Full => 1,
-        None => subdomains_per_rank(rayon::current_num_threads(), ranks, triangles),
+        None => subdomains_per_rank(threads, ranks, triangles),
     };
     let nparts = ranks * per_rank;
     if nparts > triangles {
@@ -510,9 +511,11 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
 
     // 1. First rank: read and validate the case and the mesh, partition, split. The
     // other ranks sleep meanwhile, so that the cores of those on its node are its to use.
+    // The rank's own threads, not those of the pool the set-up borrows.
+    let threads = rayon::current_num_threads();
     let prepared = mpi
         .is_root()
-        .then(|| on_idle_cores(mpi.node_ranks, || prepare(opts, mpi.size)));
+        .then(|| on_idle_cores(mpi.node_ranks, || prepare(opts, mpi.size, threads)));
     mpi.barrier_sleeping();
     let prepared = mpi.agree(prepared.transpose())?;
     let t_scatter = Instant::now();
@@ -523,7 +526,6 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     let setup = mpi.broadcast(setup)?;
 
     // 2. Every subdomain of this rank on a thread of its own, this one included.
-    let threads = rayon::current_num_threads();
     faer::set_global_parallelism(match threads / setup.per_rank {
         0 | 1 => faer::Par::Seq,
         t => faer::Par::rayon(t),
@@ -626,7 +628,8 @@ fn run_subdomain(
         dir: opts.out.join("checkpoint"),
         every: opts.checkpoint_every,
         restart: opts.restart,
-        ranks: mpi.size,
+        ranks: mpi.mpi_size,
+        per_rank: mpi.per_rank(),
     };
     let (mut outcome, u_local, phases) = match opts.linear {
         LinearMode::Condensed => solve_condensed(mpi, setup, sub, &params, &mut monitor, &ckpt)?,
@@ -896,12 +899,16 @@ pub struct CheckpointFiles {
     dir: PathBuf,
     every: usize,
     restart: bool,
+    /// MPI ranks and subdomains per rank: a checkpoint resumes on the same layout.
     ranks: usize,
+    per_rank: usize,
 }
 
+/// One subdomain's checkpoint (`rank` is the subdomain, as in the file name).
 #[derive(Serialize, serde::Deserialize)]
 struct CheckpointFile {
     ranks: usize,
+    per_rank: usize,
     rank: usize,
     contact_nodes: usize,
     snapshot: contact::Snapshot,
@@ -933,12 +940,14 @@ fn run_loop(
                 })
             })
             .and_then(|c| {
-                if c.ranks != files.ranks || c.rank != mpi.rank || c.contact_nodes != sub.contact_nodes.len() {
+                if c.ranks != files.ranks || c.per_rank != files.per_rank || c.rank != mpi.rank || c.contact_nodes != sub.contact_nodes.len() {
                     Err(Error::Input(format!(
-                        "{}: written by a run on {} ranks of another case or mesh; restart the same case with mpirun -n {}",
+                        "{}: written by a run on {} rank(s) x {} subdomain(s) per rank, or of another case or mesh; restart the same case with mpirun -n {} and --subdomains-per-rank {}",
                         path.display(),
                         c.ranks,
-                        c.ranks
+                        c.per_rank,
+                        c.ranks,
+                        c.per_rank
                     )))
                 } else {
                     Ok(c.snapshot)
@@ -963,6 +972,7 @@ fn run_loop(
             .map_err(|e| Error::Output(format!("cannot create {}: {e}", files.dir.display())))?;
         let file = CheckpointFile {
             ranks: files.ranks,
+            per_rank: files.per_rank,
             rank: mpi.rank,
             contact_nodes: sub.contact_nodes.len(),
             snapshot: snap.clone(),

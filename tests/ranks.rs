@@ -376,3 +376,39 @@ fn failure_inside_the_threads_of_two_ranks_is_reported_once() {
     assert!(ours[0].contains("blocker/res"), "{}", ours[0]);
     assert_eq!(o.status.code(), Some(5), "{err}");
 }
+
+/// The default number of subdomains per rank follows the rank's own threads (not the
+/// threads the first rank borrows for the set-up): one subdomain per thread on a mesh
+/// large enough, one per rank with one thread each.
+#[test]
+fn default_subdomains_follow_the_threads_of_each_rank() {
+    let tmp = tempfile::tempdir().unwrap();
+    // Hertz level 2: 37440 triangles, over 5000 per subdomain in every layout below.
+    for (np, threads, expected) in [(1, 1, 1), (1, 2, 2), (1, 3, 3), (2, 1, 2), (2, 2, 4)] {
+        let out = format!("o{np}x{threads}");
+        let t = threads.to_string();
+        let o = mpirun(
+            np,
+            &[
+                "--builtin",
+                "hertz",
+                "--level",
+                "2",
+                "--threads",
+                &t,
+                "--out",
+                &out,
+                "--quiet",
+            ],
+            tmp.path(),
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s = summary(&tmp.path().join(&out));
+        assert_eq!(s["threads"], threads as i64);
+        assert_eq!(
+            s["subdomains"], expected as i64,
+            "{np} ranks x {threads} threads"
+        );
+        assert_eq!(s["subdomains_per_rank"], (expected / np) as i64);
+    }
+}

@@ -72,7 +72,12 @@ fn check_restart_in(tmp: &Path, np: usize, source: &[&str], extra: &[&str], stop
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    for r in 0..np {
+    // One file per subdomain (several per rank with --subdomains-per-rank).
+    let parts = common::read_summary(&tmp.join("stopped/summary.json"))["subdomains"]
+        .as_u64()
+        .unwrap() as usize;
+    assert!(parts >= np);
+    for r in 0..parts {
         assert!(tmp
             .join(format!("stopped/checkpoint/rank_{r}.bin"))
             .exists());
@@ -107,6 +112,11 @@ fn restart_equals_uninterrupted_run_one_rank() {
 #[test]
 fn restart_equals_uninterrupted_run_two_ranks_coulomb_outer() {
     check_restart(2, &["--coulomb", "outer"]);
+}
+
+#[test]
+fn restart_equals_uninterrupted_run_two_ranks_of_two_subdomains() {
+    check_restart(2, &["--subdomains-per-rank", "2"]);
 }
 
 /// Frictionless, every node at zero gap: r is retuned after sweep 2, before the
@@ -146,6 +156,18 @@ fn restart_with_another_rank_count_is_refused_clearly() {
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("mpirun -n 2"), "{err}");
+    // Two subdomains, but on one rank: another layout, refused as clearly.
+    let o = run(
+        1,
+        &with(&["--restart", "--subdomains-per-rank", "2"]),
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("mpirun -n 2 and --subdomains-per-rank 1"),
+        "{err}"
+    );
 }
 
 /// The process ids of mpirun's children running the solver.

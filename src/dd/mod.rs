@@ -4,8 +4,11 @@
 //! that calls MPI.
 //!
 //! ## Scheme
-//! Rank 0 partitions the mesh (METIS on the dual graph) and sends each rank its
-//! subdomain. The boundary dofs B_s of a rank are its contact dofs c_s (own contact
+//! Rank 0 partitions the mesh (METIS on the dual graph) into P = ranks x K subdomains
+//! and sends each rank its K (K = `--subdomains-per-rank`, one per thread by default:
+//! `app::subdomains_per_rank`); a rank runs each of its subdomains on a thread of its
+//! own, and `comm` makes every collective one over subdomains. Below, "rank" stands for
+//! "subdomain". The boundary dofs B_s of a rank are its contact dofs c_s (own contact
 //! nodes that no other part touches) followed by its interface dofs g_s. Each rank
 //! assembles A_s = K_s + r N'WN (+ r T'WT) on its own elements and contact nodes, shifts
 //! the interface block by alpha I (floating subdomains), orders the interior by a
