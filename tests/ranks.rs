@@ -18,6 +18,14 @@ fn mpirun(np: usize, args: &[&str], dir: &Path) -> Output {
         .expect("mpirun must be installed (openmpi-bin)")
 }
 
+/// The lines of `stderr` that contact-par wrote (not mpirun's).
+fn our_lines(stderr: &str) -> Vec<&str> {
+    stderr
+        .lines()
+        .filter(|l| l.starts_with("contact-par:"))
+        .collect()
+}
+
 fn read_csv(path: &Path) -> Vec<Vec<f64>> {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     text.lines()
@@ -307,10 +315,7 @@ fn bad_input_on_four_ranks_fails_once_and_cleanly() {
     let o = mpirun(4, &["bad.toml", "--out", "res"], tmp.path());
     assert!(start.elapsed().as_secs() < 60, "took {:?}", start.elapsed());
     let err = String::from_utf8_lossy(&o.stderr);
-    let ours: Vec<&str> = err
-        .lines()
-        .filter(|l| l.starts_with("contact-par:"))
-        .collect();
+    let ours = our_lines(&err);
     assert_eq!(ours.len(), 1, "{err}");
     assert!(
         ours[0].contains("bad.toml") && ours[0].contains("poison"),
@@ -368,10 +373,7 @@ fn failure_inside_the_threads_of_two_ranks_is_reported_once() {
     );
     assert!(start.elapsed().as_secs() < 60, "took {:?}", start.elapsed());
     let err = String::from_utf8_lossy(&o.stderr);
-    let ours: Vec<&str> = err
-        .lines()
-        .filter(|l| l.starts_with("contact-par:"))
-        .collect();
+    let ours = our_lines(&err);
     assert_eq!(ours.len(), 1, "{err}");
     assert!(ours[0].contains("blocker/res"), "{}", ours[0]);
     assert_eq!(o.status.code(), Some(5), "{err}");

@@ -136,21 +136,7 @@ impl Reduce for Mpi {
         if self.size == 1 {
             return;
         }
-        let summed = self.leader_then_all(values.to_vec(), |s, parts| {
-            let mut acc = parts[0].clone();
-            for p in &parts[1..] {
-                for (a, v) in acc.iter_mut().zip(p) {
-                    *a += v;
-                }
-            }
-            if s.mpi_size > 1 {
-                let local = acc.clone();
-                s.world()
-                    .all_reduce_into(&local[..], &mut acc[..], SystemOperation::sum());
-            }
-            acc
-        });
-        values.copy_from_slice(&summed);
+        self.reduce_in_place(values, |a, b| a + b, SystemOperation::sum());
     }
 }
 
@@ -458,21 +444,31 @@ impl Mpi {
         if self.size == 1 {
             return;
         }
-        let max = self.leader_then_all(values.to_vec(), |s, parts| {
+        self.reduce_in_place(values, f64::max, SystemOperation::max());
+    }
+
+    /// Every entry of `values` combined over all subdomains: within the team by `op`
+    /// in member order, then between ranks by `mpi_op` (the same operation).
+    fn reduce_in_place(
+        &self,
+        values: &mut [f64],
+        op: fn(f64, f64) -> f64,
+        mpi_op: SystemOperation,
+    ) {
+        let reduced = self.leader_then_all(values.to_vec(), |s, parts| {
             let mut acc = parts[0].clone();
             for p in &parts[1..] {
                 for (a, v) in acc.iter_mut().zip(p) {
-                    *a = a.max(*v);
+                    *a = op(*a, *v);
                 }
             }
             if s.mpi_size > 1 {
                 let local = acc.clone();
-                s.world()
-                    .all_reduce_into(&local[..], &mut acc[..], SystemOperation::max());
+                s.world().all_reduce_into(&local[..], &mut acc[..], mpi_op);
             }
             acc
         });
-        values.copy_from_slice(&max);
+        values.copy_from_slice(&reduced);
     }
 
     /// Collective error agreement: every subdomain learns whether any failed. The first
