@@ -570,9 +570,8 @@ fn run_subdomain(
     t_scatter: Instant,
     print: &Printer,
 ) -> Result<RunReport> {
-    let sub = mpi.agree(mpi.scatter_parts(subs))?;
+    let sub = &mpi.agree(mpi.scatter_parts(subs))?;
     let scatter_s = t_scatter.elapsed().as_secs_f64();
-    let sub = &sub;
     let case = &setup.case;
     print.line(format!(
         "contact-par: {} | {} nodes, {} triangles, {} contact nodes | friction {} | r = {:e}, tol = {:e} | {} rank(s) x {} thread(s){}",
@@ -682,9 +681,8 @@ fn run_subdomain(
         output: 0.0,
         total: 0.0,
     };
-    let result = write_outputs(
-        opts, mpi, setup, sub, &u_local, &outcome, stats, times, t_out, t_start,
-    );
+    let piece = write_piece(opts, mpi, setup, sub, &u_local, &outcome, stats, t_out);
+    let result = write_outputs(opts, mpi, setup, &outcome, piece, times, t_out, t_start);
     mpi.agree(result)?;
 
     let sums = {
@@ -1190,23 +1188,22 @@ fn write_piece(
 
 /// Every subdomain writes its piece; the first gathers the contact rows, the owned
 /// nodes and the figures and writes the files of the whole run.
+/// `piece` is this subdomain's [`write_piece`]: every subdomain reaches the gather,
+/// failed or not, so that none waits for another.
 #[allow(clippy::too_many_arguments)]
 fn write_outputs(
     opts: &Options,
     mpi: &Mpi,
     setup: &Setup,
-    sub: &SubProblem,
-    u: &[[f64; 2]],
     o: &contact::Outcome,
-    stats: RankStats,
+    piece: Result<RankOutput>,
     mut times: Timings,
     t_out: Instant,
     t_start: Instant,
 ) -> Result<()> {
     let case = &setup.case;
     let dir = &opts.out;
-    // Every subdomain reaches the gather, failed or not, so that none waits for another.
-    let (mine, failure) = match write_piece(opts, mpi, setup, sub, u, o, stats, t_out) {
+    let (mine, failure) = match piece {
         Ok(v) => (Some(v), None),
         Err(e) => (None, Some(e)),
     };

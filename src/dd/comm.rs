@@ -299,12 +299,20 @@ impl Mpi {
 
     /// Concatenation over subdomains of `local`, on the first subdomain only.
     pub fn gather_to_root(&self, local: &[f64], counts: &[usize], out: &mut Vec<f64>) {
-        let Some(parts) = self.team.gather(self.member, local.to_vec()) else {
-            return;
+        // One subdomain per rank (every sweep of a cluster job): no team, no copy.
+        let team_values;
+        let mine = if self.per_rank() == 1 {
+            local
+        } else {
+            let Some(parts) = self.team.gather(self.member, local.to_vec()) else {
+                return;
+            };
+            team_values = parts.concat();
+            &team_values[..]
         };
-        let mine = parts.concat();
         if self.mpi_size == 1 {
-            *out = mine;
+            out.clear();
+            out.extend_from_slice(mine);
             return;
         }
         let root = self.world().process_at_rank(0);
@@ -313,9 +321,9 @@ impl Mpi {
             out.resize(rank_counts.iter().sum(), 0.0);
             let (c, d) = counts_displs(&rank_counts);
             let mut part = PartitionMut::new(&mut out[..], &c[..], &d[..]);
-            root.gather_varcount_into_root(&mine[..], &mut part);
+            root.gather_varcount_into_root(mine, &mut part);
         } else {
-            root.gather_varcount_into(&mine[..]);
+            root.gather_varcount_into(mine);
         }
     }
 
@@ -323,26 +331,35 @@ impl Mpi {
     /// `mine`.
     pub fn scatter_from_root(&self, all: &[f64], counts: &[usize], mine: &mut [f64]) {
         let k = self.per_rank();
-        let first = self.mpi_rank * k;
+        if k == 1 {
+            self.scatter_to_ranks(all, counts, mine);
+            return;
+        }
         let segment = self.is_leader().then(|| {
-            if self.mpi_size == 1 {
-                return all.to_vec();
-            }
-            let rank_counts = self.rank_counts(counts);
-            let mut segment = vec![0.0; rank_counts[self.mpi_rank]];
-            let root = self.world().process_at_rank(0);
-            if self.is_root() {
-                let (c, d) = counts_displs(&rank_counts);
-                let part = mpi::datatype::Partition::new(all, &c[..], &d[..]);
-                root.scatter_varcount_into_root(&part, &mut segment[..]);
-            } else {
-                root.scatter_varcount_into(&mut segment[..]);
-            }
+            let mut segment = vec![0.0; self.rank_counts(counts)[self.mpi_rank]];
+            self.scatter_to_ranks(all, counts, &mut segment);
             segment
         });
         let segment = self.team.broadcast(self.member, segment);
-        let offset: usize = counts[first..self.rank].iter().sum();
+        let offset: usize = counts[self.mpi_rank * k..self.rank].iter().sum();
         mine.copy_from_slice(&segment[offset..offset + counts[self.rank]]);
+    }
+
+    /// The leader's part of [`Mpi::scatter_from_root`]: this rank's segment of `all` (its
+    /// subdomains' parts, in order) into `segment`.
+    fn scatter_to_ranks(&self, all: &[f64], counts: &[usize], segment: &mut [f64]) {
+        if self.mpi_size == 1 {
+            segment.copy_from_slice(all);
+            return;
+        }
+        let root = self.world().process_at_rank(0);
+        if self.is_root() {
+            let (c, d) = counts_displs(&self.rank_counts(counts));
+            let part = mpi::datatype::Partition::new(all, &c[..], &d[..]);
+            root.scatter_varcount_into_root(&part, segment);
+        } else {
+            root.scatter_varcount_into(segment);
+        }
     }
 
     /// Every subdomain's `value`, in subdomain order, on the first subdomain (`None`
@@ -393,10 +410,8 @@ impl Mpi {
             if self.is_root() {
                 let mut all = all.unwrap_or_default().into_iter();
                 let own: Vec<T> = all.by_ref().take(k).collect();
-                let rest: Vec<T> = all.collect();
-                let mut rest = rest.into_iter();
                 for r in 1..self.mpi_size {
-                    let chunk: Vec<T> = rest.by_ref().take(k).collect();
+                    let chunk: Vec<T> = all.by_ref().take(k).collect();
                     let bytes = encode(&chunk).unwrap_or_default();
                     self.world().process_at_rank(r as i32).send(&bytes[..]);
                 }
@@ -455,6 +470,12 @@ impl Mpi {
         op: fn(f64, f64) -> f64,
         mpi_op: SystemOperation,
     ) {
+        // One subdomain per rank (every sweep of a cluster job): MPI alone.
+        if self.per_rank() == 1 {
+            let local = values.to_vec();
+            self.world().all_reduce_into(&local[..], values, mpi_op);
+            return;
+        }
         let reduced = self.leader_then_all(values.to_vec(), |s, parts| {
             let mut acc = parts[0].clone();
             for p in &parts[1..] {
