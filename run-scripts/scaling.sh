@@ -53,6 +53,9 @@
 #                        cores (sampled over 1 s), at most --wait-max seconds (default
 #                        120); for shared machines. Default: do not wait. Every run
 #                        records how many cores others kept busy during it regardless.
+#   --timeout S          kill a run (mpirun and its ranks) that has not ended after S
+#                        seconds and record it as failed (exit 124); default 0, no
+#                        limit (--smoke: 300)
 #   --no-plots           no plots, no pip
 #   --smoke              level 0, 1 run, ranks 1 and 2 (1 thread) and 2 copies, strong
 #                        study only, no pip (plots only when python3 already has matplotlib)
@@ -79,6 +82,7 @@ WAIT_IDLE=
 WAIT_MAX=120
 PLOTS=1
 SMOKE=0
+TIMEOUT=
 
 die() { echo "scaling.sh: $*" >&2; exit 2; }
 need_arg() { [[ $# -ge 2 && -n "$2" ]] || die "$1 needs a value"; }
@@ -99,6 +103,7 @@ while [[ $# -gt 0 ]]; do
     --mpirun-args) need_arg "$@"; MPI_ARGS="$2"; shift 2 ;;
     --wait-idle) need_arg "$@"; WAIT_IDLE="$2"; shift 2 ;;
     --wait-max) need_arg "$@"; WAIT_MAX="$2"; shift 2 ;;
+    --timeout) need_arg "$@"; TIMEOUT="$2"; shift 2 ;;
     --no-plots) PLOTS=0; shift ;;
     --smoke) SMOKE=1; shift ;;
     -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
@@ -111,6 +116,7 @@ done
 [[ -z "$WEAK_LEVEL" || "$WEAK_LEVEL" =~ ^[0-9]+$ ]] || die "--weak-level must be a whole number"
 [[ -z "$WAIT_IDLE" || "$WAIT_IDLE" =~ ^[0-9]*\.?[0-9]+$ ]] || die "--wait-idle must be a number of cores"
 [[ "$WAIT_MAX" =~ ^[0-9]+$ ]] || die "--wait-max must be a whole number of seconds"
+[[ -z "$TIMEOUT" || "$TIMEOUT" =~ ^[0-9]+$ ]] || die "--timeout must be a whole number of seconds"
 [[ "$RUNS" -ge 1 ]] || die "--runs must be at least 1"
 case "$STUDY" in strong|weak|both) ;; *) die "--study must be strong, weak or both" ;; esac
 [[ -z "$COPIES" || "$COPIES" == none || "$COPIES" =~ ^[0-9]+( [0-9]+)*$ ]] ||
@@ -126,7 +132,9 @@ if [[ -n "$CASE_FILE" ]]; then
 fi
 if [[ $SMOKE == 1 ]]; then
   LEVEL=0 RUNS=1 STUDY=strong
+  TIMEOUT=${TIMEOUT:-300}
 fi
+TIMEOUT=${TIMEOUT:-0}
 if [[ -z "$WEAK_LEVEL" ]]; then
   WEAK_LEVEL=$(( LEVEL > 0 ? LEVEL - 1 : 0 ))
 fi
@@ -280,11 +288,19 @@ record() { # study level ranks threads run code wall cpu others rss dir: one row
 }
 
 report_failure() { # code dir
-  if [[ $1 != 0 && $1 != 3 ]]; then
+  if [[ $1 == 124 || $1 == 137 ]]; then
+    echo "    killed after --timeout $TIMEOUT s; see $2/stderr.txt" >&2
+  elif [[ $1 != 0 && $1 != 3 ]]; then
     echo "    failed; see $2/stderr.txt:" >&2
-    grep -m 2 '^contact-par' "$2/stderr.txt" >&2 || tail -n 3 "$2/stderr.txt" >&2 || true
+    # contact-par's own one-line error, else (mpirun or MPI failed to start) all that the
+    # launcher said: a machine on which this happens is usually not at hand later.
+    grep -m 2 '^contact-par' "$2/stderr.txt" >&2 || tail -n 40 "$2/stderr.txt" >&2 || true
   fi
 }
+
+# Kills a run cleanly: SIGTERM to mpirun (which stops its ranks), SIGKILL 10 s later.
+# TIMEOUT=0 disables it.
+LIMIT=(timeout -k 10 "$TIMEOUT")
 
 run_one() { # study level ranks threads run
   local study=$1 level=$2 ranks=$3 threads=$4 run=$5
@@ -297,11 +313,16 @@ run_one() { # study level ranks threads run
   wait_idle
   b0=$(busy_s)
   t0=$(date +%s.%N)
+  # A session directory of its own (Open MPI's, and PMIx's shared-memory store): nothing
+  # left behind by an earlier run, or by another user's job, can get in the way.
+  local session
+  session=$(mktemp -d)
   # shellcheck disable=SC2086
-  "${timer[@]}" mpirun -n "$ranks" --oversubscribe --bind-to "$BIND" $MPI_ARGS \
+  TMPDIR="$session" "${timer[@]}" "${LIMIT[@]}" mpirun -n "$ranks" --oversubscribe --bind-to "$BIND" $MPI_ARGS \
     "$EXE" "${CASE_ARGS[@]}" --threads "$threads" --out "$dir" \
     >"$dir/stdout.txt" 2>"$dir/stderr.txt" || code=$?
   t1=$(date +%s.%N)
+  rm -rf "$session"
   b1=$(busy_s)
   rm -f "$dir"/*.vtu "$dir"/*.pvtu
   # Our CPU time (user + sys of mpirun and the ranks) and its largest resident set, from
@@ -346,7 +367,7 @@ run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
       session=$(mktemp -d)
       a=$(date +%s.%N) code=0
       # shellcheck disable=SC2086
-      TMPDIR="$session" "${timer[@]}" mpirun -n 1 --bind-to "$BIND" $MPI_ARGS \
+      TMPDIR="$session" "${timer[@]}" "${LIMIT[@]}" mpirun -n 1 --bind-to "$BIND" $MPI_ARGS \
         "$EXE" "${CASE_ARGS[@]}" --threads 1 --out "$dir" \
         >"$dir/stdout.txt" 2>"$dir/stderr.txt" || code=$?
       echo "$a $(date +%s.%N) $code" >"$dir/wall.txt"
@@ -396,7 +417,7 @@ PY
 fi
 if [[ $SMOKE == 0 ]]; then
   # shellcheck disable=SC2086
-  mpirun -n 1 --bind-to "$BIND" $MPI_ARGS "$EXE" --builtin "$CASE" --level 0 --quiet \
+  "${LIMIT[@]}" mpirun -n 1 --bind-to "$BIND" $MPI_ARGS "$EXE" --builtin "$CASE" --level 0 --quiet \
     --out "$OUT/runs/warmup" >/dev/null 2>&1 || true
   rm -rf "$OUT/runs/warmup"
 fi

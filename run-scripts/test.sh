@@ -6,6 +6,11 @@ cd "$(dirname "$0")/.."
 # mpirun refuses root and more ranks than cores unless told; the tests need both.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 export OMPI_MCA_rmaps_base_oversubscribe=1
+# PMIx's shared-memory key store (gds ds21) keeps process-shared locks in files of the
+# session directory; a rank that dies while holding one makes mpirun report "PMIX ERROR
+# ... gds_ds21_lock_pthread.c" and has hung the next launch on a CI machine. The plain
+# hash store has no such state and is all a job of a few ranks needs.
+export PMIX_MCA_gds=hash
 cargo fmt --all -- --check
 cargo clippy --release --workspace --all-targets -- -D warnings
 # The scaling study's smoke mode: the scripts of run-scripts/ keep working (seconds).
