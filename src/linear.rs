@@ -1297,6 +1297,14 @@ mod tests {
     }
 
     #[test]
+    fn subdomains_of_one_rank_order_at_the_same_time() {
+        // A binary of this crate binds libmetis's rand/srand to the partition crate's
+        // per-thread generators; without them the orderings of a rank's subdomains
+        // would queue on one lock.
+        assert!(partition::metis_runs_concurrently());
+    }
+
+    #[test]
     fn schur_from_the_factor_small_simplicial() {
         check(4, 3, true);
     }

@@ -29,10 +29,12 @@
 
 mod coarsen;
 mod graph;
+mod metis_rng;
 
 pub use graph::Stars;
 use graph::{dual_from_stars, pieces_and_cut, to_idx, Graph};
 use metis::Idx;
+pub use metis_rng::is_private as metis_runs_concurrently;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::Mutex;
@@ -323,8 +325,9 @@ pub struct Partition {
 /// tolerance 1.03 (`ufactor` 30), one cut, 10 refinement iterations), set explicitly,
 /// plus two choices: `seed` = [`METIS_SEED`], and `contig` = 1 (contiguous parts) when
 /// the dual graph is connected. METIS refuses `contig` on a disconnected graph (e.g. two
-/// separate bodies in contact), so it is off there. Calls are serialised by a lock
-/// because METIS keeps its random state in process-wide statics.
+/// separate bodies in contact), so it is off there. METIS draws random numbers; each
+/// thread calling it has a generator of its own (see `metis_rng`), so parts do not
+/// depend on what other threads do meanwhile.
 ///
 /// A larger graph is first coarsened here, down to at most 200 000 vertices (and at
 /// least 1000 per part): each level pairs every vertex with a neighbour, in vertex
@@ -448,9 +451,19 @@ fn metis_options(graph_is_connected: bool, ncuts: Idx) -> [Idx; metis::NOPTIONS]
     options
 }
 
-/// METIS keeps its random number generator in process-wide statics, so two threads
-/// partitioning at once would disturb each other's sequence (and results).
-static METIS_LOCK: Mutex<()> = Mutex::new(());
+/// Runs a METIS call so that its result does not depend on other threads: on a
+/// generator of this thread's own ([`metis_rng`]), or, where that could not be arranged,
+/// one call at a time in the process (libc's generator is process-wide).
+fn metis_call<T>(call: impl FnOnce() -> T) -> T {
+    static METIS_LOCK: Mutex<()> = Mutex::new(());
+    if metis_rng::is_private() {
+        let _own = metis_rng::Private::enter();
+        call()
+    } else {
+        let _one_at_a_time = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+        call()
+    }
+}
 
 /// The part of every vertex of `graph` (see [`partition_mesh`]: METIS alone up to
 /// `max_metis_vertices`, coarsening first beyond).
@@ -534,18 +547,19 @@ fn metis_kway(
 ) -> Result<Vec<Idx>, PartitionError> {
     let metis_error = |e: &dyn fmt::Display| PartitionError::Metis(e.to_string());
     let mut part = vec![0 as Idx; graph.num_vertices()];
-    let _guard = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
-    let mut g = metis::Graph::new(1, to_idx(nparts)?, &graph.xadj, &graph.adjncy)
-        .map_err(|e| metis_error(&e))?;
-    if let Some(w) = &graph.vwgt {
-        g = g.set_vwgt(w);
-    }
-    if let Some(w) = &graph.adjwgt {
-        g = g.set_adjwgt(w);
-    }
-    g.set_options(options)
-        .part_kway(&mut part)
-        .map_err(|e| metis_error(&e))?;
+    metis_call(|| {
+        let mut g = metis::Graph::new(1, to_idx(nparts)?, &graph.xadj, &graph.adjncy)
+            .map_err(|e| metis_error(&e))?;
+        if let Some(w) = &graph.vwgt {
+            g = g.set_vwgt(w);
+        }
+        if let Some(w) = &graph.adjwgt {
+            g = g.set_adjwgt(w);
+        }
+        g.set_options(options)
+            .part_kway(&mut part)
+            .map_err(|e| metis_error(&e))
+    })?;
     Ok(part)
 }
 
@@ -715,8 +729,7 @@ pub fn nested_dissection(xadj: &[usize], adjncy: &[usize]) -> Result<Vec<usize>,
     let mut perm = vec![0 as metis_sys::idx_t; n];
     let mut iperm = vec![0 as metis_sys::idx_t; n];
     let mut options = [0 as metis_sys::idx_t; metis_sys::METIS_NOPTIONS as usize];
-    let status = {
-        let _guard = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    let status = metis_call(|| {
         // SAFETY: the arrays have the sizes METIS_NodeND expects (n + 1, xadj[n], n, n,
         // NOPTIONS) and outlive the call; a null vwgt means unit weights.
         unsafe {
@@ -733,7 +746,7 @@ pub fn nested_dissection(xadj: &[usize], adjncy: &[usize]) -> Result<Vec<usize>,
                 iperm.as_mut_ptr(),
             )
         }
-    };
+    });
     if status != metis_sys::rstatus_et_METIS_OK {
         return Err(PartitionError::Metis(format!(
             "METIS_NodeND returned status {status}"

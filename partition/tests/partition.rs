@@ -371,3 +371,63 @@ fn large_meshes_are_coarsened_before_metis() {
         }
     }
 }
+
+/// The node graph of a triangle mesh in CSR form, without self loops.
+fn node_graph(num_nodes: usize, triangles: &[[usize; 3]]) -> (Vec<usize>, Vec<usize>) {
+    let mut adj: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); num_nodes];
+    for t in triangles {
+        for a in 0..3 {
+            for b in 0..3 {
+                if a != b {
+                    adj[t[a]].insert(t[b]);
+                }
+            }
+        }
+    }
+    let mut xadj = vec![0];
+    let mut adjncy = Vec::new();
+    for s in &adj {
+        adjncy.extend(s.iter().copied());
+        xadj.push(adjncy.len());
+    }
+    (xadj, adjncy)
+}
+
+#[test]
+fn metis_on_several_threads_at_once_gives_the_results_of_one_at_a_time() {
+    // Subdomains are ordered on threads of their own; METIS draws random numbers, so
+    // this holds only if every thread has a generator of its own (or calls queue up).
+    assert!(
+        partition::metis_runs_concurrently(),
+        "rand/srand are not bound to the partition crate's: METIS calls are serialized"
+    );
+    let (n, tris, contact) = rectangle(120, 90);
+    let (xadj, adjncy) = node_graph(n, &tris);
+    let order = partition::nested_dissection(&xadj, &adjncy).unwrap();
+    let parts = partition_mesh(n, &tris, &contact, 5).unwrap();
+    // Four threads, three rounds each: the calls overlap in many ways.
+    let together: Vec<(Vec<usize>, Partition)> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..4)
+            .map(|_| {
+                s.spawn(|| {
+                    (0..3)
+                        .map(|_| {
+                            (
+                                partition::nested_dissection(&xadj, &adjncy).unwrap(),
+                                partition_mesh(n, &tris, &contact, 5).unwrap(),
+                            )
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap())
+            .collect()
+    });
+    for (o, p) in together {
+        assert_eq!(o, order);
+        assert_eq!(p, parts);
+    }
+}
