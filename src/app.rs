@@ -211,6 +211,11 @@ pub struct RankStats {
     ordering: String,
     /// Forming S_s = L_BB L_BB' and the condensed right-hand side.
     schur_s: f64,
+    /// On the subdomain that factored the interface system: "dense" or "sparse"
+    /// (null on the others).
+    interface_factor: Option<String>,
+    /// Its factorization's floating-point operations, 1e9 (0 on the others).
+    interface_gflop: f64,
     loop_s: f64,
     /// One sparse forward+backward solve with this rank's factor (the cost a sweep
     /// would have without condensation).
@@ -664,6 +669,8 @@ fn run_subdomain(
         ordering_s: phases.ordering,
         ordering: phases.ordering_used.name().to_string(),
         schur_s: phases.schur,
+        interface_factor: phases.interface_factor.map(str::to_string),
+        interface_gflop: phases.interface_flops / 1e9,
         loop_s: phases.uzawa,
         one_solve_s: phases.one_solve,
         output_s: 0.0,
@@ -744,6 +751,9 @@ struct Phases {
     ordering: f64,
     ordering_used: Ordering,
     schur: f64,
+    /// "dense" or "sparse" where the interface system was factored.
+    interface_factor: Option<&'static str>,
+    interface_flops: f64,
     factor_nnz: usize,
     factor_flops: f64,
     /// One sparse forward+backward solve with this rank's factor (on the condensed
@@ -833,6 +843,12 @@ fn solve_condensed(
         vec![0; mpi.size]
     };
     let condense_s = t_condense.elapsed().as_secs_f64();
+    let interface_factor = interface
+        .as_ref()
+        .map(|i| if i.is_sparse() { "sparse" } else { "dense" });
+    let interface_flops = interface
+        .as_ref()
+        .map_or(0.0, InterfaceSystem::factor_flops);
 
     let t_loop = Instant::now();
     let n_own = sub.contact_nodes.len();
@@ -885,6 +901,8 @@ fn solve_condensed(
             ordering: local.factor.ordering_s,
             ordering_used: local.factor.ordering,
             schur: schur_s,
+            interface_factor,
+            interface_flops,
             factor_nnz: local.factor.factor_nnz(),
             factor_flops: local.factor.factor_flops(),
             one_solve,
@@ -1024,6 +1042,8 @@ fn solve_full(
             ordering: 0.0,
             ordering_used: Ordering::Amd,
             schur: 0.0,
+            interface_factor: None,
+            interface_flops: 0.0,
             factor_nnz: step.factor_nnz(),
             factor_flops: step.factor_flops(),
             one_solve,
@@ -1346,6 +1366,15 @@ fn write_outputs(
     // Past the json! macro's recursion limit.
     let mut summary = summary;
     summary["subdomains"] = mpi.size.into();
+    summary["interface_factor"] = all_stats
+        .iter()
+        .find_map(|s| s.interface_factor.clone())
+        .into();
+    summary["interface_gflop"] = all_stats
+        .iter()
+        .map(|s| s.interface_gflop)
+        .sum::<f64>()
+        .into();
     summary["subdomains_per_rank"] = setup.per_rank.into();
     let json = serde_json::to_string_pretty(&summary)
         .map_err(|e| Error::Output(format!("cannot format summary.json: {e}")))?;

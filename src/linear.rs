@@ -56,12 +56,23 @@ impl SparseCholesky {
         a: SparseColMatRef<'_, usize, f64>,
         ordering: SymmetricOrdering<'_, usize>,
     ) -> Result<Self> {
+        let mut chol = Self::analyse(a.symbolic(), ordering)?;
+        chol.refactor(a)?;
+        Ok(chol)
+    }
+
+    /// The ordering and symbolic analysis of the matrix whose LOWER triangle has the
+    /// pattern `a`, with room for its factor; [`Self::refactor`] then fills it in.
+    /// [`Self::factor_flops`] already tells its cost.
+    pub fn analyse(
+        a: faer::sparse::SymbolicSparseColMatRef<'_, usize>,
+        ordering: SymmetricOrdering<'_, usize>,
+    ) -> Result<Self> {
         let par = faer::get_global_parallelism();
-        let symbolic =
-            factorize_symbolic_cholesky(a.symbolic(), Side::Lower, ordering, Default::default())
-                .map_err(|e| {
-                    Error::Numerical(format!("symbolic Cholesky factorization failed: {e:?}"))
-                })?;
+        let symbolic = factorize_symbolic_cholesky(a, Side::Lower, ordering, Default::default())
+            .map_err(|e| {
+                Error::Numerical(format!("symbolic Cholesky factorization failed: {e:?}"))
+            })?;
         let values = zeroed_f64(symbolic.len_val()).ok_or_else(|| {
             Error::Numerical(format!(
                 "out of memory for the Cholesky factor ({} non-zeros); use more ranks or a coarser mesh",
@@ -69,13 +80,11 @@ impl SparseCholesky {
             ))
         })?;
         let scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, par));
-        let mut chol = SparseCholesky {
+        Ok(SparseCholesky {
             symbolic,
             values,
             scratch,
-        };
-        chol.refactor(a)?;
-        Ok(chol)
+        })
     }
 
     /// Numeric factorization of `a` (LOWER triangle), which must have the sparsity of

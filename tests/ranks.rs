@@ -414,3 +414,62 @@ fn default_subdomains_follow_the_threads_of_each_rank() {
         assert_eq!(s["subdomains_per_rank"], (expected / np) as i64);
     }
 }
+
+/// Many subdomains: the interface system is factored as a sparse matrix (each
+/// subdomain's piece touches a few neighbours' interface dofs only), and the answer is
+/// still that of one rank.
+#[test]
+fn many_subdomains_factor_the_interface_sparsely_with_the_same_answer() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = case_file(
+        tmp.path(),
+        "block",
+        2,
+        "friction = \"coulomb\"\ncoefficient = 0.3\n",
+        "[solver]\ntol = 1e-10\n",
+    );
+    let mut runs = Vec::new();
+    for (np, k) in [(1, 1), (2, 6)] {
+        let out = tmp.path().join(format!("out{np}x{k}"));
+        let k_arg = k.to_string();
+        let o = mpirun(
+            np,
+            &[
+                case.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--nodes-csv",
+                "--quiet",
+                "--subdomains-per-rank",
+                &k_arg,
+            ],
+            tmp.path(),
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s = summary(&out);
+        assert_eq!(s["converged"], true);
+        runs.push((
+            s,
+            read_csv(&out.join("contact.csv")),
+            read_csv(&out.join("nodes.csv")),
+        ));
+    }
+    let (s12, c12, n12) = &runs[1];
+    assert_eq!(s12["subdomains"], 12);
+    assert_eq!(s12["interface_factor"], "sparse", "{s12}");
+    let n = s12["interface_dofs"].as_f64().unwrap();
+    let gflop = s12["interface_gflop"].as_f64().unwrap();
+    assert!(
+        gflop > 0.0 && gflop * 1e9 <= 0.5 * n * n * n / 3.0 * 1.01,
+        "interface work {gflop} Gflop for {n} dofs"
+    );
+    assert!(runs[0].0["interface_factor"].is_null());
+    compare(
+        &runs[0].1,
+        &runs[0].2,
+        c12,
+        n12,
+        1e-8,
+        "block coulomb on 2 ranks x 6 subdomains",
+    );
+}

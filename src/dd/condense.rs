@@ -20,8 +20,9 @@
 //! interface alone (n_G^3 / 3 once, 2 n_G^2 a sweep), not by the contact boundary.
 
 use crate::error::{Error, Result};
-use crate::linear::LocalFactor;
+use crate::linear::{LocalFactor, SparseCholesky};
 use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::cholesky::SymmetricOrdering;
 use faer::{Mat, Side};
 
 /// C restricted to one rank's own contact nodes: packed rows (the normal value of each
@@ -185,69 +186,194 @@ impl LocalResponse {
 
 /// The interface system of all ranks, summed and factored once on the first rank.
 pub struct InterfaceSystem {
-    llt: Option<faer::linalg::solvers::Llt<f64>>,
+    factor: Option<InterfaceFactor>,
     /// Global interface index of each rank's interface dofs, rank by rank.
     index: Vec<Vec<usize>>,
     x: Mat<f64>,
 }
 
-/// The Cholesky factor of `s` on `threads` threads of a pool of its own, whatever the
-/// threads of this rank (faer's factorization reads the process-wide parallelism, which
-/// is set for the call and put back).
-fn factor_with_threads(
-    s: &Mat<f64>,
-    threads: usize,
-) -> std::result::Result<
-    faer::linalg::solvers::Llt<f64>,
-    faer::linalg::cholesky::llt::factor::LltError,
-> {
-    let factor = || faer::linalg::solvers::Llt::new(s.as_ref(), Side::Lower);
+/// The factor of the interface system: dense, or sparse when the subdomains' pieces
+/// leave enough of it empty (see [`InterfaceSystem::new`]).
+enum InterfaceFactor {
+    Dense(faer::linalg::solvers::Llt<f64>),
+    Sparse(Box<SparseCholesky>),
+}
+
+/// The sparse factor is taken when its work is at most this part of the dense one's:
+/// both run the same dense kernels (the sparse one on its supernodes), but the sparse
+/// one has its assembly, ordering and scatter on top.
+const SPARSE_INTERFACE_WORK: f64 = 0.5;
+
+/// `f` with faer's process-wide parallelism set to `threads` threads of a pool of its
+/// own, whatever the threads of this rank, and put back afterwards.
+fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
     if threads <= 1 {
-        return factor();
+        return f();
     }
     let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(threads).build() else {
-        return factor();
+        return f();
     };
     let previous = faer::get_global_parallelism();
     faer::set_global_parallelism(faer::Par::rayon(threads));
-    let result = pool.install(factor);
+    let result = pool.install(f);
     faer::set_global_parallelism(previous);
     result
 }
 
+/// The work of a dense factor of order n as `SparseCholesky::factor_flops` counts it:
+/// the squared lengths of its columns, about n^3 / 3.
+fn dense_work(n: usize) -> f64 {
+    (1..=n).map(|c| (c as f64) * (c as f64)).sum()
+}
+
+fn singular() -> Error {
+    Error::Numerical(
+        "the condensed stiffness matrix is singular: the body can still move rigidly; add Dirichlet conditions that fix the rigid motions (with frictionless contact, also the sliding along the foundation)".into(),
+    )
+}
+
+/// The pattern of the lower triangle of the sum of `pieces` (columns of sorted rows):
+/// entry (i, j) is there when a piece holds both i and j.
+fn lower_pattern(n: usize, pieces: &[(Vec<usize>, Mat<f64>)]) -> (Vec<usize>, Vec<usize>) {
+    let sorted: Vec<Vec<usize>> = pieces
+        .iter()
+        .map(|(idx, _)| {
+            let mut v = idx.clone();
+            v.sort_unstable();
+            v
+        })
+        .collect();
+    let mut pieces_of = vec![Vec::new(); n];
+    for (p, idx) in sorted.iter().enumerate() {
+        for &i in idx {
+            pieces_of[i].push(p);
+        }
+    }
+    let mut col_ptr = Vec::with_capacity(n + 1);
+    col_ptr.push(0);
+    let mut rows = Vec::new();
+    let mut column = Vec::new();
+    for (j, of) in pieces_of.iter().enumerate() {
+        column.clear();
+        for &p in of {
+            let idx = &sorted[p];
+            column.extend_from_slice(&idx[idx.partition_point(|&i| i < j)..]);
+        }
+        column.sort_unstable();
+        column.dedup();
+        // A dof that no piece holds still needs its diagonal: the factorization then
+        // reports the sum singular instead of failing on a malformed pattern.
+        if column.first() != Some(&j) {
+            column.insert(0, j);
+        }
+        rows.extend_from_slice(&column);
+        col_ptr.push(rows.len());
+    }
+    (col_ptr, rows)
+}
+
+impl InterfaceFactor {
+    fn new(
+        n: usize,
+        pieces: &[(Vec<usize>, Mat<f64>)],
+        threads: usize,
+        sparse_work: f64,
+    ) -> Result<Self> {
+        let (col_ptr, rows) = lower_pattern(n, pieces);
+        let pattern =
+            faer::sparse::SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &rows);
+        let mut sparse = SparseCholesky::analyse(pattern, SymmetricOrdering::Amd)?;
+        if sparse.factor_flops() <= sparse_work * dense_work(n) {
+            let mut values = vec![0.0; rows.len()];
+            for (idx, piece) in pieces {
+                for (b, &j) in idx.iter().enumerate() {
+                    let column = &rows[col_ptr[j]..col_ptr[j + 1]];
+                    for (a, &i) in idx.iter().enumerate() {
+                        if i >= j {
+                            // The pattern holds every (i, j) of every piece.
+                            let at = column.binary_search(&i).expect("in the pattern");
+                            values[col_ptr[j] + at] += piece[(a, b)];
+                        }
+                    }
+                }
+            }
+            let a = faer::sparse::SparseColMatRef::new(pattern, &values);
+            with_threads(threads, || sparse.refactor(a)).map_err(|_| singular())?;
+            Ok(InterfaceFactor::Sparse(Box::new(sparse)))
+        } else {
+            drop(sparse);
+            let mut s = Mat::<f64>::zeros(n, n);
+            for (idx, piece) in pieces {
+                for (a, &ia) in idx.iter().enumerate() {
+                    for (b, &ib) in idx.iter().enumerate() {
+                        s[(ia, ib)] += piece[(a, b)];
+                    }
+                }
+            }
+            let llt = with_threads(threads, || {
+                faer::linalg::solvers::Llt::new(s.as_ref(), Side::Lower)
+            })
+            .map_err(|_| singular())?;
+            Ok(InterfaceFactor::Dense(llt))
+        }
+    }
+
+    fn solve_in_place(&mut self, x: faer::MatMut<'_, f64>) {
+        match self {
+            InterfaceFactor::Dense(llt) => llt.solve_in_place(x),
+            InterfaceFactor::Sparse(chol) => chol.solve_in_place(x),
+        }
+    }
+}
+
 impl InterfaceSystem {
     /// Sums the pieces (one per rank, in rank order: global indices and the dense
-    /// interface Schur complement) and factors the sum (n^3 / 3 flops, n^2 doubles) with
-    /// `threads` threads.
+    /// interface Schur complement) and factors the sum with `threads` threads: dense
+    /// (n^3 / 3 flops, n^2 doubles) while the pieces overlap so much that a sparse
+    /// factor would not save half of that (two subdomains: one piece covers it all);
+    /// sparse, with an AMD ordering, once they do not (many subdomains, each touching a
+    /// few neighbours' interfaces only).
     pub fn new(
         n: usize,
         pieces: impl IntoIterator<Item = (Vec<usize>, Mat<f64>)>,
         threads: usize,
     ) -> Result<Self> {
-        let mut s = Mat::<f64>::zeros(n, n);
-        let mut index = Vec::new();
-        for (idx, piece) in pieces {
-            for (a, &ia) in idx.iter().enumerate() {
-                for (b, &ib) in idx.iter().enumerate() {
-                    s[(ia, ib)] += piece[(a, b)];
-                }
-            }
-            index.push(idx);
-        }
-        let llt = if n == 0 {
+        Self::with_sparse_work(n, pieces, threads, SPARSE_INTERFACE_WORK)
+    }
+
+    /// As [`Self::new`], sparse when its work is at most `sparse_work` times the dense one.
+    fn with_sparse_work(
+        n: usize,
+        pieces: impl IntoIterator<Item = (Vec<usize>, Mat<f64>)>,
+        threads: usize,
+        sparse_work: f64,
+    ) -> Result<Self> {
+        let pieces: Vec<(Vec<usize>, Mat<f64>)> = pieces.into_iter().collect();
+        let factor = if n == 0 {
             None
         } else {
-            Some(factor_with_threads(&s, threads).map_err(|_| {
-                Error::Numerical(
-                    "the condensed stiffness matrix is singular: the body can still move rigidly; add Dirichlet conditions that fix the rigid motions (with frictionless contact, also the sliding along the foundation)".into(),
-                )
-            })?)
+            Some(InterfaceFactor::new(n, &pieces, threads, sparse_work)?)
         };
         Ok(InterfaceSystem {
-            llt,
-            index,
+            factor,
+            index: pieces.into_iter().map(|(idx, _)| idx).collect(),
             x: Mat::zeros(n, 1),
         })
+    }
+
+    /// Whether the sum was factored as a sparse matrix.
+    pub fn is_sparse(&self) -> bool {
+        matches!(self.factor, Some(InterfaceFactor::Sparse(_)))
+    }
+
+    /// Floating-point operations of its factorization, counted as
+    /// [`SparseCholesky::factor_flops`] counts them.
+    pub fn factor_flops(&self) -> f64 {
+        match &self.factor {
+            None => 0.0,
+            Some(InterfaceFactor::Dense(_)) => dense_work(self.x.nrows()),
+            Some(InterfaceFactor::Sparse(chol)) => chol.factor_flops(),
+        }
     }
 
     /// Number of interface dofs of each rank (the counts of the per-sweep gather).
@@ -266,8 +392,8 @@ impl InterfaceSystem {
                 k += 1;
             }
         }
-        if let Some(llt) = &self.llt {
-            llt.solve_in_place(self.x.as_mut());
+        if let Some(factor) = &mut self.factor {
+            factor.solve_in_place(self.x.as_mut());
         }
         out.clear();
         for idx in &self.index {
@@ -326,6 +452,77 @@ mod tests {
         let z = Mat::<f64>::zeros(1, 1);
         assert!(InterfaceSystem::new(1, [(vec![0], z.clone())], 1).is_err());
         assert!(InterfaceSystem::new(1, [(vec![0], z)], 2).is_err());
+    }
+
+    /// A chain of subdomains: piece s holds the dofs of interfaces s and s + 1 (each
+    /// `m` dofs), as strips cut a body. The sparse factor solves the sum as the dense
+    /// one does, on one thread and on several, and needs less work.
+    #[test]
+    fn sparse_interface_factor_agrees_with_the_dense_one() {
+        let (m, strips) = (30, 7);
+        let n = m * (strips + 1);
+        let pieces: Vec<(Vec<usize>, Mat<f64>)> = (0..strips)
+            .map(|s| {
+                let idx: Vec<usize> = (s * m..(s + 2) * m).collect();
+                let k = idx.len();
+                let a = Mat::<f64>::from_fn(k, k, |i, j| {
+                    (((i * 7 + j * 13 + s * 5) % 11) as f64 / 11.0 - 0.5) * 0.3
+                });
+                (idx, &a * a.transpose() + Mat::<f64>::identity(k, k))
+            })
+            .collect();
+        let rhs: Vec<f64> = pieces
+            .iter()
+            .flat_map(|(idx, _)| idx.iter().map(|&i| ((i * 3) as f64 * 0.1).cos()))
+            .collect();
+        let solve = |sparse_work: f64, threads: usize| {
+            let mut sys =
+                InterfaceSystem::with_sparse_work(n, pieces.clone(), threads, sparse_work).unwrap();
+            let mut out = Vec::new();
+            sys.solve_packed(&rhs, &mut out);
+            (sys.is_sparse(), sys.factor_flops(), out)
+        };
+        let (dense_chosen, dense_flops, dense) = solve(0.0, 1);
+        let (sparse_chosen, sparse_flops, sparse) = solve(f64::INFINITY, 1);
+        let (_, _, sparse_threads) = solve(f64::INFINITY, 3);
+        assert!(!dense_chosen && sparse_chosen);
+        assert!(
+            sparse_flops < 0.2 * dense_flops,
+            "{sparse_flops} {dense_flops}"
+        );
+        // The default rule takes the sparse factor here.
+        assert!(InterfaceSystem::new(n, pieces.clone(), 1)
+            .unwrap()
+            .is_sparse());
+        let scale = dense.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for ((d, s), t) in dense.iter().zip(&sparse).zip(&sparse_threads) {
+            assert!((d - s).abs() <= 1e-12 * scale, "{d} {s}");
+            assert!((d - t).abs() <= 1e-12 * scale, "{d} {t}");
+        }
+        // And it solves the summed system: residual of S x = sum of the packed rhs.
+        let mut b = vec![0.0; n];
+        let mut x = vec![0.0; n];
+        let mut k = 0;
+        for (idx, _) in &pieces {
+            for &i in idx {
+                b[i] += rhs[k];
+                x[i] = sparse[k];
+                k += 1;
+            }
+        }
+        for (idx, p) in &pieces {
+            for (a, &i) in idx.iter().enumerate() {
+                for (c, &j) in idx.iter().enumerate() {
+                    b[i] -= p[(a, c)] * x[j];
+                }
+            }
+        }
+        assert!(b.iter().all(|r| r.abs() < 1e-10), "residual");
+        // A singular sum is reported by the sparse factor too, as is a dof of no piece.
+        let z = Mat::<f64>::zeros(2, 2);
+        assert!(InterfaceSystem::with_sparse_work(2, [(vec![0, 1], z)], 1, f64::INFINITY).is_err());
+        let one = Mat::<f64>::identity(1, 1);
+        assert!(InterfaceSystem::with_sparse_work(2, [(vec![0], one)], 1, f64::INFINITY).is_err());
     }
 
     /// Factored on several threads (the first rank's cores while the others sleep), the

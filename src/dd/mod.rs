@@ -17,7 +17,12 @@
 //! (`LocalFactor`): L_cc L_cc' = S_cc (the contact block of the subdomain's Schur
 //! complement), L_gc L_cc' = S_gc, and L_gg L_gg' - alpha I is the subdomain's part of the
 //! interface system once its contact dofs are eliminated. Rank 0 sums those parts into
-//! the interface system S' (n_G interface dofs) and factors it (dense Cholesky).
+//! the interface system S' (n_G interface dofs) and factors it: dense Cholesky, or a
+//! sparse one (AMD ordering) when that needs at most half the work. With two
+//! subdomains each part covers all of S', which is then dense; with many, each part
+//! covers the interfaces of one subdomain only, and S' is a sum of overlapping dense
+//! blocks whose sparse factor is cheaper (hertz level 5, 8 subdomains: 97 Gflop
+//! against 240 for the dense factor of its 8967 dofs).
 //!
 //! A contact dof belongs to one subdomain, so the contact dofs are eliminated rank by
 //! rank, in parallel, and rank 0's dense work depends on the interface only. One sweep
@@ -43,8 +48,8 @@
 //! | factor (each rank) | sparse Cholesky, O(n_s^1.5) in 2D with a good ordering, + b_s^3 / 3 for the dense trailing block | nnz(L_s) + b_s^2 | - |
 //! | condensed loads (each rank) | the forward half of a sparse solve, 2 nnz(L_s), + b_s^2 | n_s | - |
 //! | interface part L_gg L_gg' (each rank) | g_s^3 / 3 | g_s^2 | one message of g_s^2 doubles to rank 0 |
-//! | interface factor (rank 0, on every core of its CPU set while the others sleep) | n_G^3 / 3 | n_G^2 | - |
-//! | one sweep | each rank: 2 c_s^2 + 4 c_s g_s + O(own contact nodes); rank 0: 2 n_G^2 | - | MPI_Gatherv + MPI_Scatterv of the interface values (sum g_s values), one MPI_Allreduce of 11 + m(m+1)/2 + m doubles; with one rank, no interface and only the allreduce |
+//! | interface factor (rank 0, on every core of its CPU set while the others sleep) | n_G^3 / 3 dense, or the sparse factor's (`interface_gflop` in summary.json) when at most half that | n_G^2, or nnz(L_G) | - |
+//! | one sweep | each rank: 2 c_s^2 + 4 c_s g_s + O(own contact nodes); rank 0: 2 n_G^2, or 4 nnz(L_G) | - | MPI_Gatherv + MPI_Scatterv of the interface values (sum g_s values), one MPI_Allreduce of 11 + m(m+1)/2 + m doubles; with one rank, no interface and only the allreduce |
 //! | recovery | each rank: the backward half of a sparse solve, 2 nnz(L_s), + b_s^2 (the forward half is kept from the condensed loads) | - | - |
 //!
 //! The sweep is independent of the mesh size beyond the contact boundary and the
@@ -53,10 +58,10 @@
 //! one rank, c = 5122: 2.1e9 vs 5.2e7 flops. Measured figures are in summary.json
 //! (`sweep_s` against `one_solve_s`) and in the notes of the performance issue.
 //!
-//! Limits: the interface system is dense and held by rank 0 (n_G^2 doubles): fine for
-//! the interfaces of meshes of tens of millions of nodes on tens of ranks (n_G = 20 000
-//! is 3.2 GB); for hundreds of ranks it would need a distributed dense factorization or
-//! a third level, which is not built.
+//! Limits: the interface system is held and factored by rank 0 (n_G^2 doubles dense,
+//! less sparse): fine for the interfaces of meshes of tens of millions of nodes on tens
+//! of ranks (n_G = 20 000 is 3.2 GB dense); for hundreds of ranks it would need a
+//! distributed factorization or a third level, which is not built.
 
 pub mod comm;
 pub mod condense;
