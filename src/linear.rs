@@ -73,16 +73,11 @@ impl SparseCholesky {
             .map_err(|e| {
                 Error::Numerical(format!("symbolic Cholesky factorization failed: {e:?}"))
             })?;
-        let values = zeroed_f64(symbolic.len_val()).ok_or_else(|| {
-            Error::Numerical(format!(
-                "out of memory for the Cholesky factor ({} non-zeros); use more ranks or a coarser mesh",
-                symbolic.len_val()
-            ))
-        })?;
         let scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, par));
         Ok(SparseCholesky {
             symbolic,
-            values,
+            // Taken by the first refactor: an analysis may decide against factoring.
+            values: Vec::new(),
             scratch,
         })
     }
@@ -90,6 +85,14 @@ impl SparseCholesky {
     /// Numeric factorization of `a` (LOWER triangle), which must have the sparsity of
     /// the matrix this factor was built for: the ordering and symbolic analysis are kept.
     pub fn refactor(&mut self, a: SparseColMatRef<'_, usize, f64>) -> Result<()> {
+        let len = self.symbolic.len_val();
+        if self.values.len() != len {
+            self.values = zeroed_f64(len).ok_or_else(|| {
+                Error::Numerical(format!(
+                    "out of memory for the Cholesky factor ({len} non-zeros); use more ranks or a coarser mesh"
+                ))
+            })?;
+        }
         let par = faer::get_global_parallelism();
         let mut mem = MemBuffer::new(
             self.symbolic
@@ -193,7 +196,7 @@ impl SparseCholesky {
 
     /// Non-zeros stored in the factor.
     pub fn factor_nnz(&self) -> usize {
-        self.values.len()
+        self.symbolic.len_val()
     }
 
     /// Floating-point operations of one numeric factorization, about: the sum over the

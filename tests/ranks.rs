@@ -47,6 +47,26 @@ fn case_file(dir: &Path, name: &str, level: u32, friction: &str, extra: &str) ->
     path
 }
 
+/// `case` on `np` ranks of `k` subdomains each, writing nodes.csv too into
+/// `dir/out{np}x{k}`: that directory and mpirun's output.
+fn run_layout(case: &Path, np: usize, k: usize, dir: &Path) -> (PathBuf, Output) {
+    let out = dir.join(format!("out{np}x{k}"));
+    let o = mpirun(
+        np,
+        &[
+            case.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--nodes-csv",
+            "--quiet",
+            "--subdomains-per-rank",
+            &k.to_string(),
+        ],
+        dir,
+    );
+    (out, o)
+}
+
 /// Largest difference over the given columns, relative to `scale`.
 fn max_diff(a: &[Vec<f64>], b: &[Vec<f64>], cols: &[usize], scale: f64) -> f64 {
     assert_eq!(a.len(), b.len(), "row counts differ");
@@ -119,21 +139,7 @@ fn check_rank_independence_with(name: &str, level: u32, friction: &str, solver: 
     let mut reference: Option<RunResult> = None;
     for (np, k) in LAYOUTS {
         let parts = np * k;
-        let out = tmp.path().join(format!("out{np}x{k}"));
-        let k_arg = k.to_string();
-        let o = mpirun(
-            np,
-            &[
-                case.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--nodes-csv",
-                "--quiet",
-                "--subdomains-per-rank",
-                &k_arg,
-            ],
-            tmp.path(),
-        );
+        let (out, o) = run_layout(&case, np, k, tmp.path());
         assert!(
             o.status.success(),
             "{name} {friction} on {np} ranks x {k} subdomains: {}",
@@ -430,21 +436,7 @@ fn many_subdomains_factor_the_interface_sparsely_with_the_same_answer() {
     );
     let mut runs = Vec::new();
     for (np, k) in [(1, 1), (2, 6)] {
-        let out = tmp.path().join(format!("out{np}x{k}"));
-        let k_arg = k.to_string();
-        let o = mpirun(
-            np,
-            &[
-                case.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--nodes-csv",
-                "--quiet",
-                "--subdomains-per-rank",
-                &k_arg,
-            ],
-            tmp.path(),
-        );
+        let (out, o) = run_layout(&case, np, k, tmp.path());
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let s = summary(&out);
         assert_eq!(s["converged"], true);
