@@ -62,7 +62,7 @@ impl SparseCholesky {
     }
 
     /// The ordering and symbolic analysis of the matrix whose LOWER triangle has the
-    /// pattern `a`, with room for its factor; [`Self::refactor`] then fills it in.
+    /// pattern `a`; [`Self::refactor`] then computes the factor (and takes its memory).
     /// [`Self::factor_flops`] already tells its cost.
     pub fn analyse(
         a: faer::sparse::SymbolicSparseColMatRef<'_, usize>,
