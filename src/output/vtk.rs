@@ -149,6 +149,14 @@ impl Kind {
             Kind::I32 => "Int32",
         }
     }
+
+    /// Bytes per value.
+    fn size(self) -> usize {
+        match self {
+            Kind::F64 => 8,
+            Kind::I32 => 4,
+        }
+    }
 }
 
 /// What ParaView colours by or warps by when a file is first opened.
@@ -292,15 +300,36 @@ pub fn vtu_bytes(piece: &Piece) -> Result<Vec<u8>> {
         }),
     };
 
-    let mut bytes = Vec::new();
+    let mut bytes = Vec::with_capacity(encoded_len_bound(piece));
     vtk.write_xml(&mut bytes)
         .map_err(|e| Error::Output(format!("cannot encode the VTU piece: {e}")))?;
-    let mut xml = String::from_utf8(bytes)
-        .map_err(|e| Error::Output(format!("vtkio produced a non-UTF-8 VTU piece: {e}")))?;
-    for spec in POINT_ARRAYS.iter().chain(&CELL_ARRAYS) {
-        add_component_names(&mut xml, spec)?;
-    }
-    Ok(xml.into_bytes())
+    add_component_names(&mut bytes, POINT_ARRAYS.iter().chain(&CELL_ARRAYS))?;
+    Ok(bytes)
+}
+
+/// XML around the arrays of a piece (declaration, tags, attributes, component names):
+/// about 2 kB, with room to spare.
+const VTU_MARKUP_BOUND: usize = 16 * 1024;
+
+/// An upper bound of the length of [`vtu_bytes`]'s output, so that its buffer is taken
+/// once instead of growing by doubling through a 19 MB piece, each step a copy into fresh
+/// pages. (vtkio still copies the text through its own nested buffers, which we cannot
+/// size.) Every array is written as base64 of an 8-byte length header and its values.
+fn encoded_len_bound(piece: &Piece) -> usize {
+    let nodes = piece.nodes.len();
+    let triangles = piece.triangles.len();
+    let base64 = |bytes: usize| 4 * (8 + bytes).div_ceil(3);
+    let point_bytes = POINT_ARRAYS
+        .iter()
+        .map(|s| base64(nodes * s.components as usize * s.kind.size()))
+        .sum::<usize>();
+    let cell_bytes = CELL_ARRAYS
+        .iter()
+        .map(|s| base64(triangles * s.components as usize * s.kind.size()))
+        .sum::<usize>();
+    // Points (3 x f64), connectivity (3 x u64), offsets (u64), types (u8).
+    let mesh_bytes = base64(nodes * 24) + base64(triangles * 24) + base64(triangles * 8);
+    point_bytes + cell_bytes + mesh_bytes + base64(triangles) + VTU_MARKUP_BOUND
 }
 
 /// Serialises the parallel index (`solution.pvtu`) that lists the per-rank pieces, e.g.
@@ -422,25 +451,43 @@ fn component_name_attributes(spec: &ArraySpec) -> String {
 }
 
 /// vtkio's DataArray has no field for component names, so they are spliced into its output
-/// right after the array's `Name` attribute. The names are ours and base64 never contains a
-/// quote, so the `Name="..."` text occurs exactly once; anything else means vtkio changed its
-/// output and is reported rather than guessed around.
-fn add_component_names(xml: &mut String, spec: &ArraySpec) -> Result<()> {
-    if spec.component_names.is_empty() {
-        return Ok(());
-    }
-    let needle = format!("Name=\"{}\"", spec.name);
-    let mut hits = xml.match_indices(&needle).map(|(i, _)| i);
-    match (hits.next(), hits.next()) {
-        (Some(at), None) => {
-            xml.insert_str(at + needle.len(), &component_name_attributes(spec));
-            Ok(())
+/// right after each array's `Name` attribute. The names are ours and base64 never contains
+/// a quote, so each `Name="..."` text occurs exactly once; anything else means vtkio
+/// changed its output and is reported rather than guessed around. One pass over the text:
+/// the buffer grows once and each stretch between two insertions moves once.
+fn add_component_names<'a>(
+    xml: &mut Vec<u8>,
+    specs: impl Iterator<Item = &'a ArraySpec>,
+) -> Result<()> {
+    let mut inserts = Vec::new();
+    for spec in specs.filter(|s| !s.component_names.is_empty()) {
+        let needle = format!("Name=\"{}\"", spec.name);
+        let mut hits = memchr::memmem::find_iter(xml, needle.as_bytes());
+        match (hits.next(), hits.next()) {
+            (Some(at), None) => {
+                inserts.push((at + needle.len(), component_name_attributes(spec)));
+            }
+            _ => {
+                return Err(Error::Output(format!(
+                    "cannot label the components of array {}: unexpected VTU text from vtkio",
+                    spec.name
+                )))
+            }
         }
-        _ => Err(Error::Output(format!(
-            "cannot label the components of array {}: unexpected VTU text from vtkio",
-            spec.name
-        ))),
     }
+    inserts.sort_unstable_by_key(|(at, _)| *at);
+    let old_len = xml.len();
+    let mut shift: usize = inserts.iter().map(|(_, text)| text.len()).sum();
+    xml.resize(old_len + shift, 0);
+    let mut end = old_len;
+    for (at, text) in inserts.iter().rev() {
+        // Everything from `at` on moves past the insertions at or before `at`.
+        xml.copy_within(*at..end, at + shift);
+        shift -= text.len();
+        xml[at + shift..at + shift + text.len()].copy_from_slice(text.as_bytes());
+        end = *at;
+    }
+    Ok(())
 }
 
 fn p_attribute_data(x: &mut String, tag: &str, specs: &[ArraySpec]) {
@@ -647,6 +694,77 @@ mod tests {
         assert!(xml.contains("Vectors=\"displacement\""));
         assert!(xml.contains("Scalars=\"contact_pressure\""));
         assert!(xml.contains("Scalars=\"von_mises\""));
+    }
+
+    /// A strip of `n` triangles over 2 rows of nodes, with varied values.
+    fn strip(n: usize) -> Owned {
+        let m = n.div_ceil(2) + 1;
+        let nodes: Vec<[f64; 2]> = (0..2 * m)
+            .map(|i| [(i / 2) as f64, (i % 2) as f64])
+            .collect();
+        let triangles: Vec<[usize; 3]> = (0..n)
+            .map(|t| {
+                let k = 2 * (t / 2);
+                if t % 2 == 0 {
+                    [k, k + 2, k + 1]
+                } else {
+                    [k + 1, k + 2, k + 3]
+                }
+            })
+            .collect();
+        let value = |i: usize| (i as f64).sin() * 1e3;
+        Owned {
+            displacement: (0..nodes.len()).map(|i| [value(i), -value(i)]).collect(),
+            contact_pressure: (0..nodes.len()).map(value).collect(),
+            tangential_traction: (0..nodes.len()).map(|i| value(i + 1)).collect(),
+            contact_status: (0..nodes.len()).map(|i| i as i32 % 3 - 1).collect(),
+            stress: (0..n).map(|t| [value(t), 1.0, -value(t), 0.5]).collect(),
+            von_mises: (0..n).map(value).collect(),
+            rank: vec![7; n],
+            nodes,
+            triangles,
+        }
+    }
+
+    #[test]
+    fn the_buffer_is_taken_once_and_not_much_too_large() {
+        for n in [0, 1, 2, 3, 1000, 30_001] {
+            let o = strip(n);
+            let bound = encoded_len_bound(&o.piece());
+            let len = vtu_bytes(&o.piece()).unwrap().len();
+            assert!(len <= bound, "{n} triangles: {len} bytes > bound {bound}");
+            assert!(
+                bound <= len + VTU_MARKUP_BOUND,
+                "{n} triangles: bound {bound} for {len} bytes"
+            );
+        }
+        let o = Owned::sample(1);
+        assert!(vtu_bytes(&o.piece()).unwrap().len() <= encoded_len_bound(&o.piece()));
+    }
+
+    #[test]
+    fn component_names_go_after_each_name_in_one_pass() {
+        let spec = |name: &'static str, component_names: &'static [&'static str]| ArraySpec {
+            name,
+            kind: Kind::F64,
+            components: component_names.len().max(1) as u32,
+            role: Role::Other,
+            component_names,
+        };
+        let specs = [spec("c", &["r"]), spec("b", &[]), spec("a", &["p", "q"])];
+        let mut xml = b"<A Name=\"a\" x=\"1\"/><B Name=\"b\"/><C Name=\"c\">QUJD</C>".to_vec();
+        add_component_names(&mut xml, specs.iter()).unwrap();
+        assert_eq!(
+            String::from_utf8(xml).unwrap(),
+            "<A Name=\"a\" ComponentName0=\"p\" ComponentName1=\"q\" x=\"1\"/>\
+             <B Name=\"b\"/><C Name=\"c\" ComponentName0=\"r\">QUJD</C>"
+        );
+
+        for text in ["<A Name=\"x\"/>", "<A Name=\"a\"/><B Name=\"a\"/>"] {
+            let mut xml = text.as_bytes().to_vec();
+            let err = add_component_names(&mut xml, specs[2..].iter()).unwrap_err();
+            assert!(err.to_string().contains("array a"), "{err}");
+        }
     }
 
     #[test]
