@@ -195,7 +195,7 @@ case_args() { # level
   fi
 }
 INDEX="$OUT/runs.tsv"
-printf 'study\tcase\tlevel\tranks\tthreads\trun\texit_code\twall_s\tcpu_s\tothers_cores\ttime_maxrss_kb\tdir\n' >"$INDEX"
+printf 'study\tcase\tlevel\tranks\tthreads\trun\texit_code\twall_s\tcpu_s\tothers_cores\ttime_maxrss_kb\tuser_s\tsys_s\tminor_faults\tdir\n' >"$INDEX"
 HZ=$(getconf CLK_TCK 2>/dev/null || echo 100)
 
 # mpirun refuses root and more ranks than cores unless told.
@@ -268,11 +268,13 @@ wait_idle() {
   done
 }
 
-# "CPU seconds (user + sys) and peak resident kB" of a run, from DIR/time.txt
-# (/usr/bin/time); nothing when /usr/bin/time was missing.
+# "CPU seconds (user + sys), peak resident kB, user s, sys s, minor page faults" of a
+# run, from DIR/time.txt (/usr/bin/time); nothing when /usr/bin/time was missing. The
+# system time and the faults show what first-touched memory costs: on a virtual machine
+# that returns freed memory to its host, a large part of a run.
 cpu_rss() {
   [[ -s "$1/time.txt" ]] || return 0
-  tail -n 1 "$1/time.txt" | awk '{ printf "%.3f %s\n", $1 + $2, $3 }'
+  tail -n 1 "$1/time.txt" | awk '{ printf "%.3f %s %s %s %s\n", $1 + $2, $3, $1, $2, $4 }'
 }
 
 # How many cores other processes kept busy on average: the machine's busy CPU seconds
@@ -282,9 +284,9 @@ others_cores() { # b0 b1 cpu t0 t1
     'BEGIN { o = (b1 - b0 - c) / (b - a); printf "%.2f", (o < 0 ? 0 : o) }'
 }
 
-record() { # study level ranks threads run code wall cpu others rss dir: one row of runs.tsv
-  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$1" "$CASE" "$2" "$3" "$4" "$5" \
-    "$6" "$7" "$8" "$9" "${10}" "runs/$(basename "${11}")" >>"$INDEX"
+record() { # study level ranks threads run code wall cpu others rss user sys faults dir: one row of runs.tsv
+  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$1" "$CASE" "$2" "$3" "$4" "$5" \
+    "$6" "$7" "$8" "$9" "${10}" "${11}" "${12}" "${13}" "runs/$(basename "${14}")" >>"$INDEX"
 }
 
 report_failure() { # code dir
@@ -308,7 +310,7 @@ run_one() { # study level ranks threads run
   rm -rf "$dir" && mkdir -p "$dir"
   local t0 t1 b0 b1 code=0
   local timer=()
-  [[ -x /usr/bin/time ]] && timer=(/usr/bin/time -f '%U %S %M' -o "$dir/time.txt")
+  [[ -x /usr/bin/time ]] && timer=(/usr/bin/time -f '%U %S %M %R' -o "$dir/time.txt")
   case_args "$level"
   wait_idle
   b0=$(busy_s)
@@ -328,12 +330,13 @@ run_one() { # study level ranks threads run
   # Our CPU time (user + sys of mpirun and the ranks) and its largest resident set, from
   # /usr/bin/time; the machine's busy time minus ours is what other users' processes
   # took: "others_cores" is how many cores they kept busy on average during the run.
-  local cpu="" rss="" others=""
-  read -r cpu rss < <(cpu_rss "$dir") || true
+  local cpu="" rss="" user="" sys="" faults="" others=""
+  read -r cpu rss user sys faults < <(cpu_rss "$dir") || true
   [[ -z "$cpu" ]] || others=$(others_cores "$b0" "$b1" "$cpu" "$t0" "$t1")
   local wall
   wall=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
-  record "$study" "$level" "$ranks" "$threads" "$run" "$code" "$wall" "$cpu" "$others" "$rss" "$dir"
+  record "$study" "$level" "$ranks" "$threads" "$run" "$code" "$wall" "$cpu" "$others" "$rss" \
+    "$user" "$sys" "$faults" "$dir"
   printf '  %-6s level %-2s %2s rank(s) x %s thread(s)  run %s: %7ss  exit %s  (others kept %s cores busy)\n' \
     "$study" "$level" "$ranks" "$threads" "$run" "$wall" "$code" "${others:-?}"
   report_failure "$code" "$dir"
@@ -361,7 +364,7 @@ run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
     rm -rf "$dir" && mkdir -p "$dir"
     (
       timer=()
-      [[ -x /usr/bin/time ]] && timer=(/usr/bin/time -f '%U %S %M' -o "$dir/time.txt")
+      [[ -x /usr/bin/time ]] && timer=(/usr/bin/time -f '%U %S %M %R' -o "$dir/time.txt")
       # mpiruns started together race to create one shared session directory in TMPDIR
       # (Open MPI 4: "File exists", orte_init failed); each copy gets its own.
       session=$(mktemp -d)
@@ -378,11 +381,11 @@ run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
   t1=$(date +%s.%N)
   b1=$(busy_s)
   # Others' cores: the machine's busy time minus every copy's own CPU time.
-  local cpus=() rsss=() cpu rss cpu_all=0
+  local cpus=() rsss=() users=() syss=() faultss=() cpu rss user sys faults cpu_all=0
   for k in $(seq 1 "$copies"); do
-    cpu="" rss=""
-    read -r cpu rss < <(cpu_rss "${base}_c$k") || true
-    cpus+=("$cpu") rsss+=("$rss")
+    cpu="" rss="" user="" sys="" faults=""
+    read -r cpu rss user sys faults < <(cpu_rss "${base}_c$k") || true
+    cpus+=("$cpu") rsss+=("$rss") users+=("$user") syss+=("$sys") faultss+=("$faults")
     cpu_all=$(awk -v a="$cpu_all" -v c="${cpu:-0}" 'BEGIN { print a + c }')
   done
   local others
@@ -393,7 +396,8 @@ run_copies() { # copies level P threads run: P 1-rank runs at once, a row each
     wall=$(awk -v a="$a" -v b="$b" 'BEGIN { printf "%.3f", b - a }')
     cpu=${cpus[k - 1]} rss=${rsss[k - 1]}
     rm -f "$dir"/*.vtu "$dir"/*.pvtu
-    record copies "$level" "$copies" 1 "$run" "$code" "$wall" "$cpu" "$others" "$rss" "$dir"
+    record copies "$level" "$copies" 1 "$run" "$code" "$wall" "$cpu" "$others" "$rss" \
+      "${users[k - 1]}" "${syss[k - 1]}" "${faultss[k - 1]}" "$dir"
     printf '  %-6s level %-2s %2s copies of 1x1    run %s copy %s: %7ss  exit %s  (others kept %s cores busy)\n' \
       copies "$level" "$copies" "$run" "$k" "$wall" "$code" "$others"
     report_failure "$code" "$dir"

@@ -45,6 +45,9 @@ def load_runs(out):
             "exit_code": int(r["exit_code"]),
             "wall_s": float(r["wall_s"]),
             "cpu_s": num(r.get("cpu_s")),
+            "user_s": num(r.get("user_s")),
+            "sys_s": num(r.get("sys_s")),
+            "minor_faults": num(r.get("minor_faults")),
             "others_cores": num(r.get("others_cores")),
             "time_maxrss_bytes": None if num(r.get("time_maxrss_kb")) is None
             else 1024 * num(r.get("time_maxrss_kb")),
@@ -118,7 +121,8 @@ def summarise(runs, phases, cores):
     for r in runs:
         points.setdefault(tuple(r[k] for k in KEY), []).append(r)
     timed = (["wall_s"] + ["t_" + p for p in phases]
-             + ["t_total", "ms_per_sweep", "cpu_s", "others_cores", "time_maxrss_bytes"])
+             + ["t_total", "ms_per_sweep", "cpu_s", "user_s", "sys_s", "minor_faults",
+                "others_cores", "time_maxrss_bytes"])
     rows = []
     for key, rs in points.items():
         ok = [r for r in rs if r["ok"]]
@@ -325,6 +329,30 @@ def report(out, meta, runs, rows, phases, plots):
                           r.get("ceiling"), r.get("ceiling_best"), r.get("others_cores")]
                          for r in cs]
                 L.append(table(header, lines))
+            cpu_rows = [r for r in rs if r.get("user_s") is not None and r.get("sys_s") is not None]
+            one = next((r for r in cpu_rows if r["ranks"] == 1 and r["threads"] == 1), None)
+            if cpu_rows and one and one["user_s"] > 0 and one["sys_s"] > 0:
+                L.append("\n### CPU time: user and system\n")
+                L.append("CPU seconds of the whole run, all ranks together (`/usr/bin/time`: "
+                         "user, system, minor page faults; medians). User time over the 1x1 "
+                         "run's is the extra computation that more subdomains bring; system "
+                         "time is mostly the kernel supplying memory written for the first "
+                         "time, one page fault a page. On a virtual machine that hands freed "
+                         "memory back to its host, that can be a third of a run and grow with "
+                         "the ranks faulting at once: a speed-up is then bounded by "
+                         "ranks x threads / `cpu ratio` as well as by the ceiling.\n")
+                header = ["ranks", "threads", "user s", "system s", "system share",
+                          "user ratio", "system ratio", "cpu ratio", "page faults (M)"]
+                lines = []
+                for r in cpu_rows:
+                    cpu = r["user_s"] + r["sys_s"]
+                    lines.append([r["ranks"], r["threads"], r["user_s"], r["sys_s"],
+                                  r["sys_s"] / cpu if cpu > 0 else None,
+                                  r["user_s"] / one["user_s"], r["sys_s"] / one["sys_s"],
+                                  cpu / (one["user_s"] + one["sys_s"]),
+                                  None if r.get("minor_faults") is None
+                                  else r["minor_faults"] / 1e6])
+                L.append(table(header, lines))
             ws = [r for r in rs if r.get("factor_gflop_max")]
             ref = next((r for r in ws if r["ranks"] == 1 and r["threads"] == 1), None)
             if ws and ref:
@@ -514,8 +542,8 @@ def main(argv):
                  "exit_code",
                  "converged", "iterations", "wall_s"]
                 + ["t_" + p for p in phases]
-                + ["t_total", "ms_per_sweep", "cpu_s", "others_cores", "peak_mem_max_bytes",
-                   "peak_mem_sum_bytes", "time_maxrss_bytes",
+                + ["t_total", "ms_per_sweep", "cpu_s", "user_s", "sys_s", "minor_faults",
+                   "others_cores", "peak_mem_max_bytes", "peak_mem_sum_bytes", "time_maxrss_bytes",
                    "factor_nnz_max", "factor_nnz_sum", "factor_gflop_max", "factor_gflop_sum",
                    "boundary_dofs", "interface_nodes_max",
                    "assemble_max_s", "factor_max_s", "loop_max_s", "reported_threads", "dir"])
@@ -525,7 +553,8 @@ def main(argv):
                  "ranks_x_threads",
                  "runs", "runs_ok", "all_converged", "iterations", "wall_s"]
                 + ["t_" + p for p in phases]
-                + ["t_total", "t_total_min", "t_total_max", "ms_per_sweep", "cpu_s", "others_cores",
+                + ["t_total", "t_total_min", "t_total_max", "ms_per_sweep", "cpu_s", "user_s",
+                   "sys_s", "minor_faults", "others_cores",
                    "speedup", "speedup_best", "efficiency", "efficiency_best",
                    "efficiency_vs_cores", "work_ratio", "ceiling", "ceiling_best", "of_ceiling"]
                 + ["speedup_" + p for p in phases]
