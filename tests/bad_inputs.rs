@@ -150,6 +150,8 @@ struct Outcome {
 /// Runs the binary in `dir` (under mpirun when `ranks` is given), killed after a minute:
 /// bad input must never hang a rank.
 fn run(dir: &Path, ranks: Option<usize>, args: &[&str]) -> Outcome {
+    // A TMPDIR of its own for a run without mpirun (see `session_dir` in tests/common).
+    let session = tempfile::TempDir::new().expect("cannot make a session directory");
     let mut cmd = match ranks {
         Some(n) => {
             let mut c = Command::new("mpirun");
@@ -160,7 +162,11 @@ fn run(dir: &Path, ranks: Option<usize>, args: &[&str]) -> Outcome {
             c.env("TMPDIR", dir);
             c
         }
-        None => Command::new(BIN),
+        None => {
+            let mut c = Command::new(BIN);
+            c.env("TMPDIR", session.path());
+            c
+        }
     };
     let mut child = cmd
         .args(args)

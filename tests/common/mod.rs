@@ -27,6 +27,15 @@ pub fn mpirun(np: usize, dir: &Path) -> Command {
     c
 }
 
+/// A `TMPDIR` of its own for a run started without mpirun. As a singleton, Open MPI still
+/// makes its session directory `$TMPDIR/ompi.HOST.UID/pid.PID`, and removes the shared
+/// parent when it ends: a run starting meanwhile then fails in orte_init ("unable to create
+/// the desired directory"), as one test did in CI. Not the run's own directory, whose
+/// contents some tests check.
+pub fn session_dir() -> TempDir {
+    TempDir::new().expect("cannot make a session directory")
+}
+
 /// Directory of the committed Gmsh fixtures.
 pub fn gmsh_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gmsh")
@@ -64,9 +73,11 @@ impl Run {
 
 /// Runs the binary with `args` inside `dir` (its working directory), MPI allowed as root.
 pub fn run_in(dir: &Path, args: &[&str]) -> (i32, String, String) {
+    let session = session_dir();
     let out = Command::new(BIN)
         .args(args)
         .current_dir(dir)
+        .env("TMPDIR", session.path())
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         // One thread per run: the suite runs tests in parallel, and results must not
