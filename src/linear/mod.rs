@@ -1,0 +1,5 @@
+//! Sparse direct solves.
+
+mod cholesky;
+
+pub use cholesky::*;
