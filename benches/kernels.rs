@@ -35,16 +35,17 @@
 //! (`cargo bench --bench kernels -- sweep/` runs one group).
 
 use contact_par::app::load_mesh;
-use contact_par::case::{self, Acceleration, Case};
+use contact_par::case::{self, Case};
 use contact_par::contact::kernels::{coulomb_threshold, normal_from_state, tangential_from_state};
+use contact_par::contact::operators::{contact_blocks, ContactDofs};
+use contact_par::contact::Acceleration;
 use contact_par::contact::{self, LinearStep, NoComm, Params};
 use contact_par::dd::condense::{ContactRows, LocalResponse};
+use contact_par::dd::full::DirectStep;
+use contact_par::dd::local_factor::LocalFactor;
 use contact_par::error::Result;
 use contact_par::fem::{self, assemble, Assembled, DofMap};
-use contact_par::linear::{
-    contact_blocks, interior_groups, ContactDofs, DirectStep, LocalFactor, NodeGraph,
-    SparseCholesky,
-};
+use contact_par::linear::{interior_groups, NodeGraph, SparseCholesky};
 use contact_par::problem::{self, Problem};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, SamplingMode};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;

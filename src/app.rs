@@ -1,16 +1,19 @@
 //! One run of the program, told as numbered steps: read, build, assemble and factor,
 //! iterate, write. `main.rs` only wires the command line and MPI to this.
 
-use crate::case::{self, Acceleration, BuiltinMesh, Case, CoulombMode, Friction, MeshSource};
-use crate::contact::{self, LinearStep, Reduce, Status, Sweep};
+use crate::case::{self, BuiltinMesh, Case, MeshSource};
+use crate::contact::operators::{contact_blocks, ContactDofs};
+use crate::contact::{
+    self, Acceleration, CoulombMode, Friction, LinearStep, Reduce, Status, Sweep,
+};
 use crate::dd::comm::{decode, encode, Mpi};
 use crate::dd::condense::{boundary_entries, ContactRows, InterfaceSystem, LocalResponse};
+use crate::dd::full::DirectStep;
+use crate::dd::local_factor::LocalFactor;
 use crate::dd::split::{split, SubProblem};
 use crate::error::{Error, Result};
 use crate::fem::{self, assemble, DofMap};
-use crate::linear::{
-    contact_blocks, interior_groups, ContactDofs, DirectStep, LocalFactor, Ordering,
-};
+use crate::linear::{interior_groups, Ordering};
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::{self, ContactRow, HistoryRow};
 use crate::problem::{self, Problem};

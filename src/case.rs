@@ -1,46 +1,11 @@
 //! The case file: a TOML description of one contact problem, parsed, typed and validated
 //! here so that every later stage can trust it. Also the built-in cases.
 
+use crate::contact::{Acceleration, CoulombMode, Friction, DEFAULT_ANDERSON_MEMORY};
 use crate::error::{input, Error, Result};
+use crate::fem::{Hypothesis, Material};
 use serde::{Deserialize, Deserializer, Serialize};
 use std::path::{Path, PathBuf};
-
-/// Plane hypothesis of the 2D model (thickness 1 in both).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Hypothesis {
-    PlaneStrain,
-    PlaneStress,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Material {
-    pub young: f64,
-    pub poisson: f64,
-    pub hypothesis: Hypothesis,
-}
-
-/// Friction law on the contact boundary.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub enum Friction {
-    None,
-    /// Tresca: a given slip threshold s (force per unit length).
-    Tresca {
-        threshold: f64,
-    },
-    /// Coulomb: s = coefficient * p_n.
-    Coulomb {
-        coefficient: f64,
-    },
-}
-
-/// How the Coulomb threshold s = nu_f * lambda is refreshed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum CoulombMode {
-    /// Every sweep, from the current normal multiplier (one fixed-point loop).
-    Inner,
-    /// A sequence of Tresca solves, s frozen during each.
-    Outer,
-}
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Dirichlet {
@@ -63,19 +28,6 @@ pub struct Contact {
     /// Unit normal m pointing from the foundation into the body.
     pub obstacle_normal: [f64; 2],
     pub friction: Friction,
-}
-
-/// Anderson memory by default: measured against 5 on every built-in case and law at
-/// levels 1-4, 10 saves about 12% of the sweeps (fewer in 20 of 24 runs).
-pub const DEFAULT_ANDERSON_MEMORY: usize = 10;
-
-/// Acceleration of the Uzawa fixed point (see `contact::uzawa`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub enum Acceleration {
-    /// Plain ALG2.
-    None,
-    /// Safeguarded Anderson mixing with this memory.
-    Anderson { memory: usize },
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -627,7 +579,7 @@ fn check_max_iter(key: &str, max_iter: usize) -> Result<usize> {
     }
 }
 
-/// Applies the command-line overrides of [solver] (`--r`, `--tol`, `--max-iter`,
+/// Applies the command-line overrides of `[solver]` (`--r`, `--tol`, `--max-iter`,
 /// `--coulomb`) to a validated case, with the checks of the case file: an override must
 /// not let in what the file would refuse (a negative or NaN r, a zero budget).
 pub fn override_solver(

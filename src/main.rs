@@ -10,7 +10,8 @@
 
 use clap::Parser;
 use contact_par::app::{self, LinearMode, Options, Printer};
-use contact_par::case::{self, Acceleration, CoulombMode};
+use contact_par::case;
+use contact_par::contact::{Acceleration, CoulombMode, DEFAULT_ANDERSON_MEMORY};
 use contact_par::dd::comm::Mpi;
 use contact_par::error::Error;
 use contact_par::linear::Ordering;
@@ -106,7 +107,7 @@ fn parse_ordering(s: &str) -> Result<Ordering, String> {
 }
 
 fn parse_acc(s: &str) -> Result<Acceleration, String> {
-    case::parse_acceleration(s, case::DEFAULT_ANDERSON_MEMORY)
+    case::parse_acceleration(s, DEFAULT_ANDERSON_MEMORY)
         .ok_or_else(|| format!("\"{s}\" is not anderson or none"))
 }
 

@@ -2,10 +2,11 @@
 //! dofs, load vector, contact nodes with their lumped weights and gaps. Everything that
 //! needs the whole mesh happens here, once, on the reading rank.
 
-use crate::case::{Case, Friction, Hypothesis};
-use crate::contact::ContactNodes;
+use crate::case::Case;
+use crate::contact::{ContactNodes, Friction};
 use crate::error::{input, Error, Result};
 use crate::fem::assembly::{add_body_force, add_edge_traction, edge_length};
+use crate::fem::Hypothesis;
 use crate::mesh::validate::{self, Free, Holds};
 use crate::mesh::Mesh;
 use std::collections::{HashMap, HashSet};

@@ -7,8 +7,7 @@
 //! 2. a manufactured solution on the unit square with measured convergence rates in the
 //!    L2 norm (about 2) and the energy norm / H1 seminorm (about 1).
 
-use contact_par::case::{Hypothesis, Material};
-use contact_par::fem::{assemble, elasticity_matrix, element_stress, DofMap};
+use contact_par::fem::{assemble, elasticity_matrix, element_stress, DofMap, Hypothesis, Material};
 use contact_par::linear::SparseCholesky;
 use contact_par::mesh::{builtin, gmsh, Mesh};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;

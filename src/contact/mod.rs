@@ -2,8 +2,11 @@
 //! once against two small traits so that one rank and many ranks run the same code.
 
 pub mod kernels;
+mod law;
+pub mod operators;
 pub mod uzawa;
 
+pub use law::{Acceleration, CoulombMode, Friction, DEFAULT_ANDERSON_MEMORY};
 pub use uzawa::{solve, solve_with, Augmentation, Checkpoints, Outcome, Params, Snapshot, Sweep};
 
 use crate::error::Result;

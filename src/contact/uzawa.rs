@@ -38,7 +38,7 @@
 
 use super::kernels::{coulomb_threshold, normal_from_state, tangential_from_state};
 use super::{ContactNodes, LinearStep, Reduce, Status};
-use crate::case::{Acceleration, CoulombMode, Friction};
+use crate::contact::{Acceleration, CoulombMode, Friction};
 use crate::error::{Error, Result};
 
 #[derive(Debug, Clone, PartialEq)]

@@ -19,8 +19,9 @@
 //! the trailing block of the sparse factor. The first rank's dense work is set by the
 //! interface alone (n_G^3 / 3 once, 2 n_G^2 a sweep), not by the contact boundary.
 
+use crate::dd::local_factor::LocalFactor;
 use crate::error::{Error, Result};
-use crate::linear::{LocalFactor, SparseCholesky};
+use crate::linear::SparseCholesky;
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
 use faer::{Mat, Side};

@@ -65,4 +65,6 @@
 
 pub mod comm;
 pub mod condense;
+pub mod full;
+pub mod local_factor;
 pub mod split;

@@ -1,8 +1,8 @@
 //! Assembly of the factor-once matrix A = K + (contact blocks) on the free dofs, with the
 //! Dirichlet values lifted to the right-hand side once.
 
+use super::Material;
 use super::{elasticity_matrix, element_stiffness_row};
-use crate::case::Material;
 use crate::error::{Error, Result};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use partition::Stars;
@@ -286,8 +286,8 @@ pub fn edge_length(nodes: &[[f64; 2]], a: usize, b: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::case::Hypothesis;
     use crate::fem::element_stiffness;
+    use crate::fem::Hypothesis;
 
     #[test]
     fn dofmap_numbers_free_dofs_in_order() {

@@ -3,10 +3,11 @@
 //! Degrees of freedom are node-major: dof `2 * node + c`, c = 0 for x, 1 for y.
 
 pub mod assembly;
+mod material;
 
 pub use assembly::{assemble, Assembled, DofMap};
+pub use material::{Hypothesis, Material};
 
-use crate::case::{Hypothesis, Material};
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
 /// Hooke's law in Voigt form (sxx, syy, sxy) = D (exx, eyy, 2 exy).

@@ -1,5 +1,8 @@
-//! Sparse direct solves.
+//! Sparse direct solves: faer's Cholesky factor, factored once and solved many times, and
+//! the fill-reducing orderings of a subdomain's interior.
 
 mod cholesky;
+mod ordering;
 
-pub use cholesky::*;
+pub use cholesky::SparseCholesky;
+pub use ordering::{interior_groups, NodeGraph, Ordering, ND_MIN_INTERIOR_DOFS};
