@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Sweeps to tol 1e-8 of the default loop (automatic r, Anderson) against plain ALG2, for
 # every built-in case and friction law at three refinement levels:
-#   * plain ALG2 with the textbook r = E_eff / h (ALGORITHM.md: "a natural scale is E/h";
+#   * plain ALG2 with the textbook r = E_eff / h (docs/ALGORITHM.md: "a natural scale is E/h";
 #     h = mean distance between neighbouring contact nodes),
 #   * plain ALG2 with this program's default r held fixed (--r),
 #   * the default loop (no --r, no --acceleration).

@@ -15,6 +15,7 @@ use contact_par::contact::{Acceleration, CoulombMode, DEFAULT_ANDERSON_MEMORY};
 use contact_par::dd::comm::Mpi;
 use contact_par::error::Error;
 use contact_par::linear::Ordering;
+use mpi::Threading;
 use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
@@ -144,7 +145,7 @@ fn run() -> i32 {
     prefer_shared_memory_on_one_node();
     // Only the main thread of a rank calls MPI, also when the rank runs several
     // subdomains on threads (dd::comm): MPI_THREAD_FUNNELED.
-    let Some((universe, _)) = mpi::initialize_with_threading(mpi::Threading::Funneled) else {
+    let Some((universe, granted)) = mpi::initialize_with_threading(Threading::Funneled) else {
         eprintln!("contact-par: MPI could not be initialised");
         return 1;
     };
@@ -183,6 +184,10 @@ fn run() -> i32 {
         .threads
         .unwrap_or_else(|| (cores / mpi.node_ranks).max(1))
         .max(1);
+    let subdomain_threads = may_run_subdomain_threads(cli.subdomains_per_rank, cli.linear, threads);
+    if let Err(e) = mpi.agree(check_thread_level(granted, subdomain_threads)) {
+        return report(e);
+    }
     let _ = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build_global();
@@ -216,12 +221,51 @@ fn run() -> i32 {
     match app::run(&opts, mpi, &print) {
         Ok(report) if report.converged => 0,
         Ok(_) => 3,
-        Err(Error::Silent(code)) => code,
-        Err(e) => {
-            // Only the rank that failed first holds the message (see Mpi::agree).
-            eprintln!("contact-par: error: {e}");
-            e.exit_code()
-        }
+        Err(e) => report(e),
+    }
+}
+
+/// Prints an error that this rank holds and returns its exit code. Only the rank that
+/// failed first holds the message (see `Mpi::agree`); the others are [`Error::Silent`].
+fn report(e: Error) -> i32 {
+    if !matches!(e, Error::Silent(_)) {
+        eprintln!("contact-par: error: {e}");
+    }
+    e.exit_code()
+}
+
+/// Whether a rank of this run may run several subdomains, each on a thread of its own:
+/// asked for (`--subdomains-per-rank` above 1), or left to the default, which gives a
+/// rank at most one subdomain per thread and one with `--linear full`. The first rank
+/// settles the count later, from the mesh; this answers for what the options allow.
+fn may_run_subdomain_threads(per_rank: Option<u64>, linear: LinearMode, threads: usize) -> bool {
+    match per_rank {
+        Some(k) => k > 1,
+        None => linear != LinearMode::Full && threads > 1,
+    }
+}
+
+/// Whether the thread support MPI granted suffices. Subdomain threads compute and wait
+/// while their rank's main thread is inside MPI on their behalf: that is
+/// MPI_THREAD_FUNNELED. With one subdomain per rank the rank's other threads (the
+/// assembly's and the factorization's pools) run only between MPI calls, so the lowest
+/// level, MPI_THREAD_SINGLE, serves; refusing it there would refuse runs that work.
+fn check_thread_level(granted: Threading, subdomain_threads: bool) -> Result<(), Error> {
+    if !subdomain_threads || granted >= Threading::Funneled {
+        return Ok(());
+    }
+    Err(Error::Input(format!(
+        "MPI granted the thread level {}, and several subdomains per rank on threads of their own need MPI_THREAD_FUNNELED; run with --subdomains-per-rank 1, or use an MPI library built with thread support",
+        thread_level_name(granted)
+    )))
+}
+
+fn thread_level_name(level: Threading) -> &'static str {
+    match level {
+        Threading::Single => "MPI_THREAD_SINGLE",
+        Threading::Funneled => "MPI_THREAD_FUNNELED",
+        Threading::Serialized => "MPI_THREAD_SERIALIZED",
+        Threading::Multiple => "MPI_THREAD_MULTIPLE",
     }
 }
 
@@ -239,4 +283,42 @@ fn main() {
     }));
     let code = run();
     std::process::exit(code);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn subdomain_threads_are_those_the_options_allow() {
+        let (c, f) = (LinearMode::Condensed, LinearMode::Full);
+        assert!(may_run_subdomain_threads(Some(2), c, 1));
+        assert!(!may_run_subdomain_threads(Some(1), c, 8));
+        assert!(may_run_subdomain_threads(None, c, 2));
+        assert!(!may_run_subdomain_threads(None, c, 1));
+        assert!(!may_run_subdomain_threads(None, f, 8));
+    }
+
+    #[test]
+    fn a_single_threaded_mpi_is_refused_only_where_subdomain_threads_may_run() {
+        for level in [
+            Threading::Funneled,
+            Threading::Serialized,
+            Threading::Multiple,
+        ] {
+            assert_eq!(check_thread_level(level, true), Ok(()));
+        }
+        assert_eq!(check_thread_level(Threading::Single, false), Ok(()));
+        let e = check_thread_level(Threading::Single, true).unwrap_err();
+        assert_eq!(e.exit_code(), 2);
+        let message = e.to_string();
+        assert!(!message.contains('\n'));
+        for part in [
+            "MPI_THREAD_SINGLE",
+            "MPI_THREAD_FUNNELED",
+            "--subdomains-per-rank 1",
+        ] {
+            assert!(message.contains(part), "{message}");
+        }
+    }
 }

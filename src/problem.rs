@@ -9,7 +9,7 @@ use crate::fem::assembly::{add_body_force, add_edge_traction, edge_length};
 use crate::fem::Hypothesis;
 use crate::mesh::validate::{self, Free, Holds};
 use crate::mesh::Mesh;
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 
 /// The discrete problem on the whole mesh.
 #[derive(Debug, Clone)]
@@ -111,27 +111,6 @@ fn line_group<'a>(case: &Case, mesh: &'a Mesh, what: &str, name: &str) -> Result
             suggest(name, mesh)
         )),
     }
-}
-
-/// Orients every triangle counter-clockwise; rejects degenerate ones. A mesh whose
-/// triangles are all clockwise (a surface with normal -z in Gmsh) is simply flipped.
-pub fn orient(mesh: &mut Mesh, origin: &str) -> Result<()> {
-    validate::orient(mesh, origin).map(|_| ())
-}
-
-/// Edges that belong to exactly one triangle.
-pub fn boundary_edges(mesh: &Mesh) -> HashSet<(usize, usize)> {
-    let mut count: HashMap<(usize, usize), u8> = HashMap::with_capacity(3 * mesh.triangles.len());
-    for t in &mesh.triangles {
-        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-        }
-    }
-    count
-        .into_iter()
-        .filter(|&(_, c)| c == 1)
-        .map(|(e, _)| e)
-        .collect()
 }
 
 /// Builds the discrete problem; `mesh_name` names the mesh in messages.

@@ -1,5 +1,6 @@
-//! The contact method of ALGORITHM.md: node-wise kernels and the Uzawa loop, written
-//! once against two small traits so that one rank and many ranks run the same code.
+//! The contact method of docs/ALGORITHM.md: node-wise kernels and the Uzawa loop,
+//! written once against two small traits so that one rank and many ranks run the same
+//! code.
 
 pub mod kernels;
 mod law;

@@ -376,8 +376,8 @@ impl Mpi {
             return Ok(Some(all));
         }
         if !self.is_root() {
-            // On a failed encoding an empty message still goes, so that the first rank
-            // does not wait for it; decoding it fails there and the error is agreed on.
+            // A failed encoding is this rank's error to report; the first rank, which
+            // must not wait for a message that never comes, gets an empty one.
             let (bytes, result) = match encode(&all) {
                 Ok(b) => (b, Ok(None)),
                 Err(e) => (Vec::new(), Err(e)),
@@ -385,12 +385,21 @@ impl Mpi {
             self.world().process_at_rank(0).send(&bytes[..]);
             return result;
         }
-        let mut failure = None;
+        let mut failure: Option<Error> = None;
         for r in 1..self.mpi_size {
             let (bytes, _) = self.world().process_at_rank(r as i32).receive_vec::<u8>();
-            match decode::<Vec<T>>(&bytes) {
+            match decode_part::<Vec<T>>(&bytes) {
                 Ok(v) => all.extend(v),
-                Err(e) => failure = failure.or(Some(e)),
+                // A message that could not be read is this rank's to report, before a
+                // sender's failure, which the sender reports itself.
+                Err(e) => {
+                    if failure
+                        .as_ref()
+                        .is_none_or(|f| matches!(f, Error::Silent(_)))
+                    {
+                        failure = Some(e);
+                    }
+                }
             }
         }
         match failure {
@@ -410,19 +419,26 @@ impl Mpi {
             if self.is_root() {
                 let mut all = all.unwrap_or_default().into_iter();
                 let own: Vec<T> = all.by_ref().take(k).collect();
+                let mut failure = None;
                 for r in 1..self.mpi_size {
                     let chunk: Vec<T> = all.by_ref().take(k).collect();
-                    let bytes = encode(&chunk).unwrap_or_default();
+                    // A failed encoding is reported here, where it happened; the rank
+                    // that waits for the message gets an empty one and stays quiet.
+                    let bytes = encode(&chunk).unwrap_or_else(|e| {
+                        failure = failure.take().or(Some(e));
+                        Vec::new()
+                    });
                     self.world().process_at_rank(r as i32).send(&bytes[..]);
                 }
-                pad(own.into_iter().map(Ok).collect(), k)
+                match failure {
+                    Some(e) => (0..k).map(|_| Err(e.clone())).collect(),
+                    None => pad(own.into_iter().map(Ok).collect(), k),
+                }
             } else {
                 let (bytes, _) = self.world().process_at_rank(0).receive_vec::<u8>();
-                match decode::<Vec<T>>(&bytes) {
+                match decode_part::<Vec<T>>(&bytes) {
                     Ok(v) => pad(v.into_iter().map(Ok).collect(), k),
-                    Err(e) => (0..k)
-                        .map(|_| Err(Error::Numerical(e.to_string())))
-                        .collect(),
+                    Err(e) => (0..k).map(|_| Err(e.clone())).collect(),
                 }
             }
         });
@@ -434,23 +450,37 @@ impl Mpi {
     where
         T: serde::Serialize + serde::de::DeserializeOwned,
     {
-        let mut bytes = match &value {
-            Some(v) if self.is_root() => encode(v)?,
-            _ => Vec::new(),
+        // A failed encoding is reported on the first subdomain, where it happened; the
+        // others still take part in the broadcast (nobody waits for them) and get its
+        // length as FAILED, which tells them to stay quiet.
+        let (mut bytes, failure) = match &value {
+            Some(v) if self.is_root() => match encode(v) {
+                Ok(b) => (b, None),
+                Err(e) => (Vec::new(), Some(e)),
+            },
+            _ => (Vec::new(), None),
+        };
+        let mut len = if failure.is_some() {
+            FAILED
+        } else {
+            bytes.len() as u64
         };
         if self.is_leader() && self.mpi_size > 1 {
             let root = self.world().process_at_rank(0);
-            let mut len = bytes.len() as u64;
             root.broadcast_into(&mut len);
-            bytes.resize(len as usize, 0);
-            root.broadcast_into(&mut bytes[..]);
+            if len != FAILED {
+                bytes.resize(len as usize, 0);
+                root.broadcast_into(&mut bytes[..]);
+            }
         }
-        let bytes = self
+        let message = self
             .team
-            .broadcast(self.member, self.is_leader().then_some(bytes));
-        match value {
-            Some(v) if self.is_root() => Ok(v),
-            _ => decode(&bytes),
+            .broadcast(self.member, self.is_leader().then_some((len, bytes)));
+        match (value, failure) {
+            (_, Some(e)) => Err(e),
+            (Some(v), None) if self.is_root() => Ok(v),
+            _ if message.0 == FAILED => Err(encode_failed_elsewhere()),
+            _ => decode(&message.1),
         }
     }
 
@@ -493,17 +523,13 @@ impl Mpi {
     }
 
     /// Collective error agreement: every subdomain learns whether any failed. The first
-    /// failing one prints its message (the caller prints nothing more), all return Err.
+    /// failing one that holds a message keeps its error, to print (the caller prints
+    /// nothing more); all others return [`Error::Silent`].
     pub fn agree<T>(&self, local: Result<T>) -> Result<T> {
         if self.size == 1 {
             return local;
         }
-        let code = local.as_ref().err().map_or(0, |e| e.exit_code());
-        let me = if local.is_err() {
-            self.rank as i32
-        } else {
-            i32::MAX
-        };
+        let (code, me) = agreement_vote(&local, self.rank);
         let (worst, first) = self.leader_then_all((code, me), |s, parts| {
             let mut worst = parts.iter().map(|p| p.0).max().unwrap_or(0);
             let mut first = parts.iter().map(|p| p.1).min().unwrap_or(i32::MAX);
@@ -548,6 +574,38 @@ fn pad<T>(mut v: Vec<Result<T>>, k: usize) -> Vec<Result<T>> {
         )));
     }
     v
+}
+
+/// What a subdomain brings to [`Mpi::agree`]: its exit code (0: no failure) and its
+/// claim to print the message (its index; `i32::MAX` for none). A [`Error::Silent`]
+/// failure has no message to print (another subdomain holds it), so it does not claim:
+/// were it the first, nobody would print anything.
+fn agreement_vote<T>(local: &Result<T>, rank: usize) -> (i32, i32) {
+    match local {
+        Ok(_) => (0, i32::MAX),
+        Err(e @ Error::Silent(_)) => (e.exit_code(), i32::MAX),
+        Err(e) => (e.exit_code(), rank as i32),
+    }
+}
+
+/// The length [`Mpi::broadcast`] sends for a value the first subdomain could not encode.
+const FAILED: u64 = u64::MAX;
+
+/// The error of a subdomain whose message could not be encoded by its sender: the
+/// sender reports the reason (an encoding failure is [`Error::Numerical`]), so this one
+/// stays quiet with the same exit code.
+fn encode_failed_elsewhere() -> Error {
+    Error::Silent(Error::Numerical(String::new()).exit_code())
+}
+
+/// Decodes a message of [`Mpi::gather_parts`] or [`Mpi::scatter_parts`]. Those carry a
+/// `Vec`, whose encoding starts with its length and is never empty: an empty message is
+/// a sender's failure to encode, which the sender reports.
+fn decode_part<T: serde::de::DeserializeOwned>(b: &[u8]) -> Result<T> {
+    if b.is_empty() {
+        return Err(encode_failed_elsewhere());
+    }
+    decode(b)
 }
 
 pub fn encode<T: serde::Serialize>(v: &T) -> Result<Vec<u8>> {
@@ -605,6 +663,99 @@ mod tests {
                 assert_eq!(*seen, (0..200).map(|r| 10 * m + r).collect::<Vec<_>>());
             }
         }
+    }
+
+    /// A value whose encoding fails, as an oversized or malformed one would.
+    #[derive(Debug, Clone, serde::Deserialize)]
+    struct Unencodable;
+
+    impl serde::Serialize for Unencodable {
+        fn serialize<S: serde::Serializer>(&self, _: S) -> std::result::Result<S::Ok, S::Error> {
+            Err(serde::ser::Error::custom("cannot be encoded"))
+        }
+    }
+
+    /// Runs `f` on every subdomain of a single rank with `k` of them, each on its own
+    /// thread (no MPI call is made).
+    fn on_one_rank<T: Send, R: Send>(local: Vec<T>, f: impl Fn(&Mpi, T) -> R + Sync) -> Vec<R> {
+        let k = local.len();
+        let team = Team::new(k);
+        std::thread::scope(|s| {
+            let handles: Vec<_> = local
+                .into_iter()
+                .enumerate()
+                .map(|(member, value)| {
+                    let (team, f) = (team.clone(), &f);
+                    s.spawn(move || {
+                        let mpi = Mpi::member(Membership {
+                            team,
+                            member,
+                            mpi_rank: 0,
+                            mpi_size: 1,
+                            node_ranks: k,
+                        });
+                        f(&mpi, value)
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        })
+    }
+
+    #[test]
+    fn an_encoding_failure_is_reported_where_it_happens() {
+        assert!(matches!(encode(&Unencodable), Err(Error::Numerical(_))));
+        // The first subdomain cannot encode what it broadcasts: it reports why, the
+        // others take part (nobody hangs) and stay quiet with the same exit code.
+        let results = on_one_rank(vec![(); 3], |mpi, ()| {
+            mpi.broadcast(mpi.is_root().then_some(Unencodable))
+        });
+        let message = results[0].as_ref().unwrap_err().to_string();
+        assert!(message.contains("cannot encode"), "{message}");
+        for r in &results[1..] {
+            assert_eq!(r.as_ref().unwrap_err(), &Error::Silent(4));
+        }
+    }
+
+    #[test]
+    fn an_empty_part_is_the_senders_failure_and_garbage_the_readers() {
+        let silent = decode_part::<Vec<u32>>(&[]).unwrap_err();
+        assert_eq!(silent, Error::Silent(4));
+        let bytes = encode(&vec![7u32, 8]).unwrap();
+        assert_eq!(decode_part::<Vec<u32>>(&bytes).unwrap(), vec![7, 8]);
+        // Even an empty Vec encodes to its length: never to an empty message.
+        assert!(!encode(&Vec::<u32>::new()).unwrap().is_empty());
+        let garbage = decode_part::<Vec<u32>>(&[0xff]).unwrap_err();
+        assert!(garbage.to_string().contains("cannot decode"), "{garbage}");
+    }
+
+    #[test]
+    fn the_agreement_keeps_the_message_of_the_first_subdomain_that_holds_one() {
+        assert_eq!(agreement_vote(&Ok(()), 3), (0, i32::MAX));
+        assert_eq!(
+            agreement_vote::<()>(&Err(Error::Silent(4)), 0),
+            (4, i32::MAX)
+        );
+        assert_eq!(
+            agreement_vote::<()>(&Err(Error::Input("x".into())), 2),
+            (2, 2)
+        );
+        // Subdomain 0 failed quietly (its sender reports), subdomain 1 holds a message:
+        // subdomain 1 keeps it, and the job exits with the worse code.
+        let local = vec![
+            Err(Error::Silent(4)),
+            Err(Error::Input("the message".into())),
+            Ok(()),
+        ];
+        let results = on_one_rank(local, |mpi, l| mpi.agree(l));
+        assert_eq!(
+            results,
+            vec![
+                Err(Error::Silent(4)),
+                Err(Error::Input("the message".into())),
+                Err(Error::Silent(4)),
+            ]
+        );
     }
 
     #[test]

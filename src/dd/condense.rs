@@ -391,11 +391,6 @@ impl InterfaceSystem {
         }
     }
 
-    /// Number of interface dofs of each rank (the counts of the per-sweep gather).
-    pub fn counts(&self) -> Vec<usize> {
-        self.index.iter().map(Vec::len).collect()
-    }
-
     /// From the ranks' interface right-hand sides, concatenated in rank order, to their
     /// interface values, in the same layout.
     pub fn solve_packed(&mut self, z: &[f64], out: &mut Vec<f64>) {
@@ -446,7 +441,10 @@ mod tests {
         let p = Mat::from_fn(2, 2, |i, j| if i == j { 1.5 } else { -1.0 });
         let mut sys =
             InterfaceSystem::new(3, [(vec![0, 1], p.clone()), (vec![1, 2], p)], 1).unwrap();
-        assert_eq!(sys.counts(), vec![2, 2]);
+        assert_eq!(
+            sys.index.iter().map(Vec::len).collect::<Vec<_>>(),
+            vec![2, 2]
+        );
         // Right-hand sides split between the ranks on the shared dof 1.
         let mut out = Vec::new();
         sys.solve_packed(&[1.0, 0.25, 0.75, 1.0], &mut out);

@@ -56,10 +56,6 @@ pub struct GlobalMap {
     pub n_interface: usize,
     /// Number of boundary dofs, contact and interface, over all ranks.
     pub n_boundary: usize,
-    /// Contact nodes in sweep order: by owning rank, then by global node id.
-    pub contact_order: Vec<usize>,
-    /// Index into `Problem::contact_nodes` of each entry of `contact_order`.
-    pub contact_index: Vec<usize>,
     /// Own contact nodes per rank (the counts of the per-sweep all-gather).
     pub contact_counts: Vec<usize>,
 }
@@ -120,11 +116,6 @@ pub fn split(
     for (k, &c) in prob.contact_nodes.iter().enumerate() {
         contact_by_rank[owner(c)].push(k);
     }
-    let contact_index: Vec<usize> = contact_by_rank.iter().flatten().copied().collect();
-    let contact_order: Vec<usize> = contact_index
-        .iter()
-        .map(|&k| prob.contact_nodes[k])
-        .collect();
 
     let mut local_of = vec![usize::MAX; n];
     let mut subs = Vec::with_capacity(nparts);
@@ -194,8 +185,6 @@ pub fn split(
         GlobalMap {
             n_interface,
             n_boundary,
-            contact_order,
-            contact_index,
             contact_counts: contact_by_rank.iter().map(Vec::len).collect(),
         },
     ))

@@ -558,35 +558,35 @@ fn split_along_ac(nodes: &[[f64; 2]], [a, b, c, d]: [usize; 4]) -> bool {
     sin_b * cos_d + cos_b * sin_d >= 0.0
 }
 
-/// Angles of triangle `t` in radians.
-fn angles(mesh: &Mesh, t: usize) -> [f64; 3] {
-    let [a, b, c] = mesh.triangles[t].map(|k| mesh.nodes[k]);
-    let at = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
-        let (u, v) = (sub(q, p), sub(r, p));
-        cross(u, v).abs().atan2(dot(u, v))
-    };
-    [at(a, b, c), at(b, c, a), at(c, a, b)]
-}
-
-/// The smallest angle of the mesh, in degrees (180 for a mesh without triangles).
-pub fn min_angle_deg(mesh: &Mesh) -> f64 {
-    (0..mesh.triangles.len())
-        .flat_map(|t| angles(mesh, t))
-        .fold(std::f64::consts::PI, f64::min)
-        .to_degrees()
-}
-
-/// The sum of the signed triangle areas (the domain area when all are counter-clockwise).
-pub fn total_area(mesh: &Mesh) -> f64 {
-    0.5 * (0..mesh.triangles.len())
-        .map(|t| mesh.signed_area2(t))
-        .sum::<f64>()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use std::collections::{HashMap, HashSet};
+
+    /// Angles of triangle `t` in radians.
+    fn angles(mesh: &Mesh, t: usize) -> [f64; 3] {
+        let [a, b, c] = mesh.triangles[t].map(|k| mesh.nodes[k]);
+        let at = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
+            let (u, v) = (sub(q, p), sub(r, p));
+            cross(u, v).abs().atan2(dot(u, v))
+        };
+        [at(a, b, c), at(b, c, a), at(c, a, b)]
+    }
+
+    /// The smallest angle of the mesh, in degrees (180 for a mesh without triangles).
+    fn min_angle_deg(mesh: &Mesh) -> f64 {
+        (0..mesh.triangles.len())
+            .flat_map(|t| angles(mesh, t))
+            .fold(std::f64::consts::PI, f64::min)
+            .to_degrees()
+    }
+
+    /// The sum of the signed triangle areas (the domain area when all are counter-clockwise).
+    fn total_area(mesh: &Mesh) -> f64 {
+        0.5 * (0..mesh.triangles.len())
+            .map(|t| mesh.signed_area2(t))
+            .sum::<f64>()
+    }
 
     fn dist(p: [f64; 2], q: [f64; 2]) -> f64 {
         (p[0] - q[0]).hypot(p[1] - q[1])

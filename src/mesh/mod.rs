@@ -8,8 +8,8 @@ use std::collections::BTreeMap;
 
 /// A 2D triangle mesh with named groups.
 ///
-/// Node indices are 0-based and contiguous. Triangles are counter-clockwise after
-/// [`Mesh::orient`]. Groups keep the names of the Gmsh physical groups: line groups hold
+/// Node indices are 0-based and contiguous. Triangles are counter-clockwise once
+/// [`validate::check`] has oriented them (see [`validate::orient`]). Groups keep the names of the Gmsh physical groups: line groups hold
 /// 2-node edges (boundary conditions, contact), point groups hold single nodes (e.g. a
 /// pinned point).
 #[derive(Debug, Clone, Default, PartialEq)]

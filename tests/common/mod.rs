@@ -301,7 +301,7 @@ pub struct KktCounts {
     pub slip: usize,
 }
 
-/// Checks the discrete contact conditions (ALGORITHM.md) at every row of contact.csv:
+/// Checks the discrete contact conditions (docs/ALGORITHM.md) at every row of contact.csv:
 ///
 /// - p_n >= -eps_p, u_n <= gap + eps_u, |p_n (u_n - gap)| <= eps_p * eps_u-scale;
 /// - |p_t| <= s + eps_p (s = threshold, coefficient * p_n, or 0 when frictionless);
