@@ -1,10 +1,15 @@
-//! The contact method of ALGORITHM.md: node-wise kernels and the Uzawa loop, written
+//! The contact method of docs/ALGORITHM.md: node-wise kernels and the Uzawa loop, written
 //! once against two small traits so that one rank and many ranks run the same code.
 
+mod anderson;
 pub mod kernels;
+pub mod retune;
+mod sweep;
 pub mod uzawa;
 
-pub use uzawa::{solve, solve_with, Augmentation, Checkpoints, Outcome, Params, Snapshot, Sweep};
+pub use retune::Augmentation;
+pub use sweep::Sweep;
+pub use uzawa::{solve, solve_with, Checkpoints, Outcome, Params, Snapshot};
 
 use crate::error::Result;
 
