@@ -36,7 +36,7 @@ impl Augmentation {
 /// Sweeps without a status change that [`retuned`] waits for; one more with friction,
 /// whose stick/slip statuses follow the pressures and settle later (retuning one sweep
 /// earlier scrambled them on the built-in frictional cases).
-const SETTLED_SWEEPS: usize = 1;
+pub const SETTLED_SWEEPS: usize = 1;
 /// Factors from the reference r for a held normal (raised) and a free one (lowered).
 /// 1000 x keeps the condition number of the contact block within three more decades;
 /// measured on frictionless full contact (block, levels 1-4): 10 x, 9-11 sweeps; 100 x,
@@ -48,12 +48,12 @@ const NORMAL_FACTOR: f64 = 1000.0;
 const TANGENT_FACTOR: f64 = 10.0;
 /// Retunes to the statuses allowed; after them, a further settled change of the
 /// statuses returns every direction to the reference r (once).
-pub(super) const MAX_RETUNES: usize = 4;
+pub const MAX_RETUNES: usize = 4;
 
 /// The r of a node's normal and tangential directions once their statuses have settled:
 /// raised where held (pressed, sticking), lowered where free (open, slipping). Without
 /// friction the tangent is not part of the method and keeps r.
-pub(super) fn tuned((held_n, held_t): (bool, bool), frictional: bool, r: f64) -> (f64, f64) {
+pub fn tuned((held_n, held_t): (bool, bool), frictional: bool, r: f64) -> (f64, f64) {
     let pick = |held: bool, factor: f64| if held { r * factor } else { r / factor };
     let t = if frictional {
         pick(held_t, TANGENT_FACTOR)

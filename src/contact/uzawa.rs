@@ -5,7 +5,7 @@
 //! Steps 2 and 3 of a sweep only read s = Nu + lambda / r (normal) and z = Tu + mu / r
 //! (tangential) at each node: p = min(g, s), lambda = r (s - p); q = shrink(z, s_f / r),
 //! mu = r (z - q). So one sweep is a map x -> G(x) of the state x = (s, z), one value
-//! (two with friction) per contact node (see [`super::sweep`]):
+//! (two with friction) per contact node (the `sweep` module):
 //!   1. from x: p, lambda, q, mu and the forces w (r p - lambda), w (r q - mu);
 //!   2. the linear step: (Nu, Tu);
 //!   3. G(x) = (Nu + lambda / r, Tu + mu / r).
@@ -16,7 +16,7 @@
 //!
 //! ## Acceleration
 //! Anderson mixing (type II, memory m) on G, with an inner product in force units (each
-//! direction weighted by w (r / r_ref)^2, see [`super::anderson::metric`]) summed over all
+//! direction weighted by w (r / r_ref)^2, see `metric` in the `anderson` module) summed over all
 //! ranks, so every rank computes the same mixing coefficients and the iterates do not
 //! depend on the rank count. Safeguard: a mixed point is kept only if its fixed-point
 //! residual |G(y) - y| (same norm) does not exceed the residual of the last kept point;
@@ -25,7 +25,7 @@
 //!
 //! ## Communication per sweep
 //! One linear step, and one all-reduce of 15 + m(m+1)/2 + m numbers: the 14 sums of
-//! [`super::sweep::SweepSums`] (the squared W-norms of the residuals, displacements and
+//! `SweepSums` (the squared W-norms of the residuals, displacements and
 //! multipliers, the active, slip, changed, stiff, soft and mistuned counts), the squared
 //! fixed-point residual, and the Anderson Gram matrix and right-hand side.
 //!
@@ -145,27 +145,14 @@ pub fn solve_with(
 ) -> Result<Outcome> {
     let n = nodes.len();
     let frictional = !matches!(params.friction, Friction::None);
-    // Start: lambda = mu = 0, p = min(g, 0), q = 0, i.e. s = min(g, 0), z = 0.
-    let mut x: Vec<f64> = nodes.g.iter().map(|g| g.min(0.0)).collect();
-    if frictional {
-        x.resize(2 * n, 0.0);
-    }
-    let mut total = [n as f64];
-    comm.sum_in_place(&mut total);
-    let mut run = Run {
-        sweeper: Sweeper::new(step, nodes, params.r),
+    let mut x = initial_state(nodes, frictional);
+    let mut run = Run::new(
+        Sweeper::new(step, nodes, params.r),
         comm,
         params,
         monitor,
-        n_contact: total[0] as usize,
-        history: Vec::new(),
-        retunes: 0,
-        can_retune: true,
-        refused: 0,
-        resume: ckpt.resume.take(),
         ckpt,
-        outer: None,
-    };
+    );
     let mut outer_iterations = 1;
     let (converged, last, threshold) = match (params.friction, params.coulomb) {
         (Friction::None, _) => {
@@ -202,6 +189,15 @@ pub fn solve_with(
         threshold,
         history: run.history,
     })
+}
+
+/// The start: lambda = mu = 0, p = min(g, 0), q = 0, i.e. s = min(g, 0), z = 0.
+fn initial_state(nodes: &ContactNodes, frictional: bool) -> Vec<f64> {
+    let mut x: Vec<f64> = nodes.g.iter().map(|g| g.min(0.0)).collect();
+    if frictional {
+        x.resize(2 * nodes.len(), 0.0);
+    }
+    x
 }
 
 /// The Coulomb thresholds of the pressures `lambda`.
@@ -260,7 +256,33 @@ struct Evaluated {
     worst: f64,
 }
 
-impl<S: LinearStep, C: Reduce> Run<'_, '_, S, C> {
+impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
+    /// A run that has swept nothing yet, or will resume from `ckpt.resume`.
+    fn new(
+        sweeper: Sweeper<'r, S>,
+        comm: &'r C,
+        params: &'r Params,
+        monitor: &'r mut dyn FnMut(&Sweep),
+        ckpt: &'r mut Checkpoints<'a>,
+    ) -> Self {
+        let mut total = [sweeper.nodes.len() as f64];
+        comm.sum_in_place(&mut total);
+        Run {
+            sweeper,
+            comm,
+            params,
+            monitor,
+            n_contact: total[0] as usize,
+            history: Vec::new(),
+            retunes: 0,
+            can_retune: true,
+            refused: 0,
+            resume: ckpt.resume.take(),
+            ckpt,
+            outer: None,
+        }
+    }
+
     /// Iterates from `x` until both residuals are below tol (true) or the budget is
     /// spent (false); returns the quantities derived from the last image G(x).
     fn sweeps(&mut self, law: Law, x: &mut Vec<f64>) -> Result<(bool, Derived)> {
