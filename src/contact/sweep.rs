@@ -50,7 +50,7 @@ impl Law<'_> {
     }
 }
 
-/// Multipliers and auxiliary variables derived from a state.
+/// Multipliers and auxiliary variables of a state (see [`project_and_update`]).
 pub(super) struct Derived {
     pub(super) p: Vec<f64>,
     pub(super) lambda: Vec<f64>,
@@ -75,7 +75,12 @@ impl Derived {
 /// Steps 2 and 3 of ALG2 at every node, from the states x = (s, z) (s = Nu + lambda / r,
 /// z = Tu + mu / r): 2. the projection p = min(g, s) and the shrinkage
 /// q = shrink(z, s_f / r); 3. the multiplier updates lambda = r (s - p), mu = r (z - q).
-pub(super) fn derive(x: &[f64], nodes: &ContactNodes, law: Law, aug: &Augmentation) -> Derived {
+pub(super) fn project_and_update(
+    x: &[f64],
+    nodes: &ContactNodes,
+    law: Law,
+    aug: &Augmentation,
+) -> Derived {
     let n = nodes.len();
     let mut d = Derived {
         p: vec![0.0; n],
@@ -280,13 +285,13 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
     pub(super) fn eval(&mut self, x: &[f64], law: Law) -> Result<Eval> {
         let frictional = law.frictional();
         // (p, lambda, q, mu) of the state: steps 2 and 3 of the sweep that produced it.
-        let inp = derive(x, self.nodes, law, &self.aug);
+        let inp = project_and_update(x, self.nodes, law, &self.aug);
         // 1. The linear step with the contact forces of (p, lambda) and (q, mu).
         self.linear_step(&inp)?;
-        // 2. and 3. at the new states (Nu + lambda / r, Tu + mu / r), which are G(x).
+        // 2. and 3. at the new states Nu + lambda / r, Tu + mu / r, which are G(x).
         let mut gx = vec![0.0; x.len()];
         self.new_states(&inp, frictional, &mut gx);
-        let out = derive(&gx, self.nodes, law, &self.aug);
+        let out = project_and_update(&gx, self.nodes, law, &self.aug);
         let sums = self.local_sums(&inp, &out, frictional);
         self.remember_statuses(&out, frictional);
         Ok(Eval { gx, out, sums })

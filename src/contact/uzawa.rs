@@ -40,7 +40,7 @@
 use super::anderson::{dot, metric, Anderson};
 use super::kernels::{coulomb_threshold, state};
 use super::retune::{retuned, Augmentation};
-use super::sweep::{derive, relative, Derived, Law, Reduced, Sweep, Sweeper};
+use super::sweep::{project_and_update, relative, Derived, Law, Reduced, Sweep, Sweeper};
 use super::{ContactNodes, LinearStep, Reduce, Status};
 use crate::case::{Acceleration, CoulombMode, Friction};
 use crate::error::{Error, Result};
@@ -473,7 +473,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             }
             sweeper.aug = snap.aug;
         }
-        let out = derive(&snap.gx, sweeper.nodes, law, &sweeper.aug);
+        let out = project_and_update(&snap.gx, sweeper.nodes, law, &sweeper.aug);
         sweeper.remember_statuses(&out, law.frictional());
         self.retunes = snap.retunes;
         self.history = snap.history;
