@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::fem::{self, assemble, DofMap};
 use crate::linear::{interior_groups, Ordering};
 use crate::mesh::{builtin, gmsh, Mesh};
-use crate::output::{self, ContactRow, HistoryRow};
+use crate::output::{self, ContactRow};
 use crate::problem::{self, Problem};
 use faer::Mat;
 use rayon::prelude::*;
@@ -1275,23 +1275,9 @@ fn write_outputs(
             output::nodes_csv(&xy, &uu).as_bytes(),
         )?;
     }
-    let history: Vec<HistoryRow> = o
-        .history
-        .iter()
-        .map(|s| HistoryRow {
-            iter: s.iter,
-            primal: s.primal,
-            dual: s.dual,
-            active: s.active,
-            slip: s.slip,
-            changed: s.changed,
-            stiff: s.stiff,
-            soft: s.soft,
-        })
-        .collect();
     output::write_atomic(
         &dir.join("history.csv"),
-        output::history_csv(&history).as_bytes(),
+        output::history_csv(&o.history).as_bytes(),
     )?;
     let sources: Vec<String> = all_stats
         .iter()

@@ -1,13 +1,14 @@
-//! Properties of the node-wise kernels of ALG2 (steps 2 and 3 of ALGORITHM.md), checked
-//! on random inputs: the projection, the shrinkage, the multiplier updates, the Coulomb
-//! threshold, and the state form of the updates that the loop uses.
+//! Properties of the node-wise kernels of ALG2 (steps 2 and 3 of docs/ALGORITHM.md),
+//! checked on random inputs: the projection, the shrinkage, the multiplier updates and
+//! the Coulomb threshold, as the loop calls them (on the state s = Nu + lambda / r), and
+//! their agreement with the textbook updates lambda + r (Nu - p), mu + r (Tu - q).
 //!
 //! Where a property is an identity of real numbers evaluated along two different float
 //! paths, it holds to a few ulps of the magnitudes involved (`close`); where both sides
 //! take the same path (oddness, |shrink|, idempotence), it holds exactly.
 
 use contact_par::contact::kernels::{
-    coulomb_threshold, normal_from_state, project_normal, shrink, tangential_from_state,
+    coulomb_threshold, normal_from_state, project_normal, shrink, state, tangential_from_state,
     update_multiplier,
 };
 use proptest::prelude::*;
@@ -55,46 +56,60 @@ proptest! {
     /// p = min(g, un + lambda / r) never exceeds the gap.
     #[test]
     fn projection_stays_below_the_gap(g in value(), un in value(), lambda in value(), r in augmentation()) {
-        prop_assert!(project_normal(g, un, lambda, r) <= g);
+        prop_assert!(project_normal(g, state(un, lambda, r)) <= g);
     }
 
     /// Projecting a projected value changes nothing.
     #[test]
-    fn projection_is_idempotent(g in value(), un in value(), lambda in value(), r in augmentation()) {
-        let p = project_normal(g, un, lambda, r);
-        prop_assert_eq!(project_normal(g, p, 0.0, r), p);
+    fn projection_is_idempotent(g in value(), s in value()) {
+        let p = project_normal(g, s);
+        prop_assert_eq!(project_normal(g, p), p);
     }
 
     /// Below the gap, the projection is the identity.
     #[test]
-    fn projection_keeps_admissible_values(un in value(), lambda in value(), r in augmentation(), room in 0.0..1e3f64) {
-        let s = un + lambda / r;
-        prop_assert_eq!(project_normal(s + room, un, lambda, r), s);
+    fn projection_keeps_admissible_values(s in value(), room in 0.0..1e3f64) {
+        prop_assert_eq!(project_normal(s + room, s), s);
     }
 
-    /// lambda + r (un - p) with p the projection is max(0, lambda + r (un - g)): the
-    /// normal multiplier is the positive part, so it stays >= 0, but only up to the
-    /// round-off of the difference it is computed as: on a free node it often comes out
-    /// as a tiny negative, of order -r eps |un| (about one random draw in seven), which is
-    /// why the loop uses the state form below and the Coulomb threshold clips the pressure.
+    /// The update r (s - p) with p the projection is the textbook lambda + r (un - p)
+    /// and max(0, lambda + r (un - g)) to round-off, and >= 0 exactly (s - min(g, s) is
+    /// never negative in floating point), where the textbook form often comes out a tiny
+    /// negative, of order -r eps |un|, on a free node (about one random draw in seven):
+    /// which is why the loop updates in the state and the Coulomb threshold clips the
+    /// pressure.
     #[test]
     fn normal_update_is_the_positive_part(g in value(), un in value(), lambda in value(), r in augmentation()) {
-        let p = project_normal(g, un, lambda, r);
-        let updated = update_multiplier(lambda, r, un, p);
+        let s = state(un, lambda, r);
+        let p = project_normal(g, s);
+        let updated = update_multiplier(r, s, p);
+        let textbook = lambda + r * (un - p);
         let expected = (lambda + r * (un - g)).max(0.0);
         let scale = lambda.abs() + r * (un.abs() + g.abs());
         prop_assert!(close(updated, expected, scale), "{} vs {}", updated, expected);
-        prop_assert!(updated >= -8.0 * f64::EPSILON * scale, "{}", updated);
+        prop_assert!(close(updated, textbook, scale), "{} vs {}", updated, textbook);
+        prop_assert!(updated >= 0.0, "{}", updated);
+        prop_assert!(textbook >= -8.0 * f64::EPSILON * scale, "{}", textbook);
     }
 
     /// A node pressed past its gap (un >= g) with a multiplier >= 0 is active: p = g, and
-    /// the update, a sum of non-negative terms, stays >= 0 exactly.
+    /// the update stays >= 0.
     #[test]
     fn normal_update_of_an_active_node(g in value(), past in 0.0..1e3f64, lambda in 0.0..1e6f64, r in augmentation()) {
-        let un = g + past;
-        let p = project_normal(g, un, lambda, r);
+        let s = state(g + past, lambda, r);
+        let p = project_normal(g, s);
         prop_assert_eq!(p, g);
-        prop_assert!(update_multiplier(lambda, r, un, p) >= 0.0);
+        prop_assert!(update_multiplier(r, s, p) >= 0.0);
+    }
+
+    /// State form, normal: lambda = r (s - min(g, s)) is r max(s - g, 0), zero exactly
+    /// when the node is free.
+    #[test]
+    fn normal_update_is_zero_exactly_on_a_free_node(s in value(), g in value(), r in augmentation()) {
+        let lambda = update_multiplier(r, s, project_normal(g, s));
+        prop_assert!(lambda >= 0.0);
+        prop_assert_eq!(lambda == 0.0, s <= g);
+        prop_assert!(close(lambda, r * (s - g).max(0.0), r * (s.abs() + g.abs())));
     }
 
     /// Shrinkage is odd: shrink(-z, a) = -shrink(z, a).
@@ -137,15 +152,19 @@ proptest! {
         prop_assert!(close(twice, shrink(z, a + b), z.abs() + a + b), "{} vs {}", twice, shrink(z, a + b));
     }
 
-    /// mu + r (ut - shrink(ut + mu / r, s / r)) is the clamp of mu + r ut onto [-s, s]:
-    /// the tangential multiplier never leaves the friction interval.
+    /// The tangential update r (z - q), q = shrink(z, s / r), is the textbook
+    /// mu + r (ut - q) and the clamp of mu + r ut onto [-s, s] (to round-off): the
+    /// tangential multiplier never leaves the friction interval.
     #[test]
     fn tangential_update_is_the_clamp(ut in value(), mu in value(), s in threshold(), r in augmentation()) {
-        let q = shrink(ut + mu / r, s / r);
-        let updated = update_multiplier(mu, r, ut, q);
+        let z = state(ut, mu, r);
+        let q = shrink(z, s / r);
+        let updated = update_multiplier(r, z, q);
+        let textbook = mu + r * (ut - q);
         let expected = (mu + r * ut).clamp(-s, s);
         let scale = mu.abs() + r * ut.abs() + s;
         prop_assert!(close(updated, expected, scale), "{} vs {}", updated, expected);
+        prop_assert!(close(updated, textbook, scale), "{} vs {}", updated, textbook);
         prop_assert!(updated.abs() <= s + 8.0 * f64::EPSILON * scale);
     }
 
@@ -159,35 +178,12 @@ proptest! {
         prop_assert!(coulomb_threshold(c, lambda + extra) >= s * (1.0 - 4.0 * f64::EPSILON));
     }
 
-    /// State form, normal: from s = un + lambda / r, p = min(g, s) <= g and
-    /// lambda = r (s - p), which is >= 0 exactly (s - min(g, s) is never negative in
-    /// floating point) and is r max(s - g, 0).
+    /// One call per direction is step 2 then step 3, bit for bit.
     #[test]
-    fn normal_state_form_is_exactly_non_negative(s in value(), g in value(), r in augmentation()) {
-        let (p, lambda) = normal_from_state(s, g, r);
-        prop_assert!(p <= g);
-        prop_assert!(lambda >= 0.0);
-        prop_assert_eq!(lambda == 0.0, s <= g);
-        prop_assert!(close(lambda, r * (s - g).max(0.0), r * (s.abs() + g.abs())));
-    }
-
-    /// The state form gives the sweep form's p and, to round-off, its multiplier.
-    #[test]
-    fn normal_state_form_equals_the_sweep_form(g in value(), un in value(), lambda in value(), r in augmentation()) {
-        let (p, updated) = normal_from_state(un + lambda / r, g, r);
-        prop_assert_eq!(p, project_normal(g, un, lambda, r));
-        let sweep = update_multiplier(lambda, r, un, p);
-        prop_assert!(close(updated, sweep, lambda.abs() + r * (un.abs() + g.abs())), "{} vs {}", updated, sweep);
-    }
-
-    /// State form, tangential: q = shrink(z, s / r) and mu = r (z - q), the clamp of r z
-    /// onto [-s, s] (to round-off).
-    #[test]
-    fn tangential_state_form_is_the_clamp(z in value(), s in threshold(), r in augmentation()) {
-        let (q, mu) = tangential_from_state(z, s, r);
-        prop_assert_eq!(q, shrink(z, s / r));
-        let scale = r * z.abs() + s;
-        prop_assert!(close(mu, (r * z).clamp(-s, s), scale), "{} vs {}", mu, (r * z).clamp(-s, s));
-        prop_assert!(mu.abs() <= s + 8.0 * f64::EPSILON * scale);
+    fn node_calls_are_steps_2_and_3(s in value(), g in value(), th in threshold(), r in augmentation()) {
+        let p = project_normal(g, s);
+        prop_assert_eq!(normal_from_state(s, g, r), (p, update_multiplier(r, s, p)));
+        let q = shrink(s, th / r);
+        prop_assert_eq!(tangential_from_state(s, th, r), (q, update_multiplier(r, s, q)));
     }
 }

@@ -1,13 +1,27 @@
-//! The node-wise steps 2 and 3 of ALG2 (ALGORITHM.md): projection, shrinkage and the
+//! The node-wise steps 2 and 3 of ALG2 (docs/ALGORITHM.md): projection, shrinkage and the
 //! multiplier updates. Pure functions of one contact node, no MPI, no I/O.
+//!
+//! Step 2 reads a multiplier and a displacement only through their state
+//! s = Nu + lambda / r ([`state`]), so the kernels take that state: the loop keeps it as
+//! its iterate, and step 3 written in it, lambda = r (s - p), is >= 0 exactly, where the
+//! textbook lambda + r (Nu - p) often comes out a tiny negative on a free node (the two
+//! agree to round-off: see the unit tests and tests/kernels_props.rs).
 
-/// Normal auxiliary variable: p = min(g, un + lambda / r) (projection onto p <= g).
+/// The state of one direction, s = value + multiplier / r: Nu + lambda / r (normal) or
+/// Tu + mu / r (tangential), the argument of step 2.
 #[inline]
-pub fn project_normal(g: f64, un: f64, lambda: f64, r: f64) -> f64 {
-    g.min(un + lambda / r)
+pub fn state(value: f64, multiplier: f64, r: f64) -> f64 {
+    value + multiplier / r
 }
 
-/// Tangential auxiliary variable by soft thresholding of z = ut + mu / r at s / r:
+/// Step 2, normal: the auxiliary variable p = min(g, s), the projection of the state onto
+/// p <= g.
+#[inline]
+pub fn project_normal(g: f64, s: f64) -> f64 {
+    g.min(s)
+}
+
+/// Step 2, tangential: soft thresholding of the state z = Tu + mu / r at s / r,
 /// q = sign(z) max(|z| - s / r, 0). A non-zero q means the node slips.
 #[inline]
 pub fn shrink(z: f64, s_over_r: f64) -> f64 {
@@ -19,11 +33,12 @@ pub fn shrink(z: f64, s_over_r: f64) -> f64 {
     }
 }
 
-/// Multiplier update lambda += r (un - p). With p from [`project_normal`] this equals
-/// max(0, lambda + r (un - g)), so lambda stays >= 0.
+/// Step 3: the multiplier update lambda + r (Nu - p), written in the state
+/// s = Nu + lambda / r as r (s - p). With p from [`project_normal`] this is
+/// r max(s - g, 0) >= 0; with q from [`shrink`], r z clamped to the friction interval.
 #[inline]
-pub fn update_multiplier(multiplier: f64, r: f64, value: f64, aux: f64) -> f64 {
-    multiplier + r * (value - aux)
+pub fn update_multiplier(r: f64, state: f64, aux: f64) -> f64 {
+    r * (state - aux)
 }
 
 /// Coulomb threshold s = coefficient * p_n, with the pressure clipped at zero so that a
@@ -33,21 +48,19 @@ pub fn coulomb_threshold(coefficient: f64, lambda: f64) -> f64 {
     coefficient * lambda.max(0.0)
 }
 
-/// Normal auxiliary variable and multiplier from the state s = Nu + lambda / r of the
-/// previous sweep: p = min(g, s) (the projection) and lambda = r (s - p) >= 0 (the
-/// update lambda + r (Nu - p) written in s).
+/// Steps 2 and 3 of one normal direction: (p, lambda) from the state s.
 #[inline]
 pub fn normal_from_state(s: f64, g: f64, r: f64) -> (f64, f64) {
-    let p = g.min(s);
-    (p, r * (s - p))
+    let p = project_normal(g, s);
+    (p, update_multiplier(r, s, p))
 }
 
-/// Tangential auxiliary variable and multiplier from z = Tu + mu / r: q = shrink(z, s/r)
-/// and mu = r (z - q), which is z r clamped to the friction interval [-s, s].
+/// Steps 2 and 3 of one tangential direction: (q, mu) from the state z and the slip
+/// threshold.
 #[inline]
 pub fn tangential_from_state(z: f64, threshold: f64, r: f64) -> (f64, f64) {
     let q = shrink(z, threshold / r);
-    (q, r * (z - q))
+    (q, update_multiplier(r, z, q))
 }
 
 #[cfg(test)]
@@ -56,24 +69,31 @@ mod tests {
 
     #[test]
     fn projection_keeps_p_below_the_gap() {
-        assert_eq!(project_normal(1.0, 0.5, 0.0, 10.0), 0.5);
-        assert_eq!(project_normal(1.0, 0.9, 5.0, 10.0), 1.0);
-        assert_eq!(project_normal(-0.5, 0.0, 0.0, 1.0), -0.5);
+        assert_eq!(project_normal(1.0, state(0.5, 0.0, 10.0)), 0.5);
+        assert_eq!(project_normal(1.0, state(0.9, 5.0, 10.0)), 1.0);
+        assert_eq!(project_normal(-0.5, state(0.0, 0.0, 1.0)), -0.5);
     }
 
     #[test]
-    fn normal_update_equals_the_projected_form() {
-        // lambda + r (un - min(g, un + lambda/r)) == max(0, lambda + r (un - g)).
+    fn normal_update_equals_the_textbook_form() {
+        // r (s - min(g, s)) == lambda + r (un - p) == max(0, lambda + r (un - g)).
         for &(g, un, lambda, r) in &[
             (0.1, 0.3, 2.0, 7.0),
             (0.1, -0.3, 2.0, 7.0),
             (0.0, 0.0, 0.0, 1.0),
             (1e-3, 2e-3, 1e4, 1e6),
         ] {
-            let p = project_normal(g, un, lambda, r);
-            let a = update_multiplier(lambda, r, un, p);
+            let s = state(un, lambda, r);
+            let p = project_normal(g, s);
+            let a = update_multiplier(r, s, p);
+            let textbook = lambda + r * (un - p);
             let b = (lambda + r * (un - g)).max(0.0);
+            assert!(a >= 0.0);
             assert!((a - b).abs() <= 1e-12 * b.abs().max(1.0), "{a} {b}");
+            assert!(
+                (a - textbook).abs() <= 1e-12 * b.abs().max(1.0),
+                "{a} {textbook}"
+            );
         }
     }
 
@@ -88,40 +108,34 @@ mod tests {
 
     #[test]
     fn tangential_update_projects_onto_the_friction_disc() {
-        // mu + r (ut - shrink(ut + mu/r, s/r)) == clamp(mu + r ut, -s, s).
+        // r (z - shrink(z, s/r)) == mu + r (ut - q) == clamp(mu + r ut, -s, s).
         for &(ut, mu, s, r) in &[
             (0.3, 1.0, 2.0, 10.0),
             (-0.3, 1.0, 2.0, 10.0),
             (0.01, 0.5, 2.0, 10.0),
         ] {
-            let q = shrink(ut + mu / r, s / r);
-            let a = update_multiplier(mu, r, ut, q);
+            let z = state(ut, mu, r);
+            let q = shrink(z, s / r);
+            let a = update_multiplier(r, z, q);
+            let textbook = mu + r * (ut - q);
             let b = (mu + r * ut).clamp(-s, s);
             assert!((a - b).abs() < 1e-12, "{a} {b}");
+            assert!((a - textbook).abs() < 1e-12, "{a} {textbook}");
         }
     }
 
     #[test]
-    fn state_form_equals_the_sweep_form() {
-        for &(un, lambda, g, r) in &[
-            (0.3, 2.0, 0.1, 7.0),
-            (-0.3, 0.0, 0.1, 7.0),
-            (0.1, 1.0, 0.1, 3.0),
-        ] {
-            let s = un + lambda / r;
-            let (p, l) = normal_from_state(s, g, r);
-            assert_eq!(p, project_normal(g, un, lambda, r));
-            assert!((l - update_multiplier(lambda, r, un, p)).abs() < 1e-12);
+    fn one_call_per_direction_is_steps_2_and_3() {
+        for &(s, g, r) in &[(0.3, 0.1, 7.0), (-0.3, 0.1, 7.0), (0.1, 0.1, 3.0)] {
+            let p = project_normal(g, s);
+            assert_eq!(normal_from_state(s, g, r), (p, update_multiplier(r, s, p)));
         }
-        for &(ut, mu, th, r) in &[
-            (0.3, 1.0, 2.0, 10.0),
-            (-0.3, 1.0, 2.0, 10.0),
-            (0.01, 0.5, 2.0, 10.0),
-        ] {
-            let z = ut + mu / r;
-            let (q, m) = tangential_from_state(z, th, r);
-            assert_eq!(q, shrink(z, th / r));
-            assert!((m - (mu + r * ut).clamp(-th, th)).abs() < 1e-12);
+        for &(z, th, r) in &[(0.3, 2.0, 10.0), (-0.3, 2.0, 10.0), (0.01, 2.0, 10.0)] {
+            let q = shrink(z, th / r);
+            assert_eq!(
+                tangential_from_state(z, th, r),
+                (q, update_multiplier(r, z, q))
+            );
         }
     }
 

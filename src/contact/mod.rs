@@ -1,14 +1,18 @@
-//! The contact method of docs/ALGORITHM.md: node-wise kernels and the Uzawa loop,
-//! written once against two small traits so that one rank and many ranks run the same
-//! code.
+//! The contact method of docs/ALGORITHM.md: node-wise kernels and the Uzawa loop, written
+//! once against two small traits so that one rank and many ranks run the same code.
 
+mod anderson;
 pub mod kernels;
 mod law;
 pub mod operators;
+pub mod retune;
+mod sweep;
 pub mod uzawa;
 
 pub use law::{Acceleration, CoulombMode, Friction, DEFAULT_ANDERSON_MEMORY};
-pub use uzawa::{solve, solve_with, Augmentation, Checkpoints, Outcome, Params, Snapshot, Sweep};
+pub use retune::Augmentation;
+pub use sweep::Sweep;
+pub use uzawa::{solve, solve_with, Checkpoints, Outcome, Params, Snapshot};
 
 use crate::error::Result;
 

@@ -4,6 +4,8 @@
 
 use std::fmt::Write;
 
+use crate::contact::Sweep;
+
 /// One node of the contact boundary in `contact.csv`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactRow {
@@ -18,21 +20,6 @@ pub struct ContactRow {
     /// Tangential traction.
     pub p_t: f64,
     pub gap: f64,
-}
-
-/// One Uzawa sweep in `history.csv`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct HistoryRow {
-    pub iter: usize,
-    pub primal: f64,
-    pub dual: f64,
-    pub active: usize,
-    pub slip: usize,
-    /// Contact nodes whose status changed in the sweep.
-    pub changed: usize,
-    /// Contact directions whose r was raised above the reference r, and lowered below it.
-    pub stiff: usize,
-    pub soft: usize,
 }
 
 /// `contact.csv`: header `x,y,u_n,u_t,p_n,p_t,gap`, rows sorted by x then y.
@@ -79,8 +66,8 @@ pub fn nodes_csv(nodes: &[[f64; 2]], u: &[[f64; 2]]) -> String {
 
 /// `history.csv`: header
 /// `iteration,primal_residual,dual_residual,active_nodes,slip_nodes,changed_nodes,stiff_directions,soft_directions`,
-/// rows in the given order.
-pub fn history_csv(rows: &[HistoryRow]) -> String {
+/// one row per sweep in the given order (the other fields of [`Sweep`] are not written).
+pub fn history_csv(rows: &[Sweep]) -> String {
     let mut out = String::with_capacity(48 * (rows.len() + 1));
     out.push_str("iteration,primal_residual,dual_residual,active_nodes,slip_nodes,changed_nodes,stiff_directions,soft_directions\n");
     for r in rows {
@@ -221,7 +208,7 @@ mod tests {
     #[test]
     fn history_text_is_exact() {
         let rows = [
-            HistoryRow {
+            Sweep {
                 iter: 1,
                 primal: 0.5,
                 dual: 1e-300,
@@ -230,8 +217,10 @@ mod tests {
                 changed: 4,
                 stiff: 0,
                 soft: 0,
+                mistuned: 7,
+                retunes: 0,
             },
-            HistoryRow {
+            Sweep {
                 iter: 2,
                 primal: 0.1 + 0.2,
                 dual: 2.0,
@@ -240,6 +229,8 @@ mod tests {
                 changed: 0,
                 stiff: 12,
                 soft: 5,
+                mistuned: 0,
+                retunes: 1,
             },
         ];
         let csv = history_csv(&rows);

@@ -18,5 +18,5 @@ mod csv;
 mod vtk;
 
 pub use atomic::write_atomic;
-pub use csv::{contact_csv, history_csv, nodes_csv, ContactRow, HistoryRow};
+pub use csv::{contact_csv, history_csv, nodes_csv, ContactRow};
 pub use vtk::{file_ranges, pvtu_bytes, vtu_bytes, Piece, SubPiece, MAX_TRIANGLES_PER_FILE};

@@ -1,0 +1,233 @@
+//! Anderson mixing (type II) on the sweep map G of [`super::uzawa`], with an inner product
+//! in force units summed over all ranks, so that every rank computes the same mixing
+//! coefficients and the iterates do not depend on the rank count.
+
+use super::retune::Augmentation;
+
+/// Weighted inner product of two states, one weight per component (see [`metric`]).
+pub(super) fn dot(a: &[f64], b: &[f64], omega: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .zip(omega)
+        .map(|((x, y), o)| o * x * y)
+        .sum()
+}
+
+/// The weights of the state norm: w (r / r_ref)^2 per direction, so that a state
+/// difference is measured in force units, r times a displacement, with each direction's
+/// own r. Once r is retuned, a held direction's state moves by its multiplier change over a
+/// large r and a free one's by a displacement: unweighted, the mixing would fit the free
+/// directions and neglect the held ones, which the stopping test weighs in force units.
+pub(super) fn metric(w: &[f64], aug: &Augmentation, r_ref: f64, frictional: bool) -> Vec<f64> {
+    let scaled = |r: &[f64]| -> Vec<f64> {
+        w.iter()
+            .zip(r)
+            .map(|(w, r)| w * (r / r_ref).powi(2))
+            .collect()
+    };
+    let mut omega = scaled(&aug.r_n);
+    if frictional {
+        omega.extend(scaled(&aug.r_t));
+    }
+    omega
+}
+
+/// Anderson memory (m = 0: no acceleration): differences of residuals and of images of the last iterations.
+pub(super) struct Anderson {
+    m: usize,
+    pub(super) df: Vec<Vec<f64>>,
+    pub(super) dg: Vec<Vec<f64>>,
+    pub(super) last: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl Anderson {
+    pub(super) fn new(m: usize) -> Self {
+        Anderson {
+            m,
+            df: Vec::new(),
+            dg: Vec::new(),
+            last: None,
+        }
+    }
+
+    /// Itself when mixing is on, so that the sweep's reduction carries its Gram sums.
+    pub(super) fn active(&self) -> Option<&Self> {
+        (self.m > 0).then_some(self)
+    }
+
+    /// The Anderson step after the accepted point x with image gx: records
+    /// (G(x) - x, G(x)) and mixes with the global Gram sums `gram` of that point.
+    /// `None` without acceleration, with an empty memory or a singular system.
+    pub(super) fn propose(&mut self, x: &[f64], gx: &[f64], gram: &[f64]) -> Option<Vec<f64>> {
+        if self.m == 0 {
+            return None;
+        }
+        let f: Vec<f64> = gx.iter().zip(x).map(|(a, b)| a - b).collect();
+        self.push(&f, gx);
+        self.mix(gx, gram)
+    }
+
+    pub(super) fn clear(&mut self) {
+        self.df.clear();
+        self.dg.clear();
+        self.last = None;
+    }
+
+    /// Records (f, g) of an accepted point.
+    fn push(&mut self, f: &[f64], g: &[f64]) {
+        if let Some((f0, g0)) = self.last.take() {
+            if self.df.len() == self.m {
+                self.df.remove(0);
+                self.dg.remove(0);
+            }
+            self.df
+                .push(f.iter().zip(&f0).map(|(a, b)| a - b).collect());
+            self.dg
+                .push(g.iter().zip(&g0).map(|(a, b)| a - b).collect());
+        }
+        self.last = Some((f.to_vec(), g.to_vec()));
+    }
+
+    /// Local parts of the Gram matrix DF'DF (upper triangle, row by row) and of DF' f,
+    /// where DF is the memory as it will be once (f, g) is pushed: computing them with
+    /// the evaluation lets one reduction per sweep serve both the statistics and the
+    /// mixing.
+    pub(super) fn local_sums_with_new(&self, f: &[f64], omega: &[f64]) -> Vec<f64> {
+        let mut diffs: Vec<&[f64]> = self.df.iter().map(Vec::as_slice).collect();
+        let newest: Vec<f64>;
+        if let Some((f0, _)) = &self.last {
+            newest = f.iter().zip(f0).map(|(a, b)| a - b).collect();
+            if diffs.len() == self.m {
+                diffs.remove(0);
+            }
+            diffs.push(&newest);
+        }
+        let k = diffs.len();
+        let mut v = Vec::with_capacity(k * (k + 1) / 2 + k);
+        for a in 0..k {
+            for b in a..k {
+                v.push(dot(diffs[a], diffs[b], omega));
+            }
+        }
+        for a in 0..k {
+            v.push(dot(diffs[a], f, omega));
+        }
+        v
+    }
+
+    /// The mixed point g - DG gamma with (DF'DF) gamma = DF' f from the global sums;
+    /// `None` when the memory is empty or the small system is singular.
+    fn mix(&self, g: &[f64], sums: &[f64]) -> Option<Vec<f64>> {
+        let k = self.df.len();
+        if k == 0 {
+            return None;
+        }
+        let mut a = vec![vec![0.0; k]; k];
+        let mut idx = 0;
+        for i in 0..k {
+            for j in i..k {
+                a[i][j] = sums[idx];
+                a[j][i] = sums[idx];
+                idx += 1;
+            }
+        }
+        let mut b: Vec<f64> = sums[idx..idx + k].to_vec();
+        // Jacobi scaling first: the differences in memory can span many orders of
+        // magnitude (early sweeps against late ones), and a regularisation relative to
+        // the largest would drown the newest, most useful ones.
+        let scale: Vec<f64> = (0..k).map(|i| a[i][i].sqrt()).collect();
+        // NaN-safe: a NaN diagonal fails this test too.
+        if scale.iter().any(|d| d.is_nan() || *d <= 0.0) {
+            return None;
+        }
+        for i in 0..k {
+            for j in 0..k {
+                a[i][j] /= scale[i] * scale[j];
+            }
+            b[i] /= scale[i];
+            // A little Tikhonov regularisation keeps nearly dependent differences harmless.
+            a[i][i] += 1e-10;
+        }
+        let mut gamma = solve_small_spd(a, &mut b)?;
+        for (c, d) in gamma.iter_mut().zip(&scale) {
+            *c /= d;
+        }
+        let mut y = g.to_vec();
+        for (c, dg) in gamma.iter().zip(&self.dg) {
+            for (yi, d) in y.iter_mut().zip(dg) {
+                *yi -= c * d;
+            }
+        }
+        Some(y)
+    }
+}
+
+/// Cholesky solve of a small SPD system (the Anderson least-squares normal equations).
+fn solve_small_spd(mut a: Vec<Vec<f64>>, b: &mut [f64]) -> Option<Vec<f64>> {
+    let k = b.len();
+    for j in 0..k {
+        let mut d = a[j][j];
+        for p in 0..j {
+            d -= a[j][p] * a[j][p];
+        }
+        if d.is_nan() || d <= 0.0 {
+            return None;
+        }
+        let d = d.sqrt();
+        a[j][j] = d;
+        for i in j + 1..k {
+            let mut s = a[i][j];
+            for p in 0..j {
+                s -= a[i][p] * a[j][p];
+            }
+            a[i][j] = s / d;
+        }
+    }
+    for i in 0..k {
+        let mut s = b[i];
+        for p in 0..i {
+            s -= a[i][p] * b[p];
+        }
+        b[i] = s / a[i][i];
+    }
+    for i in (0..k).rev() {
+        let mut s = b[i];
+        for p in i + 1..k {
+            s -= a[p][i] * b[p];
+        }
+        b[i] = s / a[i][i];
+    }
+    Some(b.to_vec())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn metric_measures_state_differences_in_force_units() {
+        let w = [2.0, 3.0];
+        let r = 10.0;
+        // One r everywhere: the weights are the contact weights, so the mixing is the same
+        // as with the plain W inner product until the first retune.
+        let uniform = Augmentation::uniform(2, r);
+        assert_eq!(metric(&w, &uniform, r, false), vec![2.0, 3.0]);
+        assert_eq!(metric(&w, &uniform, r, true), vec![2.0, 3.0, 2.0, 3.0]);
+        // Retuned: a state change dx in a direction with spring r costs (r dx)^2 w / r_ref^2,
+        // so a multiplier change r dx weighs the same whatever that direction's r.
+        let aug = Augmentation {
+            r_n: vec![1000.0 * r, r / 1000.0],
+            r_t: vec![r / 10.0, 10.0 * r],
+        };
+        let omega = metric(&w, &aug, r, true);
+        let dx = [1e-3, 1e3, 10.0, 0.1];
+        let force: Vec<f64> = [aug.r_n.clone(), aug.r_t.clone()]
+            .concat()
+            .iter()
+            .zip(dx)
+            .map(|(r, d)| r * d)
+            .collect();
+        let expected: f64 = (0..4).map(|k| w[k % 2] * (force[k] / r).powi(2)).sum();
+        assert!((dot(&dx, &dx, &omega) - expected).abs() <= 1e-12 * expected);
+    }
+}

@@ -1,0 +1,380 @@
+//! One sweep of ALG2 (docs/ALGORITHM.md) from a state x, the map x -> G(x) of
+//! [`super::uzawa`]: the method's three steps at this rank's contact nodes, and the local
+//! sums that the sweep's one all-reduce turns into its line of the history.
+
+use super::kernels::{coulomb_threshold, project_normal, shrink, state, update_multiplier};
+use super::retune::{tuned, Augmentation};
+use super::{ContactNodes, LinearStep, Reduce};
+use crate::error::Result;
+
+/// One line of the convergence history (one linear solve).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Sweep {
+    pub iter: usize,
+    pub primal: f64,
+    pub dual: f64,
+    pub active: usize,
+    pub slip: usize,
+    /// Contact nodes whose status (free, stick, slip) in the image of this sweep differs
+    /// from the one in the image of the sweep before.
+    pub changed: usize,
+    /// Contact directions (normal and, with friction, tangential) whose r in this
+    /// sweep's linear step is raised above the reference r, and lowered below it.
+    pub stiff: usize,
+    pub soft: usize,
+    /// Directions whose r differs from what their status in the image asks for.
+    pub mistuned: usize,
+    /// Retunes of r before this sweep.
+    pub retunes: usize,
+}
+
+/// The slip thresholds seen by one run of sweeps.
+#[derive(Clone, Copy)]
+pub(super) enum Law<'a> {
+    Frictionless,
+    Fixed(&'a [f64]),
+    Coulomb(f64),
+}
+
+impl Law<'_> {
+    pub(super) fn frictional(&self) -> bool {
+        !matches!(self, Law::Frictionless)
+    }
+
+    fn threshold(&self, i: usize, lambda: f64) -> f64 {
+        match *self {
+            Law::Frictionless => 0.0,
+            Law::Fixed(s) => s[i],
+            Law::Coulomb(c) => coulomb_threshold(c, lambda),
+        }
+    }
+}
+
+/// Multipliers and auxiliary variables of a state (see [`project_and_update`]).
+pub(super) struct Derived {
+    pub(super) p: Vec<f64>,
+    pub(super) lambda: Vec<f64>,
+    pub(super) q: Vec<f64>,
+    pub(super) mu: Vec<f64>,
+}
+
+impl Derived {
+    /// Whether node i's normal and tangential directions are held: pressed onto the
+    /// foundation, and sticking (with friction).
+    pub(super) fn held(&self, i: usize, frictional: bool) -> (bool, bool) {
+        (self.lambda[i] > 0.0, frictional && self.q[i] == 0.0)
+    }
+
+    fn statuses(&self, frictional: bool) -> Vec<(bool, bool)> {
+        (0..self.p.len())
+            .map(|i| self.held(i, frictional))
+            .collect()
+    }
+}
+
+/// Steps 2 and 3 of ALG2 at every node, from the states x = (s, z) (s = Nu + lambda / r,
+/// z = Tu + mu / r): 2. the projection p = min(g, s) and the shrinkage
+/// q = shrink(z, s_f / r); 3. the multiplier updates lambda = r (s - p), mu = r (z - q).
+pub(super) fn project_and_update(
+    x: &[f64],
+    nodes: &ContactNodes,
+    law: Law,
+    aug: &Augmentation,
+) -> Derived {
+    let n = nodes.len();
+    let mut d = Derived {
+        p: vec![0.0; n],
+        lambda: vec![0.0; n],
+        q: vec![0.0; n],
+        mu: vec![0.0; n],
+    };
+    for i in 0..n {
+        let s = x[i];
+        d.p[i] = project_normal(nodes.g[i], s);
+        d.lambda[i] = update_multiplier(aug.r_n[i], s, d.p[i]);
+        if law.frictional() {
+            let z = x[n + i];
+            d.q[i] = shrink(z, law.threshold(i, d.lambda[i]) / aug.r_t[i]);
+            d.mu[i] = update_multiplier(aug.r_t[i], z, d.q[i]);
+        }
+    }
+    d
+}
+
+/// The sums of one sweep over this rank's contact nodes (over all ranks once reduced).
+/// The norms are squared W-norms, measured with the reference r whatever the r of each
+/// direction, so that a retune does not move the stopping test; the counts are floats
+/// only to travel in the same all-reduce.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(super) struct SweepSums {
+    /// |lambda+ - lambda|^2 and |mu+ - mu|^2: the primal residual.
+    pub(super) multiplier_change_n: f64,
+    pub(super) multiplier_change_t: f64,
+    /// |r (p+ - p)|^2 and |r (q+ - q)|^2: the dual residual.
+    pub(super) aux_change_n: f64,
+    pub(super) aux_change_t: f64,
+    /// |r Nu|^2 and |r Tu|^2: the scale without contact.
+    pub(super) displacement_n: f64,
+    pub(super) displacement_t: f64,
+    /// |lambda+|^2 and |mu+|^2: the scale with contact.
+    pub(super) multiplier_n: f64,
+    pub(super) multiplier_t: f64,
+    /// The counts of [`Sweep`].
+    pub(super) active: f64,
+    pub(super) slip: f64,
+    pub(super) changed: f64,
+    pub(super) stiff: f64,
+    pub(super) soft: f64,
+    pub(super) mistuned: f64,
+}
+
+impl SweepSums {
+    /// The numbers [`SweepSums::pack`] puts in the all-reduce.
+    pub(super) const LEN: usize = 14;
+
+    pub(super) fn pack(&self) -> [f64; Self::LEN] {
+        [
+            self.multiplier_change_n,
+            self.multiplier_change_t,
+            self.aux_change_n,
+            self.aux_change_t,
+            self.displacement_n,
+            self.displacement_t,
+            self.multiplier_n,
+            self.multiplier_t,
+            self.active,
+            self.slip,
+            self.changed,
+            self.stiff,
+            self.soft,
+            self.mistuned,
+        ]
+    }
+
+    pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
+        let [multiplier_change_n, multiplier_change_t, aux_change_n, aux_change_t, displacement_n, displacement_t, multiplier_n, multiplier_t, active, slip, changed, stiff, soft, mistuned] =
+            v;
+        SweepSums {
+            multiplier_change_n,
+            multiplier_change_t,
+            aux_change_n,
+            aux_change_t,
+            displacement_n,
+            displacement_t,
+            multiplier_n,
+            multiplier_t,
+            active,
+            slip,
+            changed,
+            stiff,
+            soft,
+            mistuned,
+        }
+    }
+
+    /// The scale S = max(|lambda|_W + |mu|_W, r (|Nu|_W + |Tu|_W)) of the residuals.
+    pub(super) fn scale(&self) -> f64 {
+        (self.multiplier_n.sqrt() + self.multiplier_t.sqrt())
+            .max(self.displacement_n.sqrt() + self.displacement_t.sqrt())
+    }
+
+    /// The history line of sweep `iter` from the global sums.
+    pub(super) fn sweep(&self, iter: usize, retunes: usize) -> Sweep {
+        let scale = self.scale();
+        Sweep {
+            iter,
+            primal: relative(
+                self.multiplier_change_n.sqrt() + self.multiplier_change_t.sqrt(),
+                scale,
+            ),
+            dual: relative(self.aux_change_n.sqrt() + self.aux_change_t.sqrt(), scale),
+            active: self.active as usize,
+            slip: self.slip as usize,
+            changed: self.changed as usize,
+            stiff: self.stiff as usize,
+            soft: self.soft as usize,
+            mistuned: self.mistuned as usize,
+            retunes,
+        }
+    }
+}
+
+/// `value / scale`, or `value` itself when the scale is zero.
+pub(super) fn relative(value: f64, scale: f64) -> f64 {
+    if scale > 0.0 {
+        value / scale
+    } else {
+        value
+    }
+}
+
+/// What one sweep sums over all ranks, in its single all-reduce of
+/// [`SweepSums::LEN`] + 1 + m(m+1)/2 + m numbers.
+pub(super) struct Reduced {
+    pub(super) sums: SweepSums,
+    /// |G(x) - x|^2 in the norm of [`super::anderson::metric`].
+    pub(super) residual2: f64,
+    /// The Anderson Gram matrix and right-hand side ([`super::anderson::Anderson::local_sums_with_new`]),
+    /// empty when not accelerating.
+    pub(super) gram: Vec<f64>,
+}
+
+impl Reduced {
+    /// Sums the local parts over all ranks, packed into one buffer.
+    pub(super) fn all_reduce(
+        comm: &impl Reduce,
+        sums: &SweepSums,
+        residual2: f64,
+        gram: Vec<f64>,
+    ) -> Reduced {
+        let mut buf = sums.pack().to_vec();
+        buf.push(residual2);
+        buf.extend(gram);
+        comm.sum_in_place(&mut buf);
+        let (head, tail) = buf.split_at(SweepSums::LEN);
+        Reduced {
+            // The split is at LEN: the conversion cannot fail.
+            sums: SweepSums::unpack(head.try_into().expect("LEN sums")),
+            residual2: tail[0],
+            gram: tail[1..].to_vec(),
+        }
+    }
+}
+
+/// One evaluation of G: its value, the quantities derived from it, and this rank's sums.
+pub(super) struct Eval {
+    pub(super) gx: Vec<f64>,
+    pub(super) out: Derived,
+    pub(super) sums: SweepSums,
+}
+
+/// The sweep's working set on this rank: the linear step, the r of each direction, and
+/// the buffers of the forces and of (Nu, Tu).
+pub(super) struct Sweeper<'a, S: LinearStep> {
+    pub(super) step: &'a mut S,
+    pub(super) nodes: &'a ContactNodes,
+    /// The reference r: the scale of the residuals, and the r of a direction not retuned.
+    pub(super) r_ref: f64,
+    pub(super) aug: Augmentation,
+    /// The statuses in the image of the last evaluation (empty before the first).
+    last_held: Vec<(bool, bool)>,
+    force_n: Vec<f64>,
+    force_t: Vec<f64>,
+    pub(super) un: Vec<f64>,
+    pub(super) ut: Vec<f64>,
+}
+
+impl<'a, S: LinearStep> Sweeper<'a, S> {
+    /// A sweeper with the reference r in every direction.
+    pub(super) fn new(step: &'a mut S, nodes: &'a ContactNodes, r: f64) -> Self {
+        let n = nodes.len();
+        Sweeper {
+            step,
+            nodes,
+            r_ref: r,
+            aug: Augmentation::uniform(n, r),
+            last_held: Vec::new(),
+            force_n: vec![0.0; n],
+            force_t: vec![0.0; n],
+            un: vec![0.0; n],
+            ut: vec![0.0; n],
+        }
+    }
+
+    /// One sweep of ALG2 from the state x, then this rank's sums of it.
+    pub(super) fn eval(&mut self, x: &[f64], law: Law) -> Result<Eval> {
+        let frictional = law.frictional();
+        // (p, lambda, q, mu) of the state: steps 2 and 3 of the sweep that produced it.
+        let inp = project_and_update(x, self.nodes, law, &self.aug);
+        // 1. The linear step with the contact forces of (p, lambda) and (q, mu).
+        self.linear_step(&inp)?;
+        // 2. and 3. at the new states Nu + lambda / r, Tu + mu / r, which are G(x).
+        let mut gx = vec![0.0; x.len()];
+        self.new_states(&inp, frictional, &mut gx);
+        let out = project_and_update(&gx, self.nodes, law, &self.aug);
+        let sums = self.local_sums(&inp, &out, frictional);
+        self.remember_statuses(&out, frictional);
+        Ok(Eval { gx, out, sums })
+    }
+
+    /// Keeps the statuses of an image, which the next evaluation's `changed` compares with.
+    pub(super) fn remember_statuses(&mut self, image: &Derived, frictional: bool) {
+        self.last_held = image.statuses(frictional);
+    }
+
+    /// Step 1: A u = F + N' w (r p - lambda) + T' w (r q - mu), seen as (Nu, Tu).
+    fn linear_step(&mut self, inp: &Derived) -> Result<()> {
+        let (w, aug) = (&self.nodes.w, &self.aug);
+        for i in 0..w.len() {
+            self.force_n[i] = w[i] * (aug.r_n[i] * inp.p[i] - inp.lambda[i]);
+            self.force_t[i] = w[i] * (aug.r_t[i] * inp.q[i] - inp.mu[i]);
+        }
+        self.step
+            .solve(&self.force_n, &self.force_t, &mut self.un, &mut self.ut)
+    }
+
+    /// The states s = Nu + lambda / r and (with friction) z = Tu + mu / r after step 1.
+    fn new_states(&self, inp: &Derived, frictional: bool, gx: &mut [f64]) {
+        let (n, aug) = (self.nodes.len(), &self.aug);
+        for i in 0..n {
+            gx[i] = state(self.un[i], inp.lambda[i], aug.r_n[i]);
+            if frictional {
+                gx[n + i] = state(self.ut[i], inp.mu[i], aug.r_t[i]);
+            }
+        }
+    }
+
+    /// This rank's sums of the sweep from `inp` to `out`.
+    fn local_sums(&self, inp: &Derived, out: &Derived, frictional: bool) -> SweepSums {
+        let (w, r, aug) = (&self.nodes.w, self.r_ref, &self.aug);
+        let mut s = SweepSums::default();
+        for i in 0..w.len() {
+            s.multiplier_change_n += w[i] * (out.lambda[i] - inp.lambda[i]).powi(2);
+            s.multiplier_change_t += w[i] * (out.mu[i] - inp.mu[i]).powi(2);
+            s.aux_change_n += w[i] * (r * (out.p[i] - inp.p[i])).powi(2);
+            s.aux_change_t += w[i] * (r * (out.q[i] - inp.q[i])).powi(2);
+            s.displacement_n += w[i] * (r * self.un[i]).powi(2);
+            s.displacement_t += w[i] * (r * self.ut[i]).powi(2);
+            s.multiplier_n += w[i] * out.lambda[i].powi(2);
+            s.multiplier_t += w[i] * out.mu[i].powi(2);
+            if out.lambda[i] > 0.0 {
+                s.active += 1.0;
+                if !frictional || out.q[i] != 0.0 {
+                    s.slip += 1.0;
+                }
+            }
+            let held = out.held(i, frictional);
+            // The first sweep compares with the statuses of its input.
+            let before = self.last_held.get(i).copied();
+            if before.unwrap_or_else(|| inp.held(i, frictional)) != held {
+                s.changed += 1.0;
+            }
+            let (want_n, want_t) = tuned(held, frictional, r);
+            for (have, want) in [(aug.r_n[i], want_n), (aug.r_t[i], want_t)] {
+                if have > r {
+                    s.stiff += 1.0;
+                } else if have < r {
+                    s.soft += 1.0;
+                }
+                if have != want {
+                    s.mistuned += 1.0;
+                }
+            }
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sums_travel_by_name() {
+        let v: [f64; SweepSums::LEN] = std::array::from_fn(|k| k as f64 + 0.5);
+        let s = SweepSums::unpack(v);
+        assert_eq!(s.pack(), v);
+        assert_eq!((s.multiplier_change_n, s.multiplier_n), (0.5, 6.5));
+        assert_eq!((s.active, s.mistuned), (8.5, 13.5));
+    }
+}
