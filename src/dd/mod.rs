@@ -66,3 +66,4 @@
 pub mod comm;
 pub mod condense;
 pub mod split;
+pub mod step;
