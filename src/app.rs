@@ -11,7 +11,7 @@ use crate::dd::split::{split, SubProblem};
 use crate::dd::step::{CondensedStep, LocalSystem, StepSetup};
 use crate::error::{Error, Result};
 use crate::host;
-use crate::linear::{ContactDofs, DirectStep, LocalFactor, Ordering};
+use crate::linear::{ContactDofs, DirectStep, DirectSystem, LocalFactor, Ordering};
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::{self, Gathered, PieceRows, RankStats, RunFacts, SubdomainSolution};
 use crate::problem::{self, Problem};
@@ -172,25 +172,22 @@ fn solve_condensed(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
 fn solve_full(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
     let (setup, timer) = (ctx.setup, ctx.timer);
     // 4. Assemble and factor the whole mesh.
-    let contact = ContactDofs {
-        nodes: &sub.contact_nodes,
-        w: &sub.contact.w,
-        normal: setup.normal,
-        tangent: setup.tangent,
-        frictional: Problem::is_frictional(&setup.case),
+    let system = DirectSystem {
+        nodes: &sub.nodes,
+        triangles: &sub.triangles,
+        material: &setup.case.material,
+        fixed: &sub.fixed,
+        load: &sub.load,
+        contact: ContactDofs {
+            nodes: &sub.contact_nodes,
+            w: &sub.contact.w,
+            normal: setup.normal,
+            tangent: setup.tangent,
+            frictional: Problem::is_frictional(&setup.case),
+        },
+        r: setup.r,
     };
-    let material = &setup.case.material;
-    let (mut step, times) = DirectStep::new(
-        &sub.nodes,
-        &sub.triangles,
-        material,
-        &sub.fixed,
-        &sub.load,
-        &contact,
-        setup.r,
-    )?;
-    timer.add(Phase::Assemble, times.assemble);
-    timer.add(Phase::Factor, times.factor);
+    let mut step = DirectStep::new(&system, timer)?;
     // 6. Iterate.
     let outcome = iterate(ctx, sub, &mut step)?;
     let sweeps = outcome.iterations.max(1) as f64;

@@ -1,6 +1,6 @@
 //! contact-par: 2D unilateral contact of a linear elastic body with a rigid foundation
 //! (frictionless, Tresca, Coulomb), P1 triangles, Uzawa block relaxation on an augmented
-//! Lagrangian (see ALGORITHM.md of the project), on one rank or many MPI ranks.
+//! Lagrangian (see docs/ALGORITHM.md), on one rank or many MPI ranks.
 
 // Index loops over several coupled arrays read closer to the formulas than zipped iterators.
 #![allow(clippy::needless_range_loop)]

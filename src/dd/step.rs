@@ -146,17 +146,7 @@ impl<'a> CondensedStep<'a> {
         } else {
             None
         };
-        let interface_counts = if has_interface {
-            let mut counts = Vec::new();
-            mpi.all_gather(
-                &[sub.interface_global.len() as f64],
-                &vec![1; mpi.size],
-                &mut counts,
-            );
-            counts.iter().map(|&c| c as usize).collect()
-        } else {
-            vec![0; mpi.size]
-        };
+        let interface_counts = interface_counts(mpi, sub, has_interface);
         let interface_figures = (
             interface
                 .as_ref()
@@ -288,6 +278,20 @@ impl LinearStep for CondensedStep<'_> {
         }
         Ok(())
     }
+}
+
+/// Every subdomain's number of interface dofs (collective; zeros without an interface).
+fn interface_counts(mpi: &Mpi, sub: &SubProblem, has_interface: bool) -> Vec<usize> {
+    if !has_interface {
+        return vec![0; mpi.size];
+    }
+    let mut counts = Vec::new();
+    mpi.all_gather(
+        &[sub.interface_global.len() as f64],
+        &vec![1; mpi.size],
+        &mut counts,
+    );
+    counts.iter().map(|&c| c as usize).collect()
 }
 
 /// The interface system, summed from every rank's part and factored on the first rank
