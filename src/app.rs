@@ -89,8 +89,8 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     }
 
     // 1-2. First rank: read, partition, split. The other ranks sleep meanwhile, so
-    // that the cores of those on its node are its to use.
-    // The rank's own threads, not those of the pool the set-up borrows.
+    // that the cores of those on its node are its to use. `threads`: the rank's own,
+    // not those of the pool the set-up borrows.
     let threads = rayon::current_num_threads();
     let prepared = mpi
         .is_root()
@@ -106,13 +106,7 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     let member = |m| {
         let (mpi, timer) = (Mpi::member(m), timer.fork());
         let print = &Printer { enabled: false };
-        let ctx = Subdomain {
-            opts,
-            mpi: &mpi,
-            setup,
-            timer: &timer,
-            print,
-        };
+        let ctx = Subdomain::new(opts, &mpi, setup, &timer, print);
         // The first subdomain to fail holds the message (see Mpi::agree).
         if let Err(e) = run_subdomain(&ctx, None) {
             if !matches!(e, Error::Silent(_)) {
@@ -120,13 +114,7 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
             }
         }
     };
-    let ctx = Subdomain {
-        opts,
-        mpi: &leader,
-        setup,
-        timer: &timer,
-        print,
-    };
+    let ctx = Subdomain::new(opts, &leader, setup, &timer, print);
     host::on_subdomain_threads(members, leader.rank, member, || run_subdomain(&ctx, subs))
 }
 
@@ -172,22 +160,7 @@ fn solve_condensed(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
 fn solve_full(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
     let (setup, timer) = (ctx.setup, ctx.timer);
     // 4. Assemble and factor the whole mesh.
-    let system = DirectSystem {
-        nodes: &sub.nodes,
-        triangles: &sub.triangles,
-        material: &setup.case.material,
-        fixed: &sub.fixed,
-        load: &sub.load,
-        contact: ContactDofs {
-            nodes: &sub.contact_nodes,
-            w: &sub.contact.w,
-            normal: setup.normal,
-            tangent: setup.tangent,
-            frictional: Problem::is_frictional(&setup.case),
-        },
-        r: setup.r,
-    };
-    let mut step = DirectStep::new(&system, timer)?;
+    let mut step = DirectStep::new(&setup.direct_system(sub), timer)?;
     // 6. Iterate.
     let outcome = iterate(ctx, sub, &mut step)?;
     let sweeps = outcome.iterations.max(1) as f64;
@@ -226,8 +199,8 @@ fn iterate(ctx: &Subdomain, sub: &SubProblem, step: &mut impl LinearStep) -> Res
 }
 
 /// Phase 8: every subdomain writes its piece and sends its rows to the first, which
-/// writes the files of the whole run. The timer is read once, at the end of this phase, for both
-/// summary.json and the printed table.
+/// writes the files of the whole run. The timer is read once, at the end of this
+/// phase, for both summary.json and the printed table.
 fn write(ctx: &Subdomain, sub: &SubProblem, solved: &Solved) -> Result<Timings> {
     let (opts, mpi, timer) = (ctx.opts, ctx.mpi, ctx.timer);
     let output = timer.phase(Phase::Output);
@@ -258,6 +231,24 @@ struct Subdomain<'a> {
     /// The subdomain's own; the first subdomain's also holds the set-up's phases.
     timer: &'a Timer,
     print: &'a Printer,
+}
+
+impl<'a> Subdomain<'a> {
+    fn new(
+        opts: &'a Options,
+        mpi: &'a Mpi,
+        setup: &'a Setup,
+        timer: &'a Timer,
+        print: &'a Printer,
+    ) -> Self {
+        Subdomain {
+            opts,
+            mpi,
+            setup,
+            timer,
+            print,
+        }
+    }
 }
 
 /// What the first rank tells every rank before the distribution.
@@ -296,6 +287,25 @@ impl Setup {
         }
     }
 
+    /// The whole system of the uncondensed path: `sub` is the whole mesh.
+    fn direct_system<'a>(&'a self, sub: &'a SubProblem) -> DirectSystem<'a> {
+        DirectSystem {
+            nodes: &sub.nodes,
+            triangles: &sub.triangles,
+            material: &self.case.material,
+            fixed: &sub.fixed,
+            load: &sub.load,
+            contact: ContactDofs {
+                nodes: &sub.contact_nodes,
+                w: &sub.contact.w,
+                normal: self.normal,
+                tangent: self.tangent,
+                frictional: Problem::is_frictional(&self.case),
+            },
+            r: self.r,
+        }
+    }
+
     /// The parameters of the Uzawa loop.
     fn params(&self) -> contact::Params {
         let solver = &self.case.solver;
@@ -321,12 +331,7 @@ fn prepare(
     timer: &Timer,
 ) -> Result<(Setup, Vec<SubProblem>)> {
     // 1. Read and validate the case and the mesh.
-    let (case, prob, mesh_name) = timer.time(Phase::Read, || -> Result<_> {
-        let case = load_case(opts)?;
-        let (mesh, mesh_name) = load_mesh(&case)?;
-        let prob = problem::build(&case, mesh, &mesh_name)?;
-        Ok((case, prob, mesh_name))
-    })?;
+    let (case, prob, mesh_name) = timer.time(Phase::Read, || read(opts))?;
     // 2. Partition the mesh into subdomains and split the problem along the cut.
     let triangles = prob.mesh.triangles.len();
     let per_rank = match opts.subdomains_per_rank {
@@ -365,6 +370,14 @@ fn prepare(
         case,
     };
     Ok((setup, subs))
+}
+
+/// The case, its problem on its mesh, and the mesh's name for messages.
+fn read(opts: &Options) -> Result<(Case, Problem, String)> {
+    let case = load_case(opts)?;
+    let (mesh, mesh_name) = load_mesh(&case)?;
+    let prob = problem::build(&case, mesh, &mesh_name)?;
+    Ok((case, prob, mesh_name))
 }
 
 /// The number of subdomains, `ranks` x `per_rank`, if the mesh has a triangle for each.
