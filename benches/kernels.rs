@@ -41,12 +41,13 @@ use contact_par::contact::operators::{contact_blocks, ContactDofs};
 use contact_par::contact::Acceleration;
 use contact_par::contact::{self, LinearStep, NoComm, Params};
 use contact_par::dd::condense::{ContactRows, LocalResponse};
-use contact_par::dd::full::DirectStep;
+use contact_par::dd::full::{DirectStep, DirectSystem};
 use contact_par::dd::local_factor::LocalFactor;
 use contact_par::error::Result;
 use contact_par::fem::{self, assemble, Assembled, DofMap};
 use contact_par::linear::{interior_groups, NodeGraph, SparseCholesky};
 use contact_par::problem::{self, Problem};
+use contact_par::timer::Timer;
 use criterion::{black_box, criterion_group, criterion_main, Criterion, SamplingMode};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
 use std::time::Duration;
@@ -161,17 +162,16 @@ impl Fixture {
 
     fn direct_step(&self) -> DirectStep {
         let m = &self.prob.mesh;
-        DirectStep::new(
-            &m.nodes,
-            &m.triangles,
-            &self.case.material,
-            &self.prob.fixed,
-            &self.prob.load,
-            &self.contact_dofs(),
-            self.r,
-        )
-        .expect("direct step")
-        .0
+        let system = DirectSystem {
+            nodes: &m.nodes,
+            triangles: &m.triangles,
+            material: &self.case.material,
+            fixed: &self.prob.fixed,
+            load: &self.prob.load,
+            contact: self.contact_dofs(),
+            r: self.r,
+        };
+        DirectStep::new(&system, &Timer::start()).expect("direct step")
     }
 
     /// The condensed contact response of the one-rank path: the condensed loads and the

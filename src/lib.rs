@@ -7,11 +7,14 @@
 
 pub mod app;
 pub mod case;
+pub mod checkpoint;
 pub mod contact;
 pub mod dd;
 pub mod error;
 pub mod fem;
+pub mod host;
 pub mod linear;
 pub mod mesh;
 pub mod output;
 pub mod problem;
+pub mod timer;

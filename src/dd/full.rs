@@ -7,17 +7,20 @@ use crate::contact::LinearStep;
 use crate::error::Result;
 use crate::fem::{assemble, DofMap, Material};
 use crate::linear::SparseCholesky;
+use crate::timer::{Phase, Timer};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
 use faer::Mat;
-use std::time::Instant;
 
-/// Wall-clock seconds of the set-up phases.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct SetupTimes {
-    /// Assembly of A and of the right-hand side.
-    pub(crate) assemble: f64,
-    /// Ordering, symbolic and numeric factorization.
-    pub(crate) factor: f64,
+/// What [`DirectStep::new`] assembles: the mesh, its material, the prescribed dofs
+/// (`fixed`), the load per dof, the contact nodes and the augmentation `r` on them.
+pub struct DirectSystem<'a> {
+    pub nodes: &'a [[f64; 2]],
+    pub triangles: &'a [[usize; 3]],
+    pub material: &'a Material,
+    pub fixed: &'a [Option<f64>],
+    pub load: &'a [f64],
+    pub contact: ContactDofs<'a>,
+    pub r: f64,
 }
 
 /// A = K + r N'WN (+ r T'WT), assembled and factored once; `solve` is two triangular
@@ -44,59 +47,55 @@ pub struct DirectStep {
 impl DirectStep {
     /// Assembles A on the free dofs of `fixed` with the same r on every contact
     /// direction, lifts the prescribed values into the right-hand side and factors A
-    /// (AMD ordering); also returns the seconds of both phases.
-    pub fn new(
-        nodes: &[[f64; 2]],
-        triangles: &[[usize; 3]],
-        material: &Material,
-        fixed: &[Option<f64>],
-        load: &[f64],
-        contact: &ContactDofs,
-        r: f64,
-    ) -> Result<(Self, SetupTimes)> {
-        let t0 = Instant::now();
-        let dofs = DofMap::new(fixed);
-        let rr = vec![r; contact.nodes.len()];
-        let blocks = contact_blocks(
-            contact.nodes,
-            contact.w,
-            &rr,
-            &rr,
-            contact.normal,
-            contact.frictional,
-        );
-        let assembled = assemble(nodes, triangles, material, &dofs, &blocks)?;
-        let mut base = assembled.lifting;
-        for (dof, eq) in dofs.eq.iter().enumerate() {
-            if let Some(i) = eq {
-                base[*i] += load[dof];
+    /// (AMD ordering), timed as [`Phase::Assemble`] and [`Phase::Factor`].
+    pub fn new(system: &DirectSystem, timer: &Timer) -> Result<Self> {
+        let DirectSystem {
+            contact, load, r, ..
+        } = system;
+        let r = *r;
+        let (dofs, assembled, base) = timer.time(Phase::Assemble, || -> Result<_> {
+            let dofs = DofMap::new(system.fixed);
+            let rr = vec![r; contact.nodes.len()];
+            let blocks = contact_blocks(
+                contact.nodes,
+                contact.w,
+                &rr,
+                &rr,
+                contact.normal,
+                contact.frictional,
+            );
+            let assembled = assemble(
+                system.nodes,
+                system.triangles,
+                system.material,
+                &dofs,
+                &blocks,
+            )?;
+            let mut base = assembled.lifting;
+            for (dof, eq) in dofs.eq.iter().enumerate() {
+                if let Some(i) = eq {
+                    base[*i] += load[dof];
+                }
             }
-        }
-        let assemble_s = t0.elapsed().as_secs_f64();
-
-        let t1 = Instant::now();
-        let chol = SparseCholesky::factor(assembled.matrix.as_ref(), SymmetricOrdering::Amd)?;
-        let factor_s = t1.elapsed().as_secs_f64();
+            Ok((dofs, assembled.matrix, base))
+        })?;
+        let chol = timer.time(Phase::Factor, || {
+            SparseCholesky::factor(assembled.as_ref(), SymmetricOrdering::Amd)
+        })?;
         let n = dofs.n_free;
-        Ok((
-            DirectStep {
-                chol,
-                a0: assembled.matrix,
-                r0: r,
-                w: contact.w.to_vec(),
-                dofs,
-                base,
-                rhs: Mat::zeros(n, 1),
-                contact_nodes: contact.nodes.to_vec(),
-                normal: contact.normal,
-                tangent: contact.tangent,
-                frictional: contact.frictional,
-            },
-            SetupTimes {
-                assemble: assemble_s,
-                factor: factor_s,
-            },
-        ))
+        Ok(DirectStep {
+            chol,
+            a0: assembled,
+            r0: r,
+            w: contact.w.to_vec(),
+            dofs,
+            base,
+            rhs: Mat::zeros(n, 1),
+            contact_nodes: contact.nodes.to_vec(),
+            normal: contact.normal,
+            tangent: contact.tangent,
+            frictional: contact.frictional,
+        })
     }
 
     /// Displacement of every node from the last solve, prescribed values included.

@@ -6,7 +6,7 @@
 //! ## Scheme
 //! Rank 0 partitions the mesh (METIS on the dual graph) into P = ranks x K subdomains
 //! and sends each rank its K (K = `--subdomains-per-rank`, one per thread by default:
-//! `app::subdomains_per_rank`); a rank runs each of its subdomains on a thread of its
+//! `host::subdomains_per_rank`); a rank runs each of its subdomains on a thread of its
 //! own, and `comm` makes every collective one over subdomains. Below, "rank" stands for
 //! "subdomain". The boundary dofs B_s of a rank are its contact dofs c_s (own contact
 //! nodes that no other part touches) followed by its interface dofs g_s. Each rank
@@ -68,3 +68,4 @@ pub mod condense;
 pub mod full;
 pub mod local_factor;
 pub mod split;
+pub mod step;

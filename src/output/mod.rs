@@ -15,8 +15,15 @@
 
 mod atomic;
 mod csv;
+mod piece;
+mod summary;
 mod vtk;
 
 pub use atomic::write_atomic;
 pub use csv::{contact_csv, history_csv, nodes_csv, ContactRow};
+pub use piece::{
+    create_output_dir, element_stresses, vtu_file_name, ContactRowOut, NodeRowOut, PieceRows,
+    SubdomainSolution,
+};
+pub use summary::{Gathered, RankStats, RunFacts};
 pub use vtk::{file_ranges, pvtu_bytes, vtu_bytes, Piece, SubPiece, MAX_TRIANGLES_PER_FILE};

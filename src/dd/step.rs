@@ -1,0 +1,325 @@
+//! The condensed linear step of one subdomain: its matrix assembled and factored with
+//! the boundary dofs last, its contact dofs eliminated, the interface system summed and
+//! factored on the first rank, then per sweep one solve on the boundary system and, after
+//! the loop, the interior recovered. Collective calls go through [`Mpi`].
+
+use crate::contact::operators::contact_blocks;
+use crate::contact::LinearStep;
+use crate::dd::comm::Mpi;
+use crate::dd::condense::{boundary_entries, ContactRows, InterfaceSystem, LocalResponse};
+use crate::dd::local_factor::{InteriorForward, LocalFactor};
+use crate::dd::split::SubProblem;
+use crate::error::Result;
+use crate::fem::{assemble, DofMap, Material};
+use crate::host;
+use crate::linear::{interior_groups, Ordering};
+use crate::timer::{Phase, Timer};
+use faer::Mat;
+
+/// What every subdomain's step shares, from the set-up of the run.
+#[derive(Clone, Copy)]
+pub struct StepSetup<'a> {
+    pub material: &'a Material,
+    /// The augmentation every contact direction is assembled with.
+    pub r: f64,
+    /// Shift of the interface block of every local matrix (see `LocalFactor`).
+    pub alpha: f64,
+    pub normal: [f64; 2],
+    pub tangent: [f64; 2],
+    pub frictional: bool,
+    /// Interface dofs of the whole mesh (0: a single subdomain).
+    pub n_interface: usize,
+    pub ordering: Ordering,
+}
+
+/// This subdomain's factored matrix, boundary dofs last.
+pub struct LocalSystem {
+    dofs: DofMap,
+    pub factor: LocalFactor,
+    /// Load + lifting of the prescribed dofs, per local equation.
+    base: Vec<f64>,
+}
+
+impl LocalSystem {
+    /// Assembles A_s = K_s + r N'WN (+ r T'WT) with the interface block shifted by alpha,
+    /// then factors it (timed as [`Phase::Assemble`] and [`Phase::Factor`]).
+    pub fn new(s: &StepSetup, sub: &SubProblem, timer: &Timer) -> Result<Self> {
+        let assembled = timer.time(Phase::Assemble, || {
+            let dofs = DofMap::with_last(&sub.fixed, &sub.boundary_dofs);
+            let rr = vec![s.r; sub.contact_nodes.len()];
+            let mut blocks = contact_blocks(
+                &sub.contact_nodes,
+                &sub.contact.w,
+                &rr,
+                &rr,
+                s.normal,
+                s.frictional,
+            );
+            let mut g_nodes: Vec<usize> = sub.boundary_dofs[sub.n_contact_dofs..]
+                .iter()
+                .map(|d| d / 2)
+                .collect();
+            g_nodes.dedup();
+            blocks.extend(
+                g_nodes
+                    .iter()
+                    .map(|&v| (v, [[s.alpha, 0.0], [0.0, s.alpha]])),
+            );
+            let assembled = assemble(&sub.nodes, &sub.triangles, s.material, &dofs, &blocks)?;
+            let mut base = assembled.lifting;
+            for (dof, eq) in dofs.eq.iter().enumerate() {
+                if let Some(i) = eq {
+                    base[*i] += sub.load[dof];
+                }
+            }
+            Ok((dofs, assembled.matrix, base))
+        });
+        let (dofs, matrix, base) = assembled?;
+        let factor = timer.time(Phase::Factor, || {
+            LocalFactor::with_ordering(
+                matrix.as_ref(),
+                sub.boundary_dofs.len(),
+                sub.n_contact_dofs,
+                s.alpha,
+                &interior_groups(&dofs),
+                s.ordering,
+            )
+        })?;
+        Ok(LocalSystem { dofs, factor, base })
+    }
+}
+
+/// The linear step on the condensed boundary system: each rank eliminates its own
+/// contact dofs, the first rank solves the interface system (one MPI_Gatherv of the
+/// ranks' interface right-hand sides, one MPI_Scatterv of the interface values), each
+/// rank back-substitutes and reads (Nu, Tu) on its own contact nodes. No communication
+/// without an interface.
+pub struct CondensedStep<'a> {
+    mpi: &'a Mpi,
+    setup: StepSetup<'a>,
+    sub: &'a SubProblem,
+    local: LocalSystem,
+    /// The interior's forward solve of the load, for the recovery.
+    interior_forward: InteriorForward,
+    response: LocalResponse,
+    /// The interface system, on the first rank only.
+    interface: Option<InterfaceSystem>,
+    /// "dense" or "sparse", and its factorization's flops, as first built.
+    interface_figures: (Option<&'static str>, f64),
+    interface_counts: Vec<usize>,
+    /// Scratch: the packed own forces of the sweep being solved.
+    forces: Vec<f64>,
+    gathered: Vec<f64>,
+    solved: Vec<f64>,
+    x_g: Vec<f64>,
+    out: Vec<f64>,
+}
+
+impl<'a> CondensedStep<'a> {
+    /// Condenses the factored subdomain onto its boundary and builds the interface
+    /// system (collective). Times [`Phase::Schur`] and the forward half of
+    /// [`Phase::OneSolve`].
+    pub fn condense(
+        mpi: &'a Mpi,
+        setup: StepSetup<'a>,
+        sub: &'a SubProblem,
+        mut local: LocalSystem,
+        timer: &Timer,
+    ) -> Result<Self> {
+        let schur = timer.phase(Phase::Schur);
+        let (g_local, interior_forward) =
+            timer.time(Phase::OneSolve, || local.factor.condensed_rhs(&local.base));
+        let s_local = local.factor.interface_schur();
+        let rows = mpi.agree(ContactRows::new(
+            &sub.contact_nodes,
+            &sub.fixed,
+            &sub.boundary_dofs,
+            setup.normal,
+            setup.tangent,
+            setup.frictional,
+        ))?;
+        drop(schur);
+
+        // First rank: the interface system, summed and factored once.
+        let has_interface = setup.n_interface > 0;
+        let interface = if has_interface {
+            build_interface(mpi, sub, s_local, setup.n_interface)?
+        } else {
+            None
+        };
+        let interface_counts = interface_counts(mpi, sub, has_interface);
+        let interface_figures = (
+            interface
+                .as_ref()
+                .map(|i| if i.is_sparse() { "sparse" } else { "dense" }),
+            interface
+                .as_ref()
+                .map_or(0.0, InterfaceSystem::factor_flops),
+        );
+        Ok(CondensedStep {
+            mpi,
+            setup,
+            sub,
+            local,
+            interior_forward,
+            response: LocalResponse::new(rows, g_local),
+            interface,
+            interface_figures,
+            interface_counts,
+            forces: Vec::new(),
+            gathered: Vec::new(),
+            solved: Vec::new(),
+            x_g: Vec::new(),
+            out: Vec::new(),
+        })
+    }
+
+    /// The subdomain's factor (for its figures).
+    pub fn factor(&self) -> &LocalFactor {
+        &self.local.factor
+    }
+
+    /// "dense" or "sparse" on the subdomain that factored the interface system, as
+    /// first built (`None` on the others).
+    pub fn interface_factor(&self) -> Option<&'static str> {
+        self.interface_figures.0
+    }
+
+    /// That first factorization's floating-point operations (0 on the others).
+    pub fn interface_flops(&self) -> f64 {
+        self.interface_figures.1
+    }
+
+    /// The displacement of every node of the subdomain, from the boundary values of the
+    /// last sweep, which every rank holds: the backward half of a sparse solve for the
+    /// interior (timed as the rest of [`Phase::OneSolve`]). `iterations`: the loop's.
+    pub fn recover(&mut self, iterations: usize, timer: &Timer) -> Result<Vec<[f64; 2]>> {
+        if iterations == 0 {
+            // A loop that never solved: the boundary values of zero forces.
+            let zero = vec![0.0; self.sub.contact_nodes.len()];
+            let (mut un, mut ut) = (zero.clone(), zero.clone());
+            self.solve(&zero, &zero, &mut un, &mut ut)?;
+        }
+        let x_b = self.response.boundary_values();
+        // Free the interface system before the solve, as its last use has been.
+        drop(self.interface.take());
+        let u_free = timer.time(Phase::OneSolve, || {
+            self.local.factor.recover(&self.interior_forward, &x_b)
+        });
+        Ok(self
+            .local
+            .dofs
+            .expand(&u_free)
+            .chunks_exact(2)
+            .map(|c| [c[0], c[1]])
+            .collect())
+    }
+}
+
+impl LinearStep for CondensedStep<'_> {
+    /// Each rank refactors the dense trailing block of its factor with the new
+    /// augmentation on its contact dofs; the first rank rebuilds the interface system.
+    fn set_r(&mut self, r_n: &[f64], r_t: &[f64]) -> Result<bool> {
+        let shift = |r: &[f64]| r.iter().map(|r| r - self.setup.r).collect::<Vec<f64>>();
+        let blocks = contact_blocks(
+            &self.sub.contact_nodes,
+            &self.sub.contact.w,
+            &shift(r_n),
+            &shift(r_t),
+            self.setup.normal,
+            self.setup.frictional,
+        );
+        let updated = boundary_entries(&blocks, &self.sub.fixed, &self.sub.boundary_dofs)
+            .and_then(|delta| self.local.factor.update_boundary(&delta));
+        self.mpi.agree(updated)?;
+        if self.setup.n_interface > 0 {
+            self.interface = build_interface(
+                self.mpi,
+                self.sub,
+                self.local.factor.interface_schur(),
+                self.setup.n_interface,
+            )?;
+        }
+        Ok(true)
+    }
+
+    fn solve(
+        &mut self,
+        force_n: &[f64],
+        force_t: &[f64],
+        un: &mut [f64],
+        ut: &mut [f64],
+    ) -> Result<()> {
+        let frictional = self.setup.frictional;
+        self.forces.clear();
+        self.forces.extend_from_slice(force_n);
+        if frictional {
+            self.forces.extend_from_slice(force_t);
+        }
+        let z = self.response.forward(&self.local.factor, &self.forces);
+        self.x_g.resize(z.len(), 0.0);
+        if self.setup.n_interface > 0 {
+            self.mpi
+                .gather_to_root(z, &self.interface_counts, &mut self.gathered);
+            if let Some(sys) = self.interface.as_mut() {
+                sys.solve_packed(&self.gathered, &mut self.solved);
+            }
+            self.mpi
+                .scatter_from_root(&self.solved, &self.interface_counts, &mut self.x_g);
+        }
+        self.out.resize(self.forces.len(), 0.0);
+        self.response
+            .backward(&self.local.factor, &self.x_g, &mut self.out);
+        let n_own = force_n.len();
+        un.copy_from_slice(&self.out[..n_own]);
+        if frictional {
+            ut.copy_from_slice(&self.out[n_own..]);
+        } else {
+            ut.fill(0.0);
+        }
+        Ok(())
+    }
+}
+
+/// Every subdomain's number of interface dofs (collective; zeros without an interface).
+fn interface_counts(mpi: &Mpi, sub: &SubProblem, has_interface: bool) -> Vec<usize> {
+    if !has_interface {
+        return vec![0; mpi.size];
+    }
+    let mut counts = Vec::new();
+    mpi.all_gather(
+        &[sub.interface_global.len() as f64],
+        &vec![1; mpi.size],
+        &mut counts,
+    );
+    counts.iter().map(|&c| c as usize).collect()
+}
+
+/// The interface system, summed from every rank's part and factored on the first rank
+/// (collective; `None` on the other ranks).
+fn build_interface(
+    mpi: &Mpi,
+    sub: &SubProblem,
+    s_local: Mat<f64>,
+    n_interface: usize,
+) -> Result<Option<InterfaceSystem>> {
+    let n = s_local.nrows();
+    let flat: Vec<f64> = (0..n * n).map(|k| s_local[(k % n, k / n)]).collect();
+    drop(s_local);
+    let gathered = mpi.gather_parts((sub.interface_global.clone(), flat));
+    let interface = match gathered {
+        Ok(Some(parts)) => {
+            let pieces = parts.into_iter().map(|(index, flat)| {
+                let n = index.len();
+                (index, Mat::<f64>::from_fn(n, n, |i, j| flat[i + n * j]))
+            });
+            // The other subdomains sleep meanwhile (below): see host::interface_threads.
+            let threads = host::interface_threads(n_interface);
+            Some(InterfaceSystem::new(n_interface, pieces, threads))
+        }
+        Ok(None) => None,
+        Err(e) => Some(Err(e)),
+    };
+    mpi.barrier_sleeping();
+    mpi.agree(interface.transpose())
+}

@@ -1,0 +1,189 @@
+//! Host and runtime policy: how many subdomains and threads a rank runs, whose cores the
+//! first rank borrows, how the allocator keeps freed memory, and what the process reads
+//! of its own memory. Nothing here changes a result, only where and how fast it is made.
+
+/// Triangles per subdomain from which [`subdomains_per_rank`] gives a thread a
+/// subdomain of its own (see there).
+pub const MIN_TRIANGLES_PER_SUBDOMAIN: usize = 5_000;
+
+/// Subdomains of the whole job beyond which [`subdomains_per_rank`] splits no rank
+/// further (see there).
+pub const MAX_DEFAULT_SUBDOMAINS: usize = 8;
+
+/// Stack of a subdomain thread: the main thread's usual 8 MiB.
+const SUBDOMAIN_STACK_BYTES: usize = 8 << 20;
+
+/// Subdomains per rank by default: one per thread of the rank, as long as each keeps
+/// [`MIN_TRIANGLES_PER_SUBDOMAIN`] triangles and the job [`MAX_DEFAULT_SUBDOMAINS`]
+/// subdomains; at least one.
+///
+/// Why split: a sparse Cholesky factorization spreads over threads only inside its
+/// fronts (faer: 1 rank x 2 threads factored hertz level 5 1.14 times faster than one
+/// thread), whereas k subdomains factor on k threads at once, each a piece whose factor
+/// costs less than 1/k of the whole (O(n^1.5) flops in 2D). Measured with 2 threads,
+/// one rank, 2 subdomains against 1 (whole runs, medians of 9): 0.99 at 1600 and 1200
+/// triangles per subdomain, 0.98 at 4700, 0.91 at 6400, 0.82 at 18700, 0.77 at 25600,
+/// 0.84 at 1.2M; below the threshold the partition and the interface cost what the
+/// threads save.
+///
+/// Why stop at a few subdomains: the interface system is dense and solved by the first
+/// rank (`dd`). In 2D its size grows as sqrt(nodes x subdomains), so its n_G^3 / 3 flops
+/// grow as P^1.5 times those of the whole mesh while each subdomain's factor shrinks as
+/// P^-1.5: their ratio grows as P^3, about 1.7e-3 P^3 from the hertz level 5 factors
+/// (one subdomain's factor at P = 8). With many ranks each rank keeps one subdomain, as
+/// before; more can still be asked for with `--subdomains-per-rank`.
+pub fn subdomains_per_rank(threads: usize, ranks: usize, triangles: usize) -> usize {
+    let ranks = ranks.max(1);
+    let by_size = triangles / (ranks * MIN_TRIANGLES_PER_SUBDOMAIN);
+    let by_interface = MAX_DEFAULT_SUBDOMAINS / ranks;
+    threads.min(by_size).min(by_interface).max(1)
+}
+
+/// Runs `work` with the threads of every rank of this node, `node_ranks` of them each
+/// with this rank's thread count, while the others wait asleep: as many as the cores
+/// this rank may run on allow (its CPU set, all of the node's cores under
+/// `--bind-to none`, one under `--bind-to core`). Only where that is more than its own
+/// threads; otherwise, or should the pool not start, on its own threads.
+pub fn on_idle_cores<T: Send>(node_ranks: usize, work: impl FnOnce() -> T + Send) -> T {
+    let own = rayon::current_num_threads();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = idle_core_threads(own, node_ranks, cores);
+    if threads <= own {
+        return work();
+    }
+    match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
+        Ok(pool) => pool.install(work),
+        Err(_) => work(),
+    }
+}
+
+/// Threads for the first rank's work alone: its own `own` times the `node_ranks` ranks
+/// of its node, within the `cores` it may run on, and never fewer than its own.
+fn idle_core_threads(own: usize, node_ranks: usize, cores: usize) -> usize {
+    own.saturating_mul(node_ranks).min(cores).max(own)
+}
+
+/// Threads the interface system's factorization may use: every core this rank can run
+/// on once it is worth a thread pool (n^3 / 3 flops: 0.36 Gflop, tens of milliseconds,
+/// at n = 1024), else one. The other subdomains sleep meanwhile (`dd::step`).
+pub fn interface_threads(n_interface: usize) -> usize {
+    if n_interface >= 1024 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        1
+    }
+}
+
+/// Shares the rank's `threads` among its `per_rank` subdomains: each factorization
+/// (faer) gets its share, sequential below two threads.
+pub fn share_threads(threads: usize, per_rank: usize) {
+    faer::set_global_parallelism(match threads / per_rank {
+        0 | 1 => faer::Par::Seq,
+        t => faer::Par::rayon(t),
+    });
+}
+
+/// Runs `member(m, k)` for every `members[k]` on a thread of its own, named `subdomain
+/// {first + k + 1}`, and `leader` on this thread; returns when all have ended.
+///
+/// A rank that cannot start its threads cannot run: the panic ends the job (main's
+/// hook) rather than leaving the other subdomains waiting.
+pub fn on_subdomain_threads<M: Send, R>(
+    members: Vec<M>,
+    first: usize,
+    member: impl Fn(M) + Sync,
+    leader: impl FnOnce() -> R,
+) -> R {
+    let member = &member;
+    std::thread::scope(|scope| {
+        for (k, m) in members.into_iter().enumerate() {
+            std::thread::Builder::new()
+                .name(format!("subdomain {}", first + k + 1))
+                .stack_size(SUBDOMAIN_STACK_BYTES)
+                .spawn_scoped(scope, move || member(m))
+                .expect("cannot start a subdomain thread");
+        }
+        leader()
+    })
+}
+
+/// From here on, blocks freed by this process stay in its heap for the next allocations.
+///
+/// Why: glibc serves each block above its mmap threshold with a fresh mapping and unmaps
+/// it on free, so the next large buffer is page-faulted in and zeroed by the kernel again.
+/// The VTU encoder copies each array through several nested buffers, which made the
+/// output phase mostly page faults. Only the output phase gets this: its buffers are far
+/// smaller than the factorization's, so the peak memory per rank does not move, whereas
+/// the same setting for the whole run (`GLIBC_TUNABLES=glibc.malloc.mmap_max=0`, see the
+/// README) raises it by 9-16%. Measured on hertz level 4, one rank: output 1.05 s before,
+/// 0.81-0.87 s after; page faults 638k -> 535k-541k; peak 1036 MB both.
+pub fn keep_freed_blocks_for_reuse() {
+    // SAFETY: mallopt only changes glibc's allocation policy; it may be called at any
+    // time, and blocks already mapped are still unmapped correctly when freed. A failed
+    // call leaves the default policy, which is merely slower.
+    #[cfg(target_env = "gnu")]
+    unsafe {
+        libc::mallopt(libc::M_MMAP_MAX, 0);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, i32::MAX);
+    }
+}
+
+/// Peak resident memory of this process (VmHWM), 0 where /proc is not available.
+pub fn peak_memory_bytes() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok())
+        })
+        .map_or(0, |kb| kb * 1024)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{
+        idle_core_threads, subdomains_per_rank, MAX_DEFAULT_SUBDOMAINS, MIN_TRIANGLES_PER_SUBDOMAIN,
+    };
+
+    #[test]
+    fn a_rank_splits_into_one_subdomain_per_thread_while_they_stay_large_and_few() {
+        let m = MIN_TRIANGLES_PER_SUBDOMAIN;
+        // A laptop: one rank, its threads, a large mesh.
+        assert_eq!(subdomains_per_rank(2, 1, 2_400_000), 2);
+        assert_eq!(subdomains_per_rank(4, 1, 2_400_000), 4);
+        // Never more than the threads, never fewer than one.
+        assert_eq!(subdomains_per_rank(1, 1, 2_400_000), 1);
+        assert_eq!(subdomains_per_rank(0, 1, 2_400_000), 1);
+        // Small meshes: as many subdomains as keep the threshold each.
+        assert_eq!(subdomains_per_rank(8, 1, 3 * m + 1), 3);
+        assert_eq!(subdomains_per_rank(8, 2, 3 * m), 1);
+        assert_eq!(subdomains_per_rank(8, 1, m - 1), 1);
+        // Few subdomains in the whole job: many ranks keep one each.
+        assert_eq!(
+            subdomains_per_rank(16, 1, 100_000_000),
+            MAX_DEFAULT_SUBDOMAINS
+        );
+        assert_eq!(
+            subdomains_per_rank(16, 2, 100_000_000),
+            MAX_DEFAULT_SUBDOMAINS / 2
+        );
+        assert_eq!(subdomains_per_rank(16, 64, 100_000_000), 1);
+        assert_eq!(subdomains_per_rank(4, 0, 100_000_000), 4);
+    }
+
+    #[test]
+    fn the_first_rank_borrows_only_the_cores_of_its_node_it_may_run_on() {
+        // Two ranks of one thread, unbound on two cores: both cores.
+        assert_eq!(idle_core_threads(1, 2, 2), 2);
+        // One rank told to use one thread: no other rank's cores to borrow.
+        assert_eq!(idle_core_threads(1, 1, 2), 1);
+        // Bound to one core (Open MPI's default for two ranks): that core.
+        assert_eq!(idle_core_threads(1, 2, 1), 1);
+        // More threads than cores asked for: never fewer than its own.
+        assert_eq!(idle_core_threads(4, 2, 2), 4);
+        // A cluster node of 64 cores with 16 ranks of 4 threads.
+        assert_eq!(idle_core_threads(4, 16, 64), 64);
+        assert_eq!(idle_core_threads(1, 32, 64), 32);
+    }
+}

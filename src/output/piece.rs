@@ -1,0 +1,236 @@
+//! One subdomain's share of the outputs: its `.vtu` files, written where it runs, and the
+//! typed rows it sends the first subdomain for the gathered files (`summary`).
+
+use super::summary::RankStats;
+use super::{file_ranges, vtu_bytes, write_atomic, ContactRow, Piece, SubPiece};
+use crate::case::Case;
+use crate::contact::{Outcome, Status};
+use crate::dd::split::SubProblem;
+use crate::error::{Error, Result};
+use crate::fem;
+use crate::mesh::Mesh;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// A contact node's row of the gathered outputs.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ContactRowOut {
+    pub x: f64,
+    pub y: f64,
+    pub u_n: f64,
+    pub u_t: f64,
+    pub p_n: f64,
+    pub p_t: f64,
+    pub gap: f64,
+    #[serde(with = "status_code")]
+    pub status: Status,
+    /// The node's contact weight (its share of the boundary's length).
+    pub w: f64,
+}
+
+impl ContactRowOut {
+    /// Its row of `contact.csv`.
+    pub fn csv(&self) -> ContactRow {
+        ContactRow {
+            x: self.x,
+            y: self.y,
+            u_n: self.u_n,
+            u_t: self.u_t,
+            p_n: self.p_n,
+            p_t: self.p_t,
+            gap: self.gap,
+        }
+    }
+}
+
+/// A node owned by the subdomain: global id, position, displacement (`nodes.csv`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NodeRowOut {
+    pub id: usize,
+    pub xy: [f64; 2],
+    pub u: [f64; 2],
+}
+
+/// What each subdomain sends the first one for the gathered files.
+#[derive(Serialize, Deserialize)]
+pub struct PieceRows {
+    pub contact: Vec<ContactRowOut>,
+    /// Empty unless `nodes.csv` is asked for.
+    pub nodes: Vec<NodeRowOut>,
+    pub stats: RankStats,
+}
+
+/// One subdomain's solution: what its outputs are made of.
+pub struct SubdomainSolution<'a> {
+    pub subdomain: usize,
+    pub case: &'a Case,
+    pub sub: &'a SubProblem,
+    /// Displacement of every node of the subdomain.
+    pub u: &'a [[f64; 2]],
+    pub outcome: &'a Outcome,
+}
+
+/// The `k`-th `.vtu` file of subdomain `subdomain`'s piece.
+pub fn vtu_file_name(subdomain: usize, k: usize) -> String {
+    format!("solution_{subdomain}_{k}.vtu")
+}
+
+/// Creates the output directory, with a message saying what to do should that fail.
+pub fn create_output_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| {
+        Error::Output(format!(
+            "cannot create the output directory {}: {e}; choose another with --out",
+            dir.display()
+        ))
+    })
+}
+
+/// Element stresses (sxx, syy, sxy, szz) and von Mises, in parallel.
+pub fn element_stresses(case: &Case, mesh: &Mesh, u: &[[f64; 2]]) -> (Vec<[f64; 4]>, Vec<f64>) {
+    let d = fem::elasticity_matrix(&case.material);
+    let stress: Vec<[f64; 4]> = mesh
+        .triangles
+        .par_iter()
+        .map(|t| {
+            let p = [mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]]];
+            let ue = [
+                u[t[0]][0], u[t[0]][1], u[t[1]][0], u[t[1]][1], u[t[2]][0], u[t[2]][1],
+            ];
+            let [sxx, syy, sxy] = fem::element_stress(&p, &d, &ue);
+            [sxx, syy, sxy, fem::stress_zz(&case.material, sxx, syy)]
+        })
+        .collect();
+    let vm = stress.par_iter().map(fem::von_mises).collect();
+    (stress, vm)
+}
+
+impl SubdomainSolution<'_> {
+    /// Writes the subdomain's `.vtu` files into `dir`; returns how many.
+    pub fn write_vtu(&self, dir: &Path) -> Result<usize> {
+        let (sub, o) = (self.sub, self.outcome);
+        let mesh = Mesh {
+            nodes: sub.nodes.clone(),
+            triangles: sub.triangles.clone(),
+            ..Default::default()
+        };
+        let (stress, vm) = element_stresses(self.case, &mesh, self.u);
+        let n = sub.nodes.len();
+        let mut pressure = vec![0.0; n];
+        let mut traction = vec![0.0; n];
+        let mut status = vec![-1i32; n];
+        for (k, &node) in sub.contact_nodes.iter().enumerate() {
+            pressure[node] = o.lambda[k];
+            traction[node] = -o.mu[k] + 0.0;
+            status[node] = o.status[k] as i32;
+        }
+        let rank_field = vec![self.subdomain as i32; sub.triangles.len()];
+        let piece = Piece {
+            nodes: &sub.nodes,
+            triangles: &sub.triangles,
+            displacement: self.u,
+            stress: &stress,
+            von_mises: &vm,
+            rank: &rank_field,
+            contact_pressure: &pressure,
+            tangential_traction: &traction,
+            contact_status: &status,
+        };
+        let ranges = file_ranges(&piece)?;
+        // The files are independent and vtkio encodes on one thread: a rank with several
+        // threads encodes and writes several files at once.
+        ranges.par_iter().enumerate().try_for_each(|(k, range)| {
+            let part = SubPiece::new(&piece, range.clone());
+            write_atomic(
+                &dir.join(vtu_file_name(self.subdomain, k)),
+                &vtu_bytes(&part.piece())?,
+            )
+        })?;
+        Ok(ranges.len())
+    }
+
+    /// The rows of the subdomain's own contact nodes.
+    pub fn contact_rows(&self) -> Vec<ContactRowOut> {
+        let (sub, o) = (self.sub, self.outcome);
+        sub.contact_nodes
+            .iter()
+            .enumerate()
+            .map(|(k, &node)| {
+                let x = sub.nodes[node];
+                ContactRowOut {
+                    x: x[0],
+                    y: x[1],
+                    u_n: o.un[k],
+                    u_t: o.ut[k],
+                    p_n: o.lambda[k],
+                    p_t: -o.mu[k] + 0.0,
+                    gap: sub.contact.g[k],
+                    status: o.status[k],
+                    w: sub.contact.w[k],
+                }
+            })
+            .collect()
+    }
+
+    /// The rows of the nodes the subdomain owns.
+    pub fn owned_nodes(&self) -> Vec<NodeRowOut> {
+        let sub = self.sub;
+        (0..sub.nodes.len())
+            .filter(|&l| sub.owned[l])
+            .map(|l| NodeRowOut {
+                id: sub.global_nodes[l],
+                xy: sub.nodes[l],
+                u: self.u[l],
+            })
+            .collect()
+    }
+}
+
+/// [`Status`] as its number (0 free, 1 stick, 2 slip) in the messages between ranks.
+mod status_code {
+    use crate::contact::Status;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(s: &Status, ser: S) -> Result<S::Ok, S::Error> {
+        (*s as u8).serialize(ser)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(de: D) -> Result<Status, D::Error> {
+        match u8::deserialize(de)? {
+            0 => Ok(Status::Free),
+            1 => Ok(Status::Stick),
+            2 => Ok(Status::Slip),
+            k => Err(serde::de::Error::custom(format!("no contact status {k}"))),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn contact_rows_travel_with_their_status() {
+        let rows: Vec<ContactRowOut> = [Status::Free, Status::Stick, Status::Slip]
+            .into_iter()
+            .map(|status| ContactRowOut {
+                x: 1.0,
+                y: -0.0,
+                u_n: 2.0,
+                u_t: 3.0,
+                p_n: 4.0,
+                p_t: 5.0,
+                gap: 6.0,
+                status,
+                w: 0.5,
+            })
+            .collect();
+        let bytes = crate::dd::comm::encode(&rows).unwrap();
+        let back: Vec<ContactRowOut> = crate::dd::comm::decode(&bytes).unwrap();
+        assert_eq!(back, rows);
+        // A status byte (after the seven f64) past Slip is refused.
+        let mut bad = crate::dd::comm::encode(&rows[0]).unwrap();
+        bad[7 * 8] = 7;
+        assert!(crate::dd::comm::decode::<ContactRowOut>(&bad).is_err());
+    }
+}

@@ -1,0 +1,239 @@
+//! The files the first subdomain writes for the whole run from every subdomain's rows:
+//! `contact.csv`, `nodes.csv`, `history.csv`, `solution.pvtu` and `summary.json`.
+
+use super::piece::{vtu_file_name, ContactRowOut, NodeRowOut, PieceRows};
+use super::{contact_csv, history_csv, nodes_csv, pvtu_bytes, write_atomic};
+use crate::contact::{Outcome, Status};
+use crate::error::{Error, Result};
+use crate::timer::Timings;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Per-subdomain figures, gathered for summary.json.
+#[derive(Serialize, Deserialize, Clone, Default)]
+pub struct RankStats {
+    pub subdomain: usize,
+    /// The MPI rank that ran it.
+    pub rank: usize,
+    pub elements: usize,
+    pub nodes: usize,
+    pub interface_nodes: usize,
+    pub boundary_dofs: usize,
+    pub contact_nodes: usize,
+    pub factor_nnz: usize,
+    /// The numeric factorization's floating-point operations, 1e9 (`factor_flops`): the
+    /// ranks' work and its balance, free of the machine's noise.
+    pub factor_gflop: f64,
+    pub peak_memory_bytes: u64,
+    pub assemble_s: f64,
+    pub factor_s: f64,
+    /// Part of factor_s spent in the fill-reducing ordering.
+    pub ordering_s: f64,
+    /// The ordering used: amd or nd (or the full path's amd).
+    pub ordering: String,
+    /// Forming S_s = L_BB L_BB' and the condensed right-hand side.
+    pub schur_s: f64,
+    /// On the subdomain that factored the interface system: "dense" or "sparse"
+    /// (null on the others).
+    pub interface_factor: Option<String>,
+    /// Its factorization's floating-point operations, 1e9 (0 on the others).
+    pub interface_gflop: f64,
+    pub loop_s: f64,
+    /// One sparse forward+backward solve with this rank's factor (the cost a sweep
+    /// would have without condensation).
+    pub one_solve_s: f64,
+    pub output_s: f64,
+    /// `.vtu` files this rank wrote (its piece, split as [`super::file_ranges`] says).
+    pub vtu_files: usize,
+}
+
+/// What summary.json says of the run that the rows do not: the case, the mesh, the
+/// layout, as the first rank set them up.
+#[derive(Serialize)]
+pub struct RunFacts {
+    pub title: String,
+    #[serde(rename = "case")]
+    pub origin: String,
+    pub acceleration: String,
+    pub ranks: usize,
+    pub threads: usize,
+    pub linear: String,
+    pub nodes: usize,
+    pub elements: usize,
+    pub dofs: usize,
+    pub free_dofs: usize,
+    pub boundary_dofs: usize,
+    pub interface_dofs: usize,
+    pub contact_nodes: usize,
+    pub friction: &'static str,
+    pub r: f64,
+    pub tol: f64,
+    pub partition: String,
+    pub subdomains: usize,
+    pub subdomains_per_rank: usize,
+}
+
+/// Every subdomain's rows, in subdomain order.
+pub struct Gathered {
+    pub contact: Vec<ContactRowOut>,
+    pub nodes: Vec<NodeRowOut>,
+    pub stats: Vec<RankStats>,
+}
+
+impl Gathered {
+    /// The subdomains' rows put together.
+    pub fn new(pieces: Vec<PieceRows>) -> Self {
+        let mut all = Gathered {
+            contact: Vec::new(),
+            nodes: Vec::new(),
+            stats: Vec::new(),
+        };
+        for p in pieces {
+            all.contact.extend(p.contact);
+            all.nodes.extend(p.nodes);
+            all.stats.push(p.stats);
+        }
+        all
+    }
+
+    /// Writes `contact.csv`, `nodes.csv` (if `nodes` are given), `history.csv` and
+    /// `solution.pvtu` into `dir`.
+    pub fn write_tables(&mut self, dir: &Path, o: &Outcome, with_nodes: bool) -> Result<()> {
+        let contact_rows: Vec<_> = self.contact.iter().map(ContactRowOut::csv).collect();
+        write_atomic(
+            &dir.join("contact.csv"),
+            contact_csv(&contact_rows).as_bytes(),
+        )?;
+        if with_nodes {
+            self.nodes.sort_unstable_by_key(|n| n.id);
+            let xy: Vec<[f64; 2]> = self.nodes.iter().map(|n| n.xy).collect();
+            let uu: Vec<[f64; 2]> = self.nodes.iter().map(|n| n.u).collect();
+            write_atomic(&dir.join("nodes.csv"), nodes_csv(&xy, &uu).as_bytes())?;
+        }
+        write_atomic(&dir.join("history.csv"), history_csv(&o.history).as_bytes())?;
+        let sources: Vec<String> = self
+            .stats
+            .iter()
+            .flat_map(|st| (0..st.vtu_files).map(|k| vtu_file_name(st.subdomain, k)))
+            .collect();
+        write_atomic(&dir.join("solution.pvtu"), &pvtu_bytes(&sources)?)
+    }
+
+    /// Writes `summary.json` into `dir`: the `facts`, the outcome `o`, the totals of the
+    /// rows, the `timings` and the per-subdomain figures.
+    pub fn write_summary(
+        &self,
+        dir: &Path,
+        facts: RunFacts,
+        o: &Outcome,
+        timings: Timings,
+    ) -> Result<()> {
+        let summary = self.summary(facts, o, timings);
+        // Through a `Value`, whose objects sort their keys: the file's order.
+        let json = serde_json::to_value(&summary)
+            .and_then(|v| serde_json::to_string_pretty(&v))
+            .map_err(|e| Error::Output(format!("cannot format summary.json: {e}")))?;
+        write_atomic(&dir.join("summary.json"), json.as_bytes())
+    }
+
+    fn summary(&self, facts: RunFacts, o: &Outcome, timings: Timings) -> Summary<'_> {
+        let with_status = |s: Status| self.contact.iter().filter(|r| r.status == s).count();
+        let (stick, slip) = (with_status(Status::Stick), with_status(Status::Slip));
+        let last = o.history.last();
+        let stats = &self.stats;
+        let max_over =
+            |f: fn(&RankStats) -> f64| stats.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
+        // The subdomains of a rank share its process, so its peak.
+        let peak_per_rank = (0..facts.ranks)
+            .map(|r| {
+                let of_rank = stats.iter().filter(|s| s.rank == r);
+                of_rank.map(|s| s.peak_memory_bytes).max().unwrap_or(0)
+            })
+            .collect();
+        Summary {
+            converged: o.converged,
+            iterations: o.iterations,
+            outer_iterations: o.outer_iterations,
+            refused_accelerations: o.refused,
+            active_nodes: stick + slip,
+            stick_nodes: stick,
+            slip_nodes: slip,
+            total_normal_force: self.contact.iter().map(|r| r.w * r.p_n).sum(),
+            total_tangential_force: self.contact.iter().map(|r| r.w * r.p_t).sum(),
+            r_retunes: o.retunes,
+            final_residuals: Residuals {
+                primal: last.map(|s| s.primal),
+                dual: last.map(|s| s.dual),
+            },
+            timings_s: timings,
+            sweep_s: timings.uzawa / o.iterations.max(1) as f64,
+            one_solve_s: max_over(|s| s.one_solve_s),
+            peak_memory_bytes: stats.iter().map(|s| s.peak_memory_bytes).max().unwrap_or(0),
+            peak_memory_bytes_per_rank: peak_per_rank,
+            per_subdomain: stats,
+            per_subdomain_max: Extremes::of(stats, f64::NEG_INFINITY, f64::max),
+            per_subdomain_min: Extremes::of(stats, f64::INFINITY, f64::min),
+            interface_factor: stats.iter().find_map(|s| s.interface_factor.clone()),
+            interface_gflop: stats.iter().map(|s| s.interface_gflop).sum(),
+            facts,
+        }
+    }
+}
+
+/// summary.json.
+#[derive(Serialize)]
+struct Summary<'a> {
+    #[serde(flatten)]
+    facts: RunFacts,
+    converged: bool,
+    iterations: usize,
+    outer_iterations: usize,
+    refused_accelerations: usize,
+    active_nodes: usize,
+    stick_nodes: usize,
+    slip_nodes: usize,
+    total_normal_force: f64,
+    total_tangential_force: f64,
+    r_retunes: usize,
+    final_residuals: Residuals,
+    timings_s: Timings,
+    sweep_s: f64,
+    one_solve_s: f64,
+    peak_memory_bytes: u64,
+    peak_memory_bytes_per_rank: Vec<u64>,
+    per_subdomain: &'a [RankStats],
+    per_subdomain_max: Extremes,
+    per_subdomain_min: Extremes,
+    interface_factor: Option<String>,
+    interface_gflop: f64,
+}
+
+/// The residuals of the last sweep (null without one).
+#[derive(Serialize)]
+struct Residuals {
+    primal: Option<f64>,
+    dual: Option<f64>,
+}
+
+/// The largest or the smallest of some per-subdomain figures.
+#[derive(Serialize)]
+struct Extremes {
+    assemble_s: f64,
+    factor_s: f64,
+    loop_s: f64,
+    elements: f64,
+    interface_nodes: f64,
+}
+
+impl Extremes {
+    fn of(stats: &[RankStats], init: f64, pick: fn(f64, f64) -> f64) -> Self {
+        let over = |f: fn(&RankStats) -> f64| stats.iter().map(f).fold(init, pick);
+        Extremes {
+            assemble_s: over(|s| s.assemble_s),
+            factor_s: over(|s| s.factor_s),
+            loop_s: over(|s| s.loop_s),
+            elements: over(|s| s.elements as f64),
+            interface_nodes: over(|s| s.interface_nodes as f64),
+        }
+    }
+}
