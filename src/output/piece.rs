@@ -137,8 +137,8 @@ impl SubdomainSolution<'_> {
             contact_status: &status,
         };
         let ranges = file_ranges(&piece)?;
-        // The files are independent and vtkio encodes on one thread: a rank with several
-        // threads encodes and writes several files at once.
+        // The files are independent: a rank with several threads encodes and writes
+        // several files at once (each file's encoding and fsync run on one thread).
         ranges.par_iter().enumerate().try_for_each(|(k, range)| {
             let part = SubPiece::new(&piece, range.clone());
             write_atomic(

@@ -2,8 +2,18 @@
 //! [`file_ranges`]), and a parallel index (`.pvtu`) that lists the pieces and declares
 //! their arrays.
 //!
-//! Arrays written (all values are stored as Float64 or Int32, inline base64 binary, so every
-//! f64 reaches ParaView bit for bit):
+//! Encoding: a short XML head declares each array with an offset into one
+//! `<AppendedData encoding="raw">` block at the end of the file, which holds every array
+//! as an 8-byte length (`header_type="UInt64"`) and its values as raw little-endian bytes.
+//! So every f64 reaches ParaView bit for bit, and writing a file is one copy of its values
+//! into one buffer of the file's exact size: no base64 text (a third larger, and the
+//! slowest step of the earlier encoder) and no XML escaping of the data. The XML is
+//! formatted here, from the array table below: vtkio, the established Rust VTK crate,
+//! cannot write raw appended data (0.6 and 0.7 encode every array inline as base64; the
+//! raw path of 0.7 is compiled out) nor label components. VTK's own readers open these
+//! files in `tests/vtk_reader.rs`.
+//!
+//! Arrays written (Float64 or Int32):
 //!
 //! | data  | name                  | type    | comps | meaning                                  |
 //! |-------|-----------------------|---------|-------|------------------------------------------|
@@ -14,11 +24,6 @@
 //! | cell  | `stress`              | Float64 | 4     | components named xx, yy, xy, zz          |
 //! | cell  | `von_mises`           | Float64 | 1     |                                          |
 //! | cell  | `rank`                | Int32   | 1     | MPI rank that owns the triangle          |
-
-use vtkio::model::{
-    Attribute, Attributes, ByteOrder, CellType, Cells, DataArray, DataSet, ElementType, IOBuffer,
-    UnstructuredGridPiece, Version, VertexNumbers, Vtk,
-};
 
 use crate::error::{Error, Result};
 
@@ -48,11 +53,10 @@ pub struct Piece<'a> {
 /// Triangles per `.vtu` file at most: a rank's piece larger than this is written as
 /// several files of equal size ([`file_ranges`], [`SubPiece`]).
 ///
-/// Why: the VTU encoder copies each array through several buffers. For one large piece
-/// they are all fresh memory, page-faulted in and zeroed by the kernel; the buffers of a
-/// smaller file are freed and reused by the next (the output phase keeps freed blocks in
-/// the heap). Measured on this machine, 600k nodes and 1.2M triangles: 1.2-2.1 s encoded
-/// as one file, 0.68 s as 6 files, 0.62 s as 20.
+/// Why: a rank with several threads encodes and writes its files at once, and each
+/// file's buffer (about 14 MB at this size) is freed and reused by the next instead of
+/// one buffer of the whole piece being page-faulted in and zeroed by the kernel (the
+/// output phase keeps freed blocks in the heap).
 pub const MAX_TRIANGLES_PER_FILE: usize = 131_072;
 
 /// The triangle ranges of the files of `piece`: as few as [`MAX_TRIANGLES_PER_FILE`]
@@ -136,10 +140,13 @@ fn pick<T: Copy>(a: &[T], at: &[usize]) -> Vec<T> {
     at.iter().map(|&v| a[v]).collect()
 }
 
+/// How one value is stored.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Kind {
     F64,
     I32,
+    I64,
+    U8,
 }
 
 impl Kind {
@@ -147,6 +154,8 @@ impl Kind {
         match self {
             Kind::F64 => "Float64",
             Kind::I32 => "Int32",
+            Kind::I64 => "Int64",
+            Kind::U8 => "UInt8",
         }
     }
 
@@ -154,7 +163,9 @@ impl Kind {
     fn size(self) -> usize {
         match self {
             Kind::F64 => 8,
+            Kind::I64 => 8,
             Kind::I32 => 4,
+            Kind::U8 => 1,
         }
     }
 }
@@ -169,12 +180,45 @@ enum Role {
     Other,
 }
 
+/// Whether an array has its values per node or per triangle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum On {
+    Nodes,
+    Triangles,
+}
+
+/// One array of a piece: how the XML declares it and how its bytes are made.
 struct ArraySpec {
     name: &'static str,
     kind: Kind,
     components: u32,
     role: Role,
     component_names: &'static [&'static str],
+    on: On,
+    /// Values per node or per triangle: the components, except for the connectivity,
+    /// which VTK declares as one long list.
+    per_item: usize,
+    /// Writes the array's values, little-endian, into a slice of exactly their size
+    /// (the piece has passed [`check_piece`]).
+    fill: fn(&Piece, &mut [u8]),
+}
+
+impl ArraySpec {
+    /// Bytes of the values of this array in `piece` (without the length header).
+    fn value_bytes(&self, piece: &Piece) -> usize {
+        let items = match self.on {
+            On::Nodes => piece.nodes.len(),
+            On::Triangles => piece.triangles.len(),
+        };
+        items * self.per_item * self.kind.size()
+    }
+}
+
+/// Writes `values` one after the other into `out`, which holds exactly as many.
+fn fill<const N: usize>(out: &mut [u8], values: impl Iterator<Item = [u8; N]>) {
+    for (slot, v) in out.chunks_exact_mut(N).zip(values) {
+        slot.copy_from_slice(&v);
+    }
 }
 
 /// The single description of the arrays, read by both the pieces and the index, so that the
@@ -186,6 +230,12 @@ const POINT_ARRAYS: [ArraySpec; 4] = [
         components: 3,
         role: Role::Vectors,
         component_names: &[],
+        on: On::Nodes,
+        per_item: 3,
+        fill: |p, out| {
+            let xyz = p.displacement.iter().flat_map(|d| [d[0], d[1], 0.0]);
+            fill(out, xyz.map(f64::to_le_bytes))
+        },
     },
     ArraySpec {
         name: "contact_pressure",
@@ -193,6 +243,9 @@ const POINT_ARRAYS: [ArraySpec; 4] = [
         components: 1,
         role: Role::Scalars,
         component_names: &[],
+        on: On::Nodes,
+        per_item: 1,
+        fill: |p, out| fill(out, p.contact_pressure.iter().map(|v| v.to_le_bytes())),
     },
     ArraySpec {
         name: "tangential_traction",
@@ -200,6 +253,9 @@ const POINT_ARRAYS: [ArraySpec; 4] = [
         components: 1,
         role: Role::Other,
         component_names: &[],
+        on: On::Nodes,
+        per_item: 1,
+        fill: |p, out| fill(out, p.tangential_traction.iter().map(|v| v.to_le_bytes())),
     },
     ArraySpec {
         name: "contact_status",
@@ -207,6 +263,9 @@ const POINT_ARRAYS: [ArraySpec; 4] = [
         components: 1,
         role: Role::Other,
         component_names: &[],
+        on: On::Nodes,
+        per_item: 1,
+        fill: |p, out| fill(out, p.contact_status.iter().map(|v| v.to_le_bytes())),
     },
 ];
 
@@ -217,6 +276,9 @@ const CELL_ARRAYS: [ArraySpec; 3] = [
         components: 4,
         role: Role::Other,
         component_names: &["xx", "yy", "xy", "zz"],
+        on: On::Triangles,
+        per_item: 4,
+        fill: |p, out| fill(out, p.stress.iter().flatten().map(|v| v.to_le_bytes())),
     },
     ArraySpec {
         name: "von_mises",
@@ -224,6 +286,9 @@ const CELL_ARRAYS: [ArraySpec; 3] = [
         components: 1,
         role: Role::Scalars,
         component_names: &[],
+        on: On::Triangles,
+        per_item: 1,
+        fill: |p, out| fill(out, p.von_mises.iter().map(|v| v.to_le_bytes())),
     },
     ArraySpec {
         name: "rank",
@@ -231,114 +296,161 @@ const CELL_ARRAYS: [ArraySpec; 3] = [
         components: 1,
         role: Role::Other,
         component_names: &[],
+        on: On::Triangles,
+        per_item: 1,
+        fill: |p, out| fill(out, p.rank.iter().map(|v| v.to_le_bytes())),
     },
 ];
 
-/// vtu_bytes hands vtkio the points as f64, which it writes as Float64; the index must say so.
-const POINTS_KIND: Kind = Kind::F64;
+/// The coordinates, with z = 0.
+const POINTS: ArraySpec = ArraySpec {
+    name: "Points",
+    kind: Kind::F64,
+    components: 3,
+    role: Role::Other,
+    component_names: &[],
+    on: On::Nodes,
+    per_item: 3,
+    fill: |p, out| {
+        let xyz = p.nodes.iter().flat_map(|x| [x[0], x[1], 0.0]);
+        fill(out, xyz.map(f64::to_le_bytes))
+    },
+};
 
-/// VTK XML format version; 1.0 is the first that reads the 64-bit `header_type` vtkio writes.
+/// VTK's cell arrays: Int64 is VTK's own id type, so its reader takes the connectivity
+/// and offsets as they are.
+const TOPOLOGY: [ArraySpec; 3] = [
+    ArraySpec {
+        name: "connectivity",
+        kind: Kind::I64,
+        components: 1,
+        role: Role::Other,
+        component_names: &[],
+        on: On::Triangles,
+        per_item: 3,
+        fill: |p, out| {
+            let ids = p
+                .triangles
+                .iter()
+                .flatten()
+                .map(|&v| (v as i64).to_le_bytes());
+            fill(out, ids)
+        },
+    },
+    ArraySpec {
+        name: "offsets",
+        kind: Kind::I64,
+        components: 1,
+        role: Role::Other,
+        component_names: &[],
+        on: On::Triangles,
+        per_item: 1,
+        fill: |p, out| {
+            let ends = (1..=p.triangles.len() as i64).map(|c| (3 * c).to_le_bytes());
+            fill(out, ends)
+        },
+    },
+    ArraySpec {
+        name: "types",
+        kind: Kind::U8,
+        components: 1,
+        role: Role::Other,
+        component_names: &[],
+        on: On::Triangles,
+        per_item: 1,
+        fill: |_, out| out.fill(VTK_TRIANGLE),
+    },
+];
+
+/// VTK's cell type number of a linear triangle.
+const VTK_TRIANGLE: u8 = 5;
+
+/// VTK XML format version; 1.0 is the first that reads the 64-bit `header_type`.
 const FILE_VERSION: (u8, u8) = (1, 0);
 
-/// Serialises one rank's piece as a VTK XML UnstructuredGrid (`.vtu`).
+/// Bytes of the length header before each array in the appended block (`UInt64`).
+const HEADER_BYTES: usize = 8;
+
+/// What follows the appended block.
+const TAIL: &str = "\n  </AppendedData>\n</VTKFile>\n";
+
+/// Serialises one rank's piece as a VTK XML UnstructuredGrid (`.vtu`): a short XML head
+/// that declares every array with its offset, then all values as raw little-endian bytes
+/// in one `AppendedData` block.
 ///
 /// Points get z = 0 and cells are VTK_TRIANGLE. Errors (as [`Error::Output`]) if an array
 /// length does not match the node or triangle count or a triangle names a missing node:
 /// writing such a file would only make ParaView fail later with a less helpful message.
 pub fn vtu_bytes(piece: &Piece) -> Result<Vec<u8>> {
     check_piece(piece)?;
-
-    let points: Vec<f64> = piece.nodes.iter().flat_map(|p| [p[0], p[1], 0.0]).collect();
-    let connectivity: Vec<u64> = piece
-        .triangles
-        .iter()
-        .flat_map(|t| t.iter().map(|&i| i as u64))
-        .collect();
-    let offsets: Vec<u64> = (1..=piece.triangles.len() as u64).map(|c| 3 * c).collect();
-
-    let point_data: [IOBuffer; 4] = [
-        piece
-            .displacement
-            .iter()
-            .flat_map(|d| [d[0], d[1], 0.0])
-            .collect::<Vec<f64>>()
-            .into(),
-        piece.contact_pressure.to_vec().into(),
-        piece.tangential_traction.to_vec().into(),
-        piece.contact_status.to_vec().into(),
-    ];
-    let cell_data: [IOBuffer; 3] = [
-        piece
-            .stress
-            .iter()
-            .flatten()
-            .copied()
-            .collect::<Vec<f64>>()
-            .into(),
-        piece.von_mises.to_vec().into(),
-        piece.rank.to_vec().into(),
-    ];
-
-    let vtk = Vtk {
-        version: Version::new(FILE_VERSION),
-        title: String::new(),
-        byte_order: ByteOrder::LittleEndian,
-        file_path: None,
-        data: DataSet::inline(UnstructuredGridPiece {
-            points: points.into(),
-            cells: Cells {
-                cell_verts: VertexNumbers::XML {
-                    connectivity,
-                    offsets,
-                },
-                types: vec![CellType::Triangle; piece.triangles.len()],
-            },
-            data: Attributes {
-                point: attributes(&POINT_ARRAYS, point_data),
-                cell: attributes(&CELL_ARRAYS, cell_data),
-            },
-        }),
+    let (major, minor) = FILE_VERSION;
+    let mut head = String::new();
+    head.push_str("<?xml version=\"1.0\"?>\n");
+    head.push_str(&format!(
+        "<VTKFile type=\"UnstructuredGrid\" version=\"{major}.{minor}\" \
+         byte_order=\"LittleEndian\" header_type=\"UInt64\">\n"
+    ));
+    head.push_str("  <UnstructuredGrid>\n");
+    head.push_str(&format!(
+        "    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n",
+        piece.nodes.len(),
+        piece.triangles.len()
+    ));
+    // Each array's offset counts the bytes of those before it in the appended block,
+    // which holds them in the order they are declared here.
+    let mut offset = 0;
+    let mut declare = |head: &mut String, spec: &ArraySpec| {
+        head.push_str(&format!(
+            "        <DataArray type=\"{}\" Name=\"{}\" NumberOfComponents=\"{}\"{} \
+             format=\"appended\" offset=\"{offset}\"/>\n",
+            spec.kind.vtk_name(),
+            spec.name,
+            spec.components,
+            component_name_attributes(spec),
+        ));
+        offset += HEADER_BYTES + spec.value_bytes(piece);
     };
+    for (tag, specs) in [("PointData", &POINT_ARRAYS[..]), ("CellData", &CELL_ARRAYS)] {
+        head.push_str(&format!("      <{tag}{}>\n", active_arrays(specs)));
+        specs.iter().for_each(|s| declare(&mut head, s));
+        head.push_str(&format!("      </{tag}>\n"));
+    }
+    head.push_str("      <Points>\n");
+    declare(&mut head, &POINTS);
+    head.push_str("      </Points>\n      <Cells>\n");
+    TOPOLOGY.iter().for_each(|s| declare(&mut head, s));
+    head.push_str("      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n");
+    // The underscore marks where the block starts: offsets count from the byte after it.
+    head.push_str("  <AppendedData encoding=\"raw\">\n   _");
 
-    let mut bytes = Vec::with_capacity(encoded_len_bound(piece));
-    vtk.write_xml(&mut bytes)
-        .map_err(|e| Error::Output(format!("cannot encode the VTU piece: {e}")))?;
-    add_component_names(&mut bytes, POINT_ARRAYS.iter().chain(&CELL_ARRAYS))?;
+    // One buffer of exactly the file's size: no growth, no copy.
+    let mut bytes = Vec::with_capacity(head.len() + offset + TAIL.len());
+    bytes.extend_from_slice(head.as_bytes());
+    for spec in file_order() {
+        let len = spec.value_bytes(piece);
+        bytes.extend_from_slice(&(len as u64).to_le_bytes());
+        let start = bytes.len();
+        bytes.resize(start + len, 0);
+        (spec.fill)(piece, &mut bytes[start..]);
+    }
+    bytes.extend_from_slice(TAIL.as_bytes());
     Ok(bytes)
 }
 
-/// XML around the arrays of a piece (declaration, tags, attributes, component names):
-/// about 2 kB, with room to spare.
-const VTU_MARKUP_BOUND: usize = 16 * 1024;
-
-/// An upper bound of the length of [`vtu_bytes`]'s output, so that its buffer is taken
-/// once instead of growing by doubling through a 19 MB piece, each step a copy into fresh
-/// pages. (vtkio still copies the text through its own nested buffers, which we cannot
-/// size.) Every array is written as base64 of an 8-byte length header and its values.
-fn encoded_len_bound(piece: &Piece) -> usize {
-    let nodes = piece.nodes.len();
-    let triangles = piece.triangles.len();
-    let base64 = |bytes: usize| 4 * (8 + bytes).div_ceil(3);
-    let point_bytes = POINT_ARRAYS
+/// The arrays in the order of [`vtu_bytes`]'s declarations, hence of its appended block.
+fn file_order() -> impl Iterator<Item = &'static ArraySpec> {
+    POINT_ARRAYS
         .iter()
-        .map(|s| base64(nodes * s.components as usize * s.kind.size()))
-        .sum::<usize>();
-    let cell_bytes = CELL_ARRAYS
-        .iter()
-        .map(|s| base64(triangles * s.components as usize * s.kind.size()))
-        .sum::<usize>();
-    // Points (3 x f64), connectivity (3 x u64), offsets (u64), types (u8).
-    let mesh_bytes = base64(nodes * 24) + base64(triangles * 24) + base64(triangles * 8);
-    point_bytes + cell_bytes + mesh_bytes + base64(triangles) + VTU_MARKUP_BOUND
+        .chain(&CELL_ARRAYS)
+        .chain(std::iter::once(&POINTS))
+        .chain(&TOPOLOGY)
 }
 
 /// Serialises the parallel index (`solution.pvtu`) that lists the per-rank pieces, e.g.
 /// `solution_0.vtu`, as paths relative to the index file.
 ///
-/// Written by hand: vtkio 0.6.3 can read a `.pvtu` but not write one (converting its model to
-/// XML loads every referenced piece and inlines it, and the fields of its `PUnstructured`
-/// XML type are private), so the few lines of the index are formatted here from the same array
-/// table that [`vtu_bytes`] uses.
+/// Formatted here from the same array table that [`vtu_bytes`] uses, so the two always
+/// agree.
 pub fn pvtu_bytes(piece_sources: &[String]) -> Result<Vec<u8>> {
     if piece_sources.is_empty() {
         return Err(Error::Output(
@@ -361,8 +473,9 @@ pub fn pvtu_bytes(piece_sources: &[String]) -> Result<Vec<u8>> {
     p_attribute_data(&mut x, "PPointData", &POINT_ARRAYS);
     p_attribute_data(&mut x, "PCellData", &CELL_ARRAYS);
     x.push_str(&format!(
-        "    <PPoints>\n      <PDataArray type=\"{}\" NumberOfComponents=\"3\"/>\n    </PPoints>\n",
-        POINTS_KIND.vtk_name()
+        "    <PPoints>\n      <PDataArray type=\"{}\" NumberOfComponents=\"{}\"/>\n    </PPoints>\n",
+        POINTS.kind.vtk_name(),
+        POINTS.components
     ));
     for source in piece_sources {
         x.push_str(&format!(
@@ -416,31 +529,6 @@ fn check_piece(p: &Piece) -> Result<()> {
     Ok(())
 }
 
-fn element_type(spec: &ArraySpec) -> ElementType {
-    match spec.role {
-        Role::Scalars => ElementType::Scalars {
-            num_comp: spec.components,
-            lookup_table: None,
-        },
-        Role::Vectors => ElementType::Vectors,
-        Role::Other => ElementType::Generic(spec.components),
-    }
-}
-
-fn attributes<const N: usize>(specs: &[ArraySpec; N], data: [IOBuffer; N]) -> Vec<Attribute> {
-    specs
-        .iter()
-        .zip(data)
-        .map(|(spec, data)| {
-            Attribute::DataArray(DataArray {
-                name: spec.name.to_string(),
-                elem: element_type(spec),
-                data,
-            })
-        })
-        .collect()
-}
-
 /// `ComponentName{i}="..."` attributes, which VTK readers use to label components.
 fn component_name_attributes(spec: &ArraySpec) -> String {
     spec.component_names
@@ -450,55 +538,19 @@ fn component_name_attributes(spec: &ArraySpec) -> String {
         .collect()
 }
 
-/// vtkio's DataArray has no field for component names, so they are spliced into its output
-/// right after each array's `Name` attribute. The names are ours and base64 never contains
-/// a quote, so each `Name="..."` text occurs exactly once; anything else means vtkio
-/// changed its output and is reported rather than guessed around. One pass over the text:
-/// the buffer grows once and each stretch between two insertions moves once.
-fn add_component_names<'a>(
-    xml: &mut Vec<u8>,
-    specs: impl Iterator<Item = &'a ArraySpec>,
-) -> Result<()> {
-    let mut inserts = Vec::new();
-    for spec in specs.filter(|s| !s.component_names.is_empty()) {
-        let needle = format!("Name=\"{}\"", spec.name);
-        let mut hits = memchr::memmem::find_iter(xml, needle.as_bytes());
-        match (hits.next(), hits.next()) {
-            (Some(at), None) => {
-                inserts.push((at + needle.len(), component_name_attributes(spec)));
-            }
-            _ => {
-                return Err(Error::Output(format!(
-                    "cannot label the components of array {}: unexpected VTU text from vtkio",
-                    spec.name
-                )))
-            }
-        }
-    }
-    inserts.sort_unstable_by_key(|(at, _)| *at);
-    let old_len = xml.len();
-    let mut shift: usize = inserts.iter().map(|(_, text)| text.len()).sum();
-    xml.resize(old_len + shift, 0);
-    let mut end = old_len;
-    for (at, text) in inserts.iter().rev() {
-        // Everything from `at` on moves past the insertions at or before `at`.
-        xml.copy_within(*at..end, at + shift);
-        shift -= text.len();
-        xml[at + shift..at + shift + text.len()].copy_from_slice(text.as_bytes());
-        end = *at;
-    }
-    Ok(())
+/// ` Scalars="..." Vectors="..."`: the first array of each role is the active one.
+fn active_arrays(specs: &[ArraySpec]) -> String {
+    [(Role::Scalars, "Scalars"), (Role::Vectors, "Vectors")]
+        .iter()
+        .filter_map(|&(role, attr)| {
+            let s = specs.iter().find(|s| s.role == role)?;
+            Some(format!(" {attr}=\"{}\"", s.name))
+        })
+        .collect()
 }
 
 fn p_attribute_data(x: &mut String, tag: &str, specs: &[ArraySpec]) {
-    x.push_str(&format!("    <{tag}"));
-    for (role, attr) in [(Role::Scalars, "Scalars"), (Role::Vectors, "Vectors")] {
-        // The first array of a role is the active one, as vtkio does for the pieces.
-        if let Some(s) = specs.iter().find(|s| s.role == role) {
-            x.push_str(&format!(" {attr}=\"{}\"", s.name));
-        }
-    }
-    x.push_str(">\n");
+    x.push_str(&format!("    <{tag}{}>\n", active_arrays(specs)));
     for s in specs {
         x.push_str(&format!(
             "      <PDataArray type=\"{}\" Name=\"{}\" NumberOfComponents=\"{}\"{}/>\n",
@@ -529,7 +581,6 @@ fn escape_attribute(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use vtkio::model::{ArrayMetaData, MetaData, Piece as VtkPiece, ScalarType};
 
     /// Two triangles on four nodes; node 3 is off the contact boundary.
     struct Owned {
@@ -585,65 +636,176 @@ mod tests {
         }
     }
 
-    fn parse_piece(bytes: &[u8]) -> UnstructuredGridPiece {
-        let vtk = Vtk::parse_xml(bytes).expect("vtkio reads the piece back");
-        let DataSet::UnstructuredGrid { meta, mut pieces } = vtk.data else {
-            panic!("not an unstructured grid: {:?}", vtk.data);
-        };
-        assert!(meta.is_none());
-        assert_eq!(pieces.len(), 1);
-        match pieces.remove(0) {
-            VtkPiece::Inline(p) => *p,
-            other => panic!("piece is not inline: {other:?}"),
+    /// One `<DataArray>` of a file read back: its section, attributes and value bytes.
+    struct ReadArray {
+        section: String,
+        attrs: Vec<(String, String)>,
+        bytes: Vec<u8>,
+    }
+
+    impl ReadArray {
+        fn attr(&self, key: &str) -> &str {
+            attr(&self.attrs, key).unwrap_or_else(|| panic!("no {key} on {:?}", self.attrs))
+        }
+
+        fn f64_bits(&self) -> Vec<u64> {
+            assert_eq!(self.attr("type"), "Float64");
+            let v = self.bytes.chunks_exact(8);
+            v.map(|b| u64::from_le_bytes(b.try_into().unwrap()))
+                .collect()
+        }
+
+        fn i32s(&self) -> Vec<i32> {
+            assert_eq!(self.attr("type"), "Int32");
+            let v = self.bytes.chunks_exact(4);
+            v.map(|b| i32::from_le_bytes(b.try_into().unwrap()))
+                .collect()
+        }
+
+        fn i64s(&self) -> Vec<i64> {
+            assert_eq!(self.attr("type"), "Int64");
+            let v = self.bytes.chunks_exact(8);
+            v.map(|b| i64::from_le_bytes(b.try_into().unwrap()))
+                .collect()
         }
     }
 
-    fn array<'a>(attrs: &'a [Attribute], name: &str) -> &'a DataArray {
+    fn attr<'a>(attrs: &'a [(String, String)], key: &str) -> Option<&'a str> {
         attrs
             .iter()
-            .find_map(|a| match a {
-                Attribute::DataArray(d) if d.name == name => Some(d),
-                _ => None,
-            })
-            .unwrap_or_else(|| panic!("array {name} missing"))
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
     }
 
-    fn f64_bits(buf: &IOBuffer) -> Vec<u64> {
-        buf.iter::<f64>()
-            .expect("Float64 data")
-            .map(|v| v.to_bits())
-            .collect()
+    /// A tag: its name and its attributes.
+    type Tag = (String, Vec<(String, String)>);
+
+    /// The tags of an XML text (no text content, comments or CDATA in our files), each as
+    /// its name (with a leading `/` for a closing tag) and attributes, values unescaped.
+    fn tags(xml: &str) -> Vec<Tag> {
+        let mut out = Vec::new();
+        let mut rest = xml;
+        while let Some(open) = rest.find('<') {
+            let close = open + rest[open..].find('>').expect("an unclosed tag");
+            let body = rest[open + 1..close].trim_end_matches('/').trim();
+            rest = &rest[close + 1..];
+            if body.starts_with('?') {
+                continue;
+            }
+            let (name, mut a) = body.split_once(' ').unwrap_or((body, ""));
+            let mut attrs = Vec::new();
+            while let Some(eq) = a.find("=\"") {
+                let end = eq + 2 + a[eq + 2..].find('"').expect("an unclosed value");
+                let value = a[eq + 2..end]
+                    .replace("&lt;", "<")
+                    .replace("&gt;", ">")
+                    .replace("&quot;", "\"")
+                    .replace("&apos;", "'")
+                    .replace("&amp;", "&");
+                attrs.push((a[..eq].trim().to_string(), value));
+                a = &a[end + 1..];
+            }
+            out.push((name.to_string(), attrs));
+        }
+        out
+    }
+
+    /// A `.vtu` file read as a VTK reader does: the counts of its `Piece`, and each
+    /// declared array with the bytes its offset and length header point at. Checks that the
+    /// arrays fill the appended block exactly, in order.
+    fn read_vtu(file: &[u8]) -> (usize, usize, Vec<ReadArray>) {
+        let marker = b"<AppendedData encoding=\"raw\">";
+        let at = memmem(file, marker).expect("an appended block");
+        let head = std::str::from_utf8(&file[..at]).expect("the XML head is text");
+        let after = &file[at + marker.len()..];
+        let underscore = after.iter().position(|&b| b == b'_').unwrap();
+        assert!(after[..underscore].iter().all(u8::is_ascii_whitespace));
+        let block = &after[underscore + 1..];
+        assert!(block.ends_with(TAIL.as_bytes()), "the file ends as VTK XML");
+        let block = &block[..block.len() - TAIL.len()];
+
+        let (mut points, mut cells) = (None, None);
+        let mut section = String::new();
+        let mut arrays = Vec::new();
+        let mut next = 0;
+        for (name, attrs) in tags(head) {
+            match name.as_str() {
+                "Piece" => {
+                    points = attr(&attrs, "NumberOfPoints").map(|v| v.parse().unwrap());
+                    cells = attr(&attrs, "NumberOfCells").map(|v| v.parse().unwrap());
+                }
+                "PointData" | "CellData" | "Points" | "Cells" => section = name,
+                "DataArray" => {
+                    assert_eq!(attr(&attrs, "format"), Some("appended"));
+                    let offset: usize = attr(&attrs, "offset").unwrap().parse().unwrap();
+                    assert_eq!(offset, next, "arrays are consecutive");
+                    let len = u64::from_le_bytes(block[offset..offset + 8].try_into().unwrap());
+                    next = offset + 8 + len as usize;
+                    let bytes = block[offset + 8..next].to_vec();
+                    let section = section.clone();
+                    arrays.push(ReadArray {
+                        section,
+                        attrs,
+                        bytes,
+                    });
+                }
+                _ => {}
+            }
+        }
+        assert_eq!(next, block.len(), "the arrays fill the appended block");
+        (points.unwrap(), cells.unwrap(), arrays)
+    }
+
+    fn memmem(hay: &[u8], needle: &[u8]) -> Option<usize> {
+        hay.windows(needle.len()).position(|w| w == needle)
+    }
+
+    fn array<'a>(arrays: &'a [ReadArray], section: &str, name: &str) -> &'a ReadArray {
+        arrays
+            .iter()
+            .find(|a| a.section == section && attr(&a.attrs, "Name") == Some(name))
+            .unwrap_or_else(|| panic!("array {name} missing from {section}"))
     }
 
     fn bits(values: impl IntoIterator<Item = f64>) -> Vec<u64> {
         values.into_iter().map(f64::to_bits).collect()
     }
 
-    fn i32s(buf: &IOBuffer) -> Vec<i32> {
-        buf.iter::<i32>().expect("Int32 data").copied().collect()
+    /// The head of a `.vtu` file (the text before its appended block).
+    fn head_of(file: &[u8]) -> String {
+        let at = memmem(file, b"<AppendedData").unwrap();
+        String::from_utf8(file[..at].to_vec()).unwrap()
     }
 
     #[test]
-    fn vtu_round_trips_through_vtkio_exactly() {
+    fn vtu_round_trips_exactly() {
         let o = Owned::sample(3);
-        let p = parse_piece(&vtu_bytes(&o.piece()).unwrap());
+        let (points, cells, a) = read_vtu(&vtu_bytes(&o.piece()).unwrap());
 
-        assert_eq!(p.num_points(), 4);
+        assert_eq!((points, cells), (4, 2));
+        let xyz = array(&a, "Points", "Points");
+        assert_eq!(xyz.attr("NumberOfComponents"), "3");
         assert_eq!(
-            f64_bits(&p.points),
+            xyz.f64_bits(),
             bits(o.nodes.iter().flat_map(|n| [n[0], n[1], 0.0]))
         );
-        assert_eq!(p.cells.num_cells(), 2);
-        assert_eq!(p.cells.types, vec![CellType::Triangle; 2]);
-        let (connectivity, offsets) = p.cells.cell_verts.clone().into_xml();
-        assert_eq!(connectivity, vec![0, 1, 2, 0, 2, 3]);
-        assert_eq!(offsets, vec![3, 6]);
+        assert_eq!(
+            array(&a, "Cells", "connectivity").i64s(),
+            [0, 1, 2, 0, 2, 3]
+        );
+        assert_eq!(array(&a, "Cells", "offsets").i64s(), [3, 6]);
+        let types = array(&a, "Cells", "types");
+        assert_eq!(
+            (types.attr("type"), &types.bytes[..]),
+            ("UInt8", &[5u8, 5][..])
+        );
 
-        let names = |attrs: &[Attribute]| -> Vec<String> {
-            attrs.iter().map(|a| a.name().to_string()).collect()
+        let names = |section: &str| -> Vec<&str> {
+            let s = a.iter().filter(|x| x.section == section);
+            s.map(|x| x.attr("Name")).collect()
         };
         assert_eq!(
-            names(&p.data.point),
+            names("PointData"),
             [
                 "displacement",
                 "contact_pressure",
@@ -651,51 +813,49 @@ mod tests {
                 "contact_status"
             ]
         );
-        assert_eq!(names(&p.data.cell), ["stress", "von_mises", "rank"]);
+        assert_eq!(names("CellData"), ["stress", "von_mises", "rank"]);
 
-        let pt = &p.data.point;
-        let d = array(pt, "displacement");
-        assert_eq!(d.elem, ElementType::Vectors);
-        assert_eq!(d.num_comp(), 3);
+        let d = array(&a, "PointData", "displacement");
+        assert_eq!(d.attr("NumberOfComponents"), "3");
         assert_eq!(
-            f64_bits(&d.data),
+            d.f64_bits(),
             bits(o.displacement.iter().flat_map(|u| [u[0], u[1], 0.0]))
         );
-        let cp = array(pt, "contact_pressure");
-        assert_eq!(cp.num_comp(), 1);
-        assert_eq!(f64_bits(&cp.data), bits(o.contact_pressure.clone()));
-        let tt = array(pt, "tangential_traction");
-        assert_eq!(tt.num_comp(), 1);
-        assert_eq!(f64_bits(&tt.data), bits(o.tangential_traction.clone()));
-        let cs = array(pt, "contact_status");
-        assert_eq!(cs.num_comp(), 1);
-        assert_eq!(i32s(&cs.data), o.contact_status);
-
-        let cl = &p.data.cell;
-        let s = array(cl, "stress");
-        assert_eq!(s.num_comp(), 4);
-        assert_eq!(f64_bits(&s.data), bits(o.stress.iter().flatten().copied()));
-        let vm = array(cl, "von_mises");
-        assert_eq!(vm.num_comp(), 1);
-        assert_eq!(f64_bits(&vm.data), bits(o.von_mises.clone()));
-        let r = array(cl, "rank");
-        assert_eq!(r.num_comp(), 1);
-        assert_eq!(i32s(&r.data), vec![3, 3]);
+        let point = |name| array(&a, "PointData", name);
+        let cell = |name| array(&a, "CellData", name);
+        assert_eq!(
+            point("contact_pressure").f64_bits(),
+            bits(o.contact_pressure.clone())
+        );
+        assert_eq!(
+            point("tangential_traction").f64_bits(),
+            bits(o.tangential_traction.clone())
+        );
+        assert_eq!(point("contact_status").i32s(), o.contact_status);
+        let s = cell("stress");
+        assert_eq!(s.attr("NumberOfComponents"), "4");
+        assert_eq!(s.f64_bits(), bits(o.stress.iter().flatten().copied()));
+        assert_eq!(cell("von_mises").f64_bits(), bits(o.von_mises.clone()));
+        assert_eq!(cell("rank").i32s(), vec![3, 3]);
+        for x in a.iter().filter(|x| x.section.ends_with("Data")) {
+            assert_eq!(
+                x.attr("NumberOfComponents") == "1",
+                x.attr("Name") != "stress" && x.attr("Name") != "displacement"
+            );
+        }
     }
 
     #[test]
     fn vtu_labels_stress_components_and_active_arrays() {
         let o = Owned::sample(0);
-        let xml = String::from_utf8(vtu_bytes(&o.piece()).unwrap()).unwrap();
-        let labelled = "Name=\"stress\" ComponentName0=\"xx\" ComponentName1=\"yy\" \
-                        ComponentName2=\"xy\" ComponentName3=\"zz\"";
+        let xml = head_of(&vtu_bytes(&o.piece()).unwrap());
+        let labelled = "Name=\"stress\" NumberOfComponents=\"4\" ComponentName0=\"xx\" \
+                        ComponentName1=\"yy\" ComponentName2=\"xy\" ComponentName3=\"zz\"";
         assert_eq!(xml.matches(labelled).count(), 1, "{xml}");
         assert!(xml.contains("type=\"UnstructuredGrid\""));
-        assert!(xml.contains("Vectors=\"displacement\""));
-        assert!(xml.contains("Scalars=\"contact_pressure\""));
-        assert!(xml.contains("Scalars=\"von_mises\""));
+        assert!(xml.contains("<PointData Scalars=\"contact_pressure\" Vectors=\"displacement\">"));
+        assert!(xml.contains("<CellData Scalars=\"von_mises\">"));
     }
-
     /// A strip of `n` triangles over 2 rows of nodes, with varied values.
     fn strip(n: usize) -> Owned {
         let m = n.div_ceil(2) + 1;
@@ -727,43 +887,17 @@ mod tests {
     }
 
     #[test]
-    fn the_buffer_is_taken_once_and_not_much_too_large() {
+    fn the_buffer_is_taken_once_at_the_size_of_the_file() {
         for n in [0, 1, 2, 3, 1000, 30_001] {
             let o = strip(n);
-            let bound = encoded_len_bound(&o.piece());
-            let len = vtu_bytes(&o.piece()).unwrap().len();
-            assert!(len <= bound, "{n} triangles: {len} bytes > bound {bound}");
-            assert!(
-                bound <= len + VTU_MARKUP_BOUND,
-                "{n} triangles: bound {bound} for {len} bytes"
+            let bytes = vtu_bytes(&o.piece()).unwrap();
+            assert_eq!(bytes.capacity(), bytes.len(), "{n} triangles");
+            let (points, cells, a) = read_vtu(&bytes);
+            assert_eq!((points, cells), (o.nodes.len(), n));
+            assert_eq!(
+                array(&a, "CellData", "von_mises").f64_bits(),
+                bits(o.von_mises.clone())
             );
-        }
-        let o = Owned::sample(1);
-        assert!(vtu_bytes(&o.piece()).unwrap().len() <= encoded_len_bound(&o.piece()));
-    }
-
-    #[test]
-    fn component_names_go_after_each_name_in_one_pass() {
-        let spec = |name: &'static str, component_names: &'static [&'static str]| ArraySpec {
-            name,
-            kind: Kind::F64,
-            components: component_names.len().max(1) as u32,
-            role: Role::Other,
-            component_names,
-        };
-        let specs = [spec("c", &["r"]), spec("b", &[]), spec("a", &["p", "q"])];
-        let mut xml = b"<A Name=\"a\" x=\"1\"/><B Name=\"b\"/><C Name=\"c\">QUJD</C>".to_vec();
-        add_component_names(&mut xml, specs.iter()).unwrap();
-        assert_eq!(
-            String::from_utf8(xml).unwrap(),
-            "<A Name=\"a\" ComponentName0=\"p\" ComponentName1=\"q\" x=\"1\"/>\
-             <B Name=\"b\"/><C Name=\"c\" ComponentName0=\"r\">QUJD</C>"
-        );
-
-        for text in ["<A Name=\"x\"/>", "<A Name=\"a\"/><B Name=\"a\"/>"] {
-            let mut xml = text.as_bytes().to_vec();
-            let err = add_component_names(&mut xml, specs[2..].iter()).unwrap_err();
-            assert!(err.to_string().contains("array a"), "{err}");
         }
     }
 
@@ -780,11 +914,11 @@ mod tests {
             tangential_traction: &[],
             contact_status: &[],
         };
-        let p = parse_piece(&vtu_bytes(&piece).unwrap());
-        assert_eq!(p.num_points(), 0);
-        assert_eq!(p.cells.num_cells(), 0);
+        let (points, cells, a) = read_vtu(&vtu_bytes(&piece).unwrap());
+        assert_eq!((points, cells), (0, 0));
+        assert_eq!(a.len(), 11);
+        assert!(a.iter().all(|x| x.bytes.is_empty()));
     }
-
     #[test]
     fn even_ranges_cover_everything_in_few_equal_parts() {
         assert_eq!(even_ranges(0, 4), vec![0..0]);
@@ -886,61 +1020,61 @@ mod tests {
         );
     }
 
-    fn parse_index(bytes: &[u8]) -> (MetaData, Vec<VtkPiece<UnstructuredGridPiece>>) {
-        let vtk = Vtk::parse_xml(bytes).expect("vtkio reads the index back");
-        let DataSet::UnstructuredGrid { meta, pieces } = vtk.data else {
-            panic!("not an unstructured grid: {:?}", vtk.data);
-        };
-        (*meta.expect("a parallel file has metadata"), pieces)
-    }
-
-    fn declared(attrs: &[Attribute]) -> Vec<ArrayMetaData> {
-        attrs
-            .iter()
-            .map(|a| match a {
-                Attribute::DataArray(d) => ArrayMetaData {
-                    name: d.name.clone(),
-                    elem: d.elem.clone(),
-                    scalar_type: d.data.scalar_type(),
-                },
-                other => panic!("unexpected field attribute {other:?}"),
-            })
-            .collect()
+    /// The index's declarations (section, attributes) and its piece sources.
+    fn read_index(bytes: &[u8]) -> (Vec<Tag>, Vec<String>) {
+        let xml = std::str::from_utf8(bytes).unwrap();
+        let all = tags(xml);
+        assert_eq!(all[0].0, "VTKFile");
+        assert_eq!(attr(&all[0].1, "type"), Some("PUnstructuredGrid"));
+        let mut section = String::new();
+        let (mut declared, mut sources) = (Vec::new(), Vec::new());
+        for (name, attrs) in all {
+            match name.as_str() {
+                "PPointData" | "PCellData" | "PPoints" => section = name[1..].to_string(),
+                "PDataArray" => declared.push((section.clone(), attrs)),
+                "Piece" => sources.push(attr(&attrs, "Source").unwrap().to_string()),
+                _ => {}
+            }
+        }
+        (declared, sources)
     }
 
     #[test]
     fn pvtu_declares_what_the_pieces_contain() {
         let sources: Vec<String> = (0..3).map(|r| format!("solution_{r}.vtu")).collect();
-        let (meta, pieces) = parse_index(&pvtu_bytes(&sources).unwrap());
-        assert_eq!(
-            pieces,
-            sources
-                .iter()
-                .map(|s| VtkPiece::Source(s.clone(), None))
-                .collect::<Vec<_>>()
-        );
-
-        let MetaData::UnstructuredGrid {
-            ghost_level,
-            points_type,
-            attributes,
-        } = meta
-        else {
-            panic!("not unstructured metadata: {meta:?}");
-        };
-        assert_eq!(ghost_level, 0);
+        let index = pvtu_bytes(&sources).unwrap();
+        let (declared, listed) = read_index(&index);
+        assert_eq!(listed, sources);
+        let xml = String::from_utf8(index).unwrap();
+        assert!(xml.contains("<PUnstructuredGrid GhostLevel=\"0\">"));
 
         let o = Owned::sample(1);
-        let piece = parse_piece(&vtu_bytes(&o.piece()).unwrap());
-        assert_eq!(points_type, piece.points.scalar_type());
-        assert_eq!(points_type, ScalarType::F64);
-        // Name, element type (hence component count and active role) and scalar type, in order.
-        assert_eq!(attributes.point_data, declared(&piece.data.point));
-        assert_eq!(attributes.cell_data, declared(&piece.data.cell));
-        assert_eq!(attributes.point_data.len(), 4);
-        assert_eq!(attributes.cell_data.len(), 3);
+        let (_, _, arrays) = read_vtu(&vtu_bytes(&o.piece()).unwrap());
+        // Every data array and the points, in order, with the same name, type, component
+        // count and labels; the active arrays agree too.
+        let in_piece: Vec<Tag> = arrays
+            .iter()
+            .filter(|a| a.section != "Cells")
+            .map(|a| {
+                let keep = |(k, _): &&(String, String)| k != "format" && k != "offset";
+                let mut attrs: Vec<_> = a.attrs.iter().filter(keep).cloned().collect();
+                if a.section == "Points" {
+                    attrs.retain(|(k, _)| k != "Name");
+                }
+                (a.section.clone(), attrs)
+            })
+            .collect();
+        assert_eq!(declared, in_piece);
+        assert_eq!(declared.len(), 8);
+        let piece_head = head_of(&vtu_bytes(&o.piece()).unwrap());
+        for tag in ["PointData", "CellData"] {
+            let open = |text: &str, t: &str| {
+                let at = text.find(&format!("<{t}")).unwrap();
+                text[at + t.len() + 1..at + text[at..].find('>').unwrap()].to_string()
+            };
+            assert_eq!(open(&xml, &format!("P{tag}")), open(&piece_head, tag));
+        }
     }
-
     #[test]
     fn pvtu_labels_stress_components_like_the_pieces() {
         let xml = String::from_utf8(pvtu_bytes(&["a.vtu".to_string()]).unwrap()).unwrap();
@@ -953,10 +1087,9 @@ mod tests {
     #[test]
     fn pvtu_escapes_source_names() {
         let odd = "runs/a&b \"q\" <1>'.vtu".to_string();
-        let (_, pieces) = parse_index(&pvtu_bytes(std::slice::from_ref(&odd)).unwrap());
-        assert_eq!(pieces, vec![VtkPiece::Source(odd, None)]);
+        let (_, sources) = read_index(&pvtu_bytes(std::slice::from_ref(&odd)).unwrap());
+        assert_eq!(sources, vec![odd]);
     }
-
     #[test]
     fn pvtu_without_pieces_is_an_output_error() {
         assert!(matches!(pvtu_bytes(&[]), Err(Error::Output(_))));
@@ -995,25 +1128,19 @@ mod tests {
         let index = dir.path().join("solution.pvtu");
         crate::output::write_atomic(&index, &pvtu_bytes(&sources).unwrap()).unwrap();
 
-        let mut vtk = Vtk::import(&index).expect("vtkio opens the index");
-        vtk.load_all_pieces().expect("vtkio loads the pieces");
-        let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
-            panic!("not an unstructured grid");
-        };
-        assert_eq!(pieces.len(), 5);
+        let (_, listed) = read_index(&std::fs::read(&index).unwrap());
+        assert_eq!(listed.len(), 5);
         let mut big_cells = Vec::new();
-        for (r, piece) in pieces.into_iter().enumerate() {
-            let VtkPiece::Inline(p) = piece else {
-                panic!("piece {r} not loaded: {piece:?}");
-            };
+        for (r, source) in listed.iter().enumerate() {
+            let (_, cells, a) = read_vtu(&std::fs::read(dir.path().join(source)).unwrap());
             if r >= 2 {
-                big_cells.extend(f64_bits(&array(&p.data.cell, "von_mises").data));
+                big_cells.extend(array(&a, "CellData", "von_mises").f64_bits());
                 continue;
             }
-            assert_eq!(p.cells.num_cells(), 2);
-            assert_eq!(i32s(&array(&p.data.cell, "rank").data), vec![r as i32; 2]);
+            assert_eq!(cells, 2);
+            assert_eq!(array(&a, "CellData", "rank").i32s(), vec![r as i32; 2]);
             assert_eq!(
-                f64_bits(&array(&p.data.point, "contact_pressure").data),
+                array(&a, "PointData", "contact_pressure").f64_bits(),
                 bits(owned[r].contact_pressure.clone())
             );
         }
