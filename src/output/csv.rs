@@ -4,10 +4,12 @@
 
 use std::fmt::Write;
 
-use crate::contact::Sweep;
+use crate::contact::{Status, Sweep};
+use serde::{Deserialize, Serialize};
 
-/// One node of the contact boundary in `contact.csv`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// One node of the contact boundary: its row of `contact.csv` (the first seven fields),
+/// and what the summary counts of it. Each subdomain sends its rows to the first one.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ContactRow {
     pub x: f64,
     pub y: f64,
@@ -20,6 +22,29 @@ pub struct ContactRow {
     /// Tangential traction.
     pub p_t: f64,
     pub gap: f64,
+    #[serde(with = "status_code")]
+    pub status: Status,
+    /// The node's contact weight (its share of the boundary's length).
+    pub w: f64,
+}
+
+/// A contact status as one byte on the wire.
+mod status_code {
+    use crate::contact::Status;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(s: &Status, ser: S) -> Result<S::Ok, S::Error> {
+        (*s as u8).serialize(ser)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(de: D) -> Result<Status, D::Error> {
+        match u8::deserialize(de)? {
+            0 => Ok(Status::Free),
+            1 => Ok(Status::Stick),
+            2 => Ok(Status::Slip),
+            k => Err(serde::de::Error::custom(format!("no contact status {k}"))),
+        }
+    }
 }
 
 /// `contact.csv`: header `x,y,u_n,u_t,p_n,p_t,gap`, rows sorted by x then y.
@@ -93,6 +118,8 @@ mod tests {
             p_n: v,
             p_t: v,
             gap: v,
+            status: Status::Free,
+            w: 0.0,
         }
     }
 
@@ -161,6 +188,8 @@ mod tests {
                 p_n: awkward[(i + 3) % awkward.len()],
                 p_t: awkward[(i + 4) % awkward.len()],
                 gap: awkward[(i + 5) % awkward.len()],
+                status: Status::Slip,
+                w: 1.0,
             })
             .collect();
         let (header, parsed) = parse_table(&contact_csv(&rows));

@@ -6,9 +6,11 @@
 //! [`write_atomic`] touches the file system.
 //!
 //! ```no_run
+//! # use contact_par::contact::Status;
 //! # use contact_par::output::{contact_csv, write_atomic, ContactRow};
 //! # use std::path::Path;
-//! let rows = [ContactRow { x: 0.5, y: 0.0, u_n: -1e-3, u_t: 2e-4, p_n: 12.5, p_t: -0.3, gap: 0.0 }];
+//! let rows = [ContactRow { x: 0.5, y: 0.0, u_n: -1e-3, u_t: 2e-4, p_n: 12.5, p_t: -0.3, gap: 0.0,
+//!                    status: Status::Slip, w: 0.1 }];
 //! write_atomic(Path::new("out/contact.csv"), contact_csv(&rows).as_bytes())?;
 //! # Ok::<(), contact_par::error::Error>(())
 //! ```
@@ -22,8 +24,7 @@ mod vtk;
 pub use atomic::write_atomic;
 pub use csv::{contact_csv, history_csv, nodes_csv, ContactRow};
 pub use piece::{
-    create_output_dir, element_stresses, vtu_file_name, ContactRowOut, NodeRowOut, PieceRows,
-    SubdomainSolution,
+    create_output_dir, element_stresses, vtu_file_name, NodeRowOut, PieceRows, SubdomainSolution,
 };
 pub use summary::{Gathered, RankStats, RunFacts};
 pub use vtk::{file_ranges, pvtu_bytes, vtu_bytes, Piece, SubPiece, MAX_TRIANGLES_PER_FILE};

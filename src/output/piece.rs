@@ -4,7 +4,7 @@
 use super::summary::RankStats;
 use super::{file_ranges, vtu_bytes, write_atomic, ContactRow, Piece, SubPiece};
 use crate::case::Case;
-use crate::contact::{Outcome, Status};
+use crate::contact::Outcome;
 use crate::dd::split::SubProblem;
 use crate::error::{Error, Result};
 use crate::fem;
@@ -12,37 +12,6 @@ use crate::mesh::Mesh;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
-
-/// A contact node's row of the gathered outputs.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct ContactRowOut {
-    pub x: f64,
-    pub y: f64,
-    pub u_n: f64,
-    pub u_t: f64,
-    pub p_n: f64,
-    pub p_t: f64,
-    pub gap: f64,
-    #[serde(with = "status_code")]
-    pub status: Status,
-    /// The node's contact weight (its share of the boundary's length).
-    pub w: f64,
-}
-
-impl ContactRowOut {
-    /// Its row of `contact.csv`.
-    pub fn csv(&self) -> ContactRow {
-        ContactRow {
-            x: self.x,
-            y: self.y,
-            u_n: self.u_n,
-            u_t: self.u_t,
-            p_n: self.p_n,
-            p_t: self.p_t,
-            gap: self.gap,
-        }
-    }
-}
 
 /// A node owned by the subdomain: global id, position, displacement (`nodes.csv`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -55,7 +24,7 @@ pub struct NodeRowOut {
 /// What each subdomain sends the first one for the gathered files.
 #[derive(Serialize, Deserialize)]
 pub struct PieceRows {
-    pub contact: Vec<ContactRowOut>,
+    pub contact: Vec<ContactRow>,
     /// Empty unless `nodes.csv` is asked for.
     pub nodes: Vec<NodeRowOut>,
     pub stats: RankStats,
@@ -150,14 +119,14 @@ impl SubdomainSolution<'_> {
     }
 
     /// The rows of the subdomain's own contact nodes.
-    pub fn contact_rows(&self) -> Vec<ContactRowOut> {
+    pub fn contact_rows(&self) -> Vec<ContactRow> {
         let (sub, o) = (self.sub, self.outcome);
         sub.contact_nodes
             .iter()
             .enumerate()
             .map(|(k, &node)| {
                 let x = sub.nodes[node];
-                ContactRowOut {
+                ContactRow {
                     x: x[0],
                     y: x[1],
                     u_n: o.un[k],
@@ -186,34 +155,16 @@ impl SubdomainSolution<'_> {
     }
 }
 
-/// [`Status`] as its number (0 free, 1 stick, 2 slip) in the messages between ranks.
-mod status_code {
-    use crate::contact::Status;
-    use serde::{Deserialize, Deserializer, Serialize, Serializer};
-
-    pub fn serialize<S: Serializer>(s: &Status, ser: S) -> Result<S::Ok, S::Error> {
-        (*s as u8).serialize(ser)
-    }
-
-    pub fn deserialize<'de, D: Deserializer<'de>>(de: D) -> Result<Status, D::Error> {
-        match u8::deserialize(de)? {
-            0 => Ok(Status::Free),
-            1 => Ok(Status::Stick),
-            2 => Ok(Status::Slip),
-            k => Err(serde::de::Error::custom(format!("no contact status {k}"))),
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::contact::Status;
 
     #[test]
     fn contact_rows_travel_with_their_status() {
-        let rows: Vec<ContactRowOut> = [Status::Free, Status::Stick, Status::Slip]
+        let rows: Vec<ContactRow> = [Status::Free, Status::Stick, Status::Slip]
             .into_iter()
-            .map(|status| ContactRowOut {
+            .map(|status| ContactRow {
                 x: 1.0,
                 y: -0.0,
                 u_n: 2.0,
@@ -226,11 +177,11 @@ mod tests {
             })
             .collect();
         let bytes = crate::dd::comm::encode(&rows).unwrap();
-        let back: Vec<ContactRowOut> = crate::dd::comm::decode(&bytes).unwrap();
+        let back: Vec<ContactRow> = crate::dd::comm::decode(&bytes).unwrap();
         assert_eq!(back, rows);
         // A status byte (after the seven f64) past Slip is refused.
         let mut bad = crate::dd::comm::encode(&rows[0]).unwrap();
         bad[7 * 8] = 7;
-        assert!(crate::dd::comm::decode::<ContactRowOut>(&bad).is_err());
+        assert!(crate::dd::comm::decode::<ContactRow>(&bad).is_err());
     }
 }

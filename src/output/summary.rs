@@ -1,8 +1,8 @@
 //! The files the first subdomain writes for the whole run from every subdomain's rows:
 //! `contact.csv`, `nodes.csv`, `history.csv`, `solution.pvtu` and `summary.json`.
 
-use super::piece::{vtu_file_name, ContactRowOut, NodeRowOut, PieceRows};
-use super::{contact_csv, history_csv, nodes_csv, pvtu_bytes, write_atomic};
+use super::piece::{vtu_file_name, NodeRowOut, PieceRows};
+use super::{contact_csv, history_csv, nodes_csv, pvtu_bytes, write_atomic, ContactRow};
 use crate::contact::{Outcome, Status};
 use crate::error::{Error, Result};
 use crate::timer::Timings;
@@ -75,7 +75,7 @@ pub struct RunFacts {
 
 /// Every subdomain's rows, in subdomain order.
 pub struct Gathered {
-    pub contact: Vec<ContactRowOut>,
+    pub contact: Vec<ContactRow>,
     pub nodes: Vec<NodeRowOut>,
     pub stats: Vec<RankStats>,
 }
@@ -99,10 +99,9 @@ impl Gathered {
     /// Writes `contact.csv`, `nodes.csv` (if `nodes` are given), `history.csv` and
     /// `solution.pvtu` into `dir`.
     pub fn write_tables(&mut self, dir: &Path, o: &Outcome, with_nodes: bool) -> Result<()> {
-        let contact_rows: Vec<_> = self.contact.iter().map(ContactRowOut::csv).collect();
         write_atomic(
             &dir.join("contact.csv"),
-            contact_csv(&contact_rows).as_bytes(),
+            contact_csv(&self.contact).as_bytes(),
         )?;
         if with_nodes {
             self.nodes.sort_unstable_by_key(|n| n.id);
