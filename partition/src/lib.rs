@@ -350,9 +350,8 @@ pub fn partition_mesh(
 ) -> Result<Partition, PartitionError> {
     check_nparts(nparts, triangles.len())?;
     validate_triangles(num_nodes, triangles)?;
-    let stars = Stars::new(num_nodes, triangles)?;
-    let graph = dual_from_stars(triangles, &stars)?;
-    let mut element_part = partition_graph(&graph, nparts, METIS_MAX_VERTICES)?;
+    let mesh = Connectivity::new(num_nodes, triangles)?;
+    let mut element_part = partition_graph(&mesh.graph, nparts, METIS_MAX_VERTICES)?;
     fill_empty_parts(&mut element_part, nparts);
     build_partition(
         num_nodes,
@@ -360,8 +359,7 @@ pub fn partition_mesh(
         contact_nodes,
         nparts,
         element_part,
-        &graph,
-        &stars,
+        &mesh,
     )
 }
 
@@ -398,16 +396,14 @@ pub fn partition_from_element_parts(
         });
     }
     validate_triangles(num_nodes, triangles)?;
-    let stars = Stars::new(num_nodes, triangles)?;
-    let graph = dual_from_stars(triangles, &stars)?;
+    let mesh = Connectivity::new(num_nodes, triangles)?;
     build_partition(
         num_nodes,
         triangles,
         contact_nodes,
         nparts,
         element_part,
-        &graph,
-        &stars,
+        &mesh,
     )
 }
 
@@ -586,15 +582,30 @@ fn fill_empty_parts(element_part: &mut [u32], nparts: usize) {
     }
 }
 
+/// The mesh's connectivity that both the partition and the ownership rules read: the
+/// triangles around each node and the dual graph built from them.
+struct Connectivity {
+    stars: Stars,
+    graph: Graph,
+}
+
+impl Connectivity {
+    fn new(num_nodes: usize, triangles: &[[usize; 3]]) -> Result<Self, PartitionError> {
+        let stars = Stars::new(num_nodes, triangles)?;
+        let graph = dual_from_stars(triangles, &stars)?;
+        Ok(Connectivity { stars, graph })
+    }
+}
+
 fn build_partition(
     num_nodes: usize,
     triangles: &[[usize; 3]],
     contact_nodes: &[usize],
     nparts: usize,
     element_part: Vec<u32>,
-    graph: &Graph,
-    stars: &Stars,
+    mesh: &Connectivity,
 ) -> Result<Partition, PartitionError> {
+    let (graph, stars) = (&mesh.graph, &mesh.stars);
     debug_assert_eq!(triangles.len(), element_part.len());
     let mut contact: Vec<usize> = contact_nodes.to_vec();
     contact.sort_unstable();

@@ -50,18 +50,24 @@ pub fn contact_blocks(
         .collect()
 }
 
-/// Adds the contact forces N' force_n + T' force_t (N_i' = -m, T_i' = t) to a right-hand
-/// side on the free dofs.
+/// The forces a sweep puts on the contact nodes, per node: w (r p - lambda) along the
+/// normal and w (r q - mu) along the tangent.
+pub(crate) struct NodalForces<'a> {
+    pub normal: &'a [f64],
+    pub tangential: &'a [f64],
+}
+
+/// Adds the contact forces N' f_n + T' f_t (N_i' = -m, T_i' = t) to a right-hand side
+/// on the free dofs.
 pub(crate) fn add_contact_forces(
     dofs: &DofMap,
     contact_nodes: &[usize],
-    normal: [f64; 2],
-    tangent: [f64; 2],
-    force_n: &[f64],
-    force_t: &[f64],
+    frame: ([f64; 2], [f64; 2]),
+    forces: NodalForces,
     rhs: &mut [f64],
 ) {
-    let ([mx, my], [tx, ty]) = (normal, tangent);
+    let ([mx, my], [tx, ty]) = frame;
+    let (force_n, force_t) = (forces.normal, forces.tangential);
     for (k, &node) in contact_nodes.iter().enumerate() {
         let f = [
             -mx * force_n[k] + tx * force_t[k],

@@ -2,7 +2,7 @@
 //! A = K + r N'WN (+ r T'WT) factored once with faer's sparse Cholesky, and each sweep
 //! one forward and backward solve. The textbook reference for the condensed path.
 
-use crate::contact::operators::{add_contact_forces, contact_blocks, ContactDofs};
+use crate::contact::operators::{add_contact_forces, contact_blocks, ContactDofs, NodalForces};
 use crate::contact::LinearStep;
 use crate::error::Result;
 use crate::fem::{assemble, DofMap, Material};
@@ -180,10 +180,11 @@ impl LinearStep for DirectStep {
         add_contact_forces(
             &self.dofs,
             &self.contact_nodes,
-            self.normal,
-            self.tangent,
-            force_n,
-            force_t,
+            (self.normal, self.tangent),
+            NodalForces {
+                normal: force_n,
+                tangential: force_t,
+            },
             rhs,
         );
         self.chol.solve_in_place(self.rhs.as_mut());
