@@ -548,8 +548,6 @@ impl Solved {
 struct FactorFigures {
     nnz: usize,
     flops: f64,
-    /// Seconds of the fill-reducing ordering (part of the factor phase).
-    ordering_s: f64,
     ordering: Ordering,
     /// "dense" or "sparse" where the interface system was factored.
     interface: Option<&'static str>,
@@ -562,7 +560,6 @@ impl FactorFigures {
         FactorFigures {
             nnz: factor.factor_nnz(),
             flops: factor.factor_flops(),
-            ordering_s: factor.ordering_s,
             ordering: factor.ordering,
             interface: step.interface_factor(),
             interface_flops: step.interface_flops(),
@@ -573,7 +570,6 @@ impl FactorFigures {
         FactorFigures {
             nnz,
             flops,
-            ordering_s: 0.0,
             ordering: Ordering::Amd,
             interface: None,
             interface_flops: 0.0,
@@ -631,7 +627,7 @@ fn rank_stats(ctx: &Subdomain, sub: &SubProblem, f: &FactorFigures) -> RankStats
         peak_memory_bytes: 0,
         assemble_s: t(Phase::Assemble),
         factor_s: t(Phase::Factor),
-        ordering_s: f.ordering_s,
+        ordering_s: t(Phase::Ordering),
         ordering: f.ordering.name().to_string(),
         schur_s: t(Phase::Schur),
         interface_factor: f.interface.map(str::to_string),

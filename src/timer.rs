@@ -18,7 +18,7 @@ use serde::Serialize;
 use std::sync::Mutex;
 use std::time::Instant;
 
-/// A timed phase of the run, or a figure timed inside one (the last three).
+/// A timed phase of the run, or a figure timed inside one (the last four).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Phase {
     Read,
@@ -32,6 +32,8 @@ pub enum Phase {
     Loop,
     Recover,
     Output,
+    /// Inside Factor: the fill-reducing ordering of the subdomain's interior.
+    Ordering,
     /// Inside Condense: forming S_s = L_BB L_BB' and the condensed right-hand side.
     Schur,
     /// One sparse forward+backward solve with the subdomain's factor (on the condensed

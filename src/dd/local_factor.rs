@@ -12,7 +12,6 @@ use faer::sparse::linalg::cholesky::SymmetricOrdering;
 use faer::sparse::SparseColMatRef;
 use faer::{Mat, MatMut, Side};
 use std::collections::BTreeMap;
-use std::time::Instant;
 
 /// A subdomain matrix factored once with its boundary dofs (interface and contact)
 /// ordered last, so that the Schur complement onto them comes out of the same
@@ -30,6 +29,15 @@ use std::time::Instant;
 /// the same factor: the remaining interface system is L_gg L_gg' - alpha I
 /// ([`LocalFactor::interface_schur`]), and [`LocalFactor::forward`] /
 /// [`LocalFactor::backward`] are the two halves of a boundary solve around it.
+/// A subdomain's elimination order: the interior by a fill-reducing ordering, the
+/// boundary last ([`LocalFactor::order`]).
+pub struct Ordered {
+    fwd: Vec<usize>,
+    inv: Vec<usize>,
+    n_interior: usize,
+    ordering: Ordering,
+}
+
 pub struct LocalFactor {
     chol: SparseCholesky,
     n_interior: usize,
@@ -44,8 +52,6 @@ pub struct LocalFactor {
     /// The update of the boundary block now in the factor, by position (i >= j).
     applied: BTreeMap<(usize, usize), f64>,
     rhs: Mat<f64>,
-    /// Seconds spent in the fill-reducing ordering (part of the factor phase).
-    pub(crate) ordering_s: f64,
     /// The ordering used (what `Auto` resolved to).
     pub(crate) ordering: Ordering,
 }
@@ -76,12 +82,44 @@ impl LocalFactor {
         groups: &[usize],
         ordering: Ordering,
     ) -> Result<Self> {
-        let n = a.nrows();
-        let n_interior = n - n_b;
-        let t0 = Instant::now();
+        let ordered = Self::order(a, n_b, groups, ordering)?;
+        Self::with_order(a, n_contact, alpha, ordered)
+    }
+
+    /// The fill-reducing ordering of the interior of `a` (the first `a.nrows() - n_b`
+    /// equations, grouped by node as [`LocalFactor::with_ordering`] says) with the
+    /// boundary last: the part of the factorization a caller may want to time apart.
+    pub fn order(
+        a: SparseColMatRef<'_, usize, f64>,
+        n_b: usize,
+        groups: &[usize],
+        ordering: Ordering,
+    ) -> Result<Ordered> {
+        let n_interior = a.nrows() - n_b;
         let ordering = ordering.resolve(n_interior);
         let (fwd, inv) = ordering.boundary_last(a, n_interior, groups)?;
-        let ordering_s = t0.elapsed().as_secs_f64();
+        Ok(Ordered {
+            fwd,
+            inv,
+            n_interior,
+            ordering,
+        })
+    }
+
+    /// Factors `a` in the order of [`LocalFactor::order`].
+    pub fn with_order(
+        a: SparseColMatRef<'_, usize, f64>,
+        n_contact: usize,
+        alpha: f64,
+        ordered: Ordered,
+    ) -> Result<Self> {
+        let n = a.nrows();
+        let Ordered {
+            fwd,
+            inv,
+            n_interior,
+            ordering,
+        } = ordered;
         let chol = SparseCholesky::factor(
             a,
             SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(&fwd, &inv, n)),
@@ -96,7 +134,6 @@ impl LocalFactor {
             s0: None,
             applied: BTreeMap::new(),
             rhs: Mat::zeros(n, 1),
-            ordering_s,
             ordering,
         })
     }

@@ -76,14 +76,13 @@ impl LocalSystem {
         });
         let (dofs, matrix, base) = assembled?;
         let factor = timer.time(Phase::Factor, || {
-            LocalFactor::with_ordering(
-                matrix.as_ref(),
-                sub.boundary_dofs.len(),
-                sub.n_contact_dofs,
-                s.alpha,
-                &interior_groups(&dofs),
-                s.ordering,
-            )
+            let a = matrix.as_ref();
+            let groups = interior_groups(&dofs);
+            let n_b = sub.boundary_dofs.len();
+            let ordered = timer.time(Phase::Ordering, || {
+                LocalFactor::order(a, n_b, &groups, s.ordering)
+            })?;
+            LocalFactor::with_order(a, sub.n_contact_dofs, s.alpha, ordered)
         })?;
         Ok(LocalSystem { dofs, factor, base })
     }
