@@ -508,8 +508,8 @@ impl<'a> Monitor<'a> {
 
 fn monitor_line(s: &Sweep) -> String {
     format!(
-        "{:>7}  primal {:.3e}  dual {:.3e}  active {:>6}  slip {:>6}",
-        s.iter, s.primal, s.dual, s.active, s.slip
+        "{:>7}  error {:.2e}  (p_n {:.1e}  p_t {:.1e}  u {:.1e}  rho {:.4})  active {:>6}  slip {:>6}",
+        s.iter, s.error, s.pressure, s.traction, s.displacement, s.contraction, s.active, s.slip
     )
 }
 
@@ -690,9 +690,10 @@ fn report(ctx: &Subdomain, sub: &SubProblem, o: &Outcome, t: &Timings) -> Result
         force.sum::<f64>(),
         count(Status::Stick),
         count(Status::Slip),
+        count(Status::Contact),
     ];
     ctx.mpi.sum_in_place(&mut sums);
-    let [force, stick, slip] = sums;
+    let [force, stick, slip, frictionless] = sums;
     // Without friction there is no stick or slip to report.
     let split = if Problem::is_frictional(&ctx.setup.case) {
         format!(" ({} stick, {} slip)", stick as usize, slip as usize)
@@ -707,7 +708,7 @@ fn report(ctx: &Subdomain, sub: &SubProblem, o: &Outcome, t: &Timings) -> Result
             "NOT CONVERGED"
         },
         o.iterations,
-        (stick + slip) as usize,
+        (stick + slip + frictionless) as usize,
     ));
     for line in t.table(o.iterations) {
         ctx.print.line(line);

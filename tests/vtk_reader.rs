@@ -252,7 +252,7 @@ fn vtk_reads_what_the_csv_files_say() {
                     panic!("a contact node is on the contact boundary of one piece");
                 };
                 assert_eq!([*p_n, *p_t].map(f64::to_bits), pt.map(f64::to_bits));
-                assert!([0, 1, 2].contains(status), "status {status}");
+                assert!([0, 1, 2, 3].contains(status), "status {status}");
             }
             None => assert!(on_contact.is_empty()),
         }
@@ -262,9 +262,19 @@ fn vtk_reads_what_the_csv_files_say() {
         .map(|c| c.iter().map(|c| c.3).max().unwrap())
         .collect();
     let with = |s: i32| status.iter().filter(|&&v| v == s).count();
-    assert_eq!(with(0) + with(1) + with(2), in_summary("contact_nodes"));
-    assert_eq!(with(1), in_summary("stick_nodes"));
-    assert_eq!(with(2), in_summary("slip_nodes"));
+    assert_eq!(
+        with(0) + with(1) + with(2) + with(3),
+        in_summary("contact_nodes")
+    );
+    assert_eq!(with(1) + with(2) + with(3), in_summary("active_nodes"));
+    // Status 3 is contact without friction, where stick and slip are not counted.
+    if with(3) > 0 {
+        assert_eq!(with(1) + with(2), 0);
+        assert!(summary["stick_nodes"].is_null() && summary["slip_nodes"].is_null());
+    } else {
+        assert_eq!(with(1), in_summary("stick_nodes"));
+        assert_eq!(with(2), in_summary("slip_nodes"));
+    }
 }
 
 /// A piece above the per-file size is split, and with several threads its files are

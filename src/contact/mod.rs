@@ -77,4 +77,6 @@ pub enum Status {
     Free = 0,
     Stick = 1,
     Slip = 2,
+    /// In contact, without friction: neither stick nor slip.
+    Contact = 3,
 }

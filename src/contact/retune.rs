@@ -130,8 +130,11 @@ mod tests {
     fn sweep(changed: usize, mistuned: usize, retunes: usize) -> Sweep {
         Sweep {
             iter: 1,
-            primal: 1e-3,
-            dual: 1e-3,
+            pressure: 1e-3,
+            traction: 1e-3,
+            displacement: 1e-3,
+            contraction: 0.5,
+            error: 2e-3,
             active: 5,
             slip: 0,
             changed,

@@ -8,12 +8,26 @@ use super::{ContactNodes, LinearStep, Reduce};
 use crate::error::Result;
 
 /// One line of the convergence history (one linear solve).
+///
+/// The three changes are what one sweep moved the reported quantities, each relative to
+/// its own size (see [`SweepSums::sweep`]); `error` is their largest, divided by
+/// 1 - `contraction`: the estimated relative error of the reported answer, which the loop
+/// stops on (`error <= tol`).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Sweep {
     pub iter: usize,
-    pub primal: f64,
-    pub dual: f64,
+    /// |lambda+ - lambda|_W / |lambda+|_W: the contact pressure p_n.
+    pub pressure: f64,
+    /// |mu+ - mu|_W / |mu+|_W: the tangential traction p_t (0 without friction).
+    pub traction: f64,
+    /// |G(x) - x|_W / (|Nu|_W + |Tu|_W): the displacement at the contact nodes.
+    pub displacement: f64,
+    /// The estimated contraction factor of the plain sweep (0 until two points are known).
+    pub contraction: f64,
+    /// max(pressure, traction, displacement) / (1 - contraction).
+    pub error: f64,
     pub active: usize,
+    /// Active nodes that slip (0 without friction: there is no stick or slip then).
     pub slip: usize,
     /// Contact nodes whose status (free, stick, slip) in the image of this sweep differs
     /// from the one in the image of the sweep before.
@@ -101,24 +115,27 @@ pub(super) fn project_and_update(
     d
 }
 
-/// The sums of one sweep over this rank's contact nodes (over all ranks once reduced).
-/// The norms are squared W-norms, measured with the reference r whatever the r of each
-/// direction, so that a retune does not move the stopping test; the counts are floats
-/// only to travel in the same all-reduce.
+/// The sums of one sweep over this rank's contact nodes (over all ranks once reduced):
+/// squared W-norms of the reported quantities and of their changes over the sweep, each
+/// in its own units (forces per unit length for the multipliers, lengths for the
+/// displacements), whatever the r of each direction; the counts are floats only to
+/// travel in the same all-reduce.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(super) struct SweepSums {
-    /// |lambda+ - lambda|^2 and |mu+ - mu|^2: the primal residual.
-    pub(super) multiplier_change_n: f64,
-    pub(super) multiplier_change_t: f64,
-    /// |r (p+ - p)|^2 and |r (q+ - q)|^2: the dual residual.
-    pub(super) aux_change_n: f64,
-    pub(super) aux_change_t: f64,
-    /// |r Nu|^2 and |r Tu|^2: the scale without contact.
+    /// |lambda+ - lambda|^2 and |mu+ - mu|^2: the change of p_n and p_t.
+    pub(super) force_change_n: f64,
+    pub(super) force_change_t: f64,
+    /// |G(x) - x|^2 per direction: the change of the state s = Nu + lambda / r, a
+    /// displacement, which bounds both the move of p and the constraint's violation
+    /// Nu - p+ = (lambda+ - lambda) / r.
+    pub(super) state_change_n: f64,
+    pub(super) state_change_t: f64,
+    /// |Nu|^2 and |Tu|^2.
     pub(super) displacement_n: f64,
     pub(super) displacement_t: f64,
-    /// |lambda+|^2 and |mu+|^2: the scale with contact.
-    pub(super) multiplier_n: f64,
-    pub(super) multiplier_t: f64,
+    /// |lambda+|^2 and |mu+|^2.
+    pub(super) force_n: f64,
+    pub(super) force_t: f64,
     /// The counts of [`Sweep`].
     pub(super) active: f64,
     pub(super) slip: f64,
@@ -128,20 +145,30 @@ pub(super) struct SweepSums {
     pub(super) mistuned: f64,
 }
 
+/// The floor of each quantity's scale, as a fraction of the other quantities' sizes
+/// (converted to its units with the reference r where the units differ). It only acts
+/// where a quantity is (nearly) zero while the others are not: p_t where the traction
+/// vanishes by symmetry, p_n at a node that barely touches, u on a foundation the body
+/// touches from the start. There, relative accuracy of the quantity itself would ask for
+/// digits that round-off in the others does not leave; instead its error is then held
+/// to tol times a thousandth of theirs. A thousandth keeps the floor far below every
+/// quantity that matters (a p_t of 0.1 % of p_n is still measured against itself).
+pub const SCALE_FLOOR: f64 = 1e-3;
+
 impl SweepSums {
     /// The numbers [`SweepSums::pack`] puts in the all-reduce.
     pub(super) const LEN: usize = 14;
 
     pub(super) fn pack(&self) -> [f64; Self::LEN] {
         [
-            self.multiplier_change_n,
-            self.multiplier_change_t,
-            self.aux_change_n,
-            self.aux_change_t,
+            self.force_change_n,
+            self.force_change_t,
+            self.state_change_n,
+            self.state_change_t,
             self.displacement_n,
             self.displacement_t,
-            self.multiplier_n,
-            self.multiplier_t,
+            self.force_n,
+            self.force_t,
             self.active,
             self.slip,
             self.changed,
@@ -152,17 +179,17 @@ impl SweepSums {
     }
 
     pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
-        let [multiplier_change_n, multiplier_change_t, aux_change_n, aux_change_t, displacement_n, displacement_t, multiplier_n, multiplier_t, active, slip, changed, stiff, soft, mistuned] =
+        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned] =
             v;
         SweepSums {
-            multiplier_change_n,
-            multiplier_change_t,
-            aux_change_n,
-            aux_change_t,
+            force_change_n,
+            force_change_t,
+            state_change_n,
+            state_change_t,
             displacement_n,
             displacement_t,
-            multiplier_n,
-            multiplier_t,
+            force_n,
+            force_t,
             active,
             slip,
             changed,
@@ -172,22 +199,37 @@ impl SweepSums {
         }
     }
 
-    /// The scale S = max(|lambda|_W + |mu|_W, r (|Nu|_W + |Tu|_W)) of the residuals.
-    pub(super) fn scale(&self) -> f64 {
-        (self.multiplier_n.sqrt() + self.multiplier_t.sqrt())
-            .max(self.displacement_n.sqrt() + self.displacement_t.sqrt())
+    /// Whether every norm is finite (no NaN, no overflow).
+    pub(super) fn finite(&self) -> bool {
+        self.pack()[..8].iter().all(|v| v.is_finite())
     }
 
-    /// The history line of sweep `iter` from the global sums.
-    pub(super) fn sweep(&self, iter: usize, retunes: usize) -> Sweep {
-        let scale = self.scale();
+    /// The relative changes (p_n, p_t, u) of the sweep: each quantity's change over its
+    /// own size plus [`SCALE_FLOOR`] times the others' (forces and displacements
+    /// converted with the reference r `r`).
+    pub(super) fn changes(&self, r: f64) -> [f64; 3] {
+        let (pn, pt) = (self.force_n.sqrt(), self.force_t.sqrt());
+        let u = self.displacement_n.sqrt() + self.displacement_t.sqrt();
+        let pressure = relative(self.force_change_n.sqrt(), pn + SCALE_FLOOR * (pt + r * u));
+        let traction = relative(self.force_change_t.sqrt(), pt + SCALE_FLOOR * (pn + r * u));
+        let displacement = relative(
+            self.state_change_n.sqrt() + self.state_change_t.sqrt(),
+            u + SCALE_FLOOR * (pn + pt) / r,
+        );
+        [pressure, traction, displacement]
+    }
+
+    /// The history line of sweep `iter` from the global sums, with the reference r `r`
+    /// and the estimated `contraction` of the plain sweep.
+    pub(super) fn sweep(&self, iter: usize, retunes: usize, r: f64, contraction: f64) -> Sweep {
+        let [pressure, traction, displacement] = self.changes(r);
         Sweep {
             iter,
-            primal: relative(
-                self.multiplier_change_n.sqrt() + self.multiplier_change_t.sqrt(),
-                scale,
-            ),
-            dual: relative(self.aux_change_n.sqrt() + self.aux_change_t.sqrt(), scale),
+            pressure,
+            traction,
+            displacement,
+            contraction,
+            error: error_estimate(pressure.max(traction).max(displacement), contraction),
             active: self.active as usize,
             slip: self.slip as usize,
             changed: self.changed as usize,
@@ -196,6 +238,17 @@ impl SweepSums {
             mistuned: self.mistuned as usize,
             retunes,
         }
+    }
+}
+
+/// The error left after a sweep that changed the answer by `change` (relative), when the
+/// plain sweep contracts by `contraction`: for a map contracting by rho, the distance
+/// from a point to the fixed point is at most |G(x) - x| / (1 - rho).
+pub fn error_estimate(change: f64, contraction: f64) -> f64 {
+    if contraction >= 1.0 {
+        f64::INFINITY
+    } else {
+        change / (1.0 - contraction.max(0.0))
     }
 }
 
@@ -209,11 +262,14 @@ pub(super) fn relative(value: f64, scale: f64) -> f64 {
 }
 
 /// What one sweep sums over all ranks, in its single all-reduce of
-/// [`SweepSums::LEN`] + 1 + m(m+1)/2 + m numbers.
+/// [`SweepSums::LEN`] + 3 + m(m+1)/2 + m numbers.
 pub(super) struct Reduced {
     pub(super) sums: SweepSums,
     /// |G(x) - x|^2 in the norm of [`super::anderson::metric`].
     pub(super) residual2: f64,
+    /// |y - x|^2 and |(G(y) - y) - (G(x) - x)|^2 in the same norm, between this point y
+    /// and the last accepted one x (zeros without one): a secant of the sweep map.
+    pub(super) secant2: [f64; 2],
     /// The Anderson Gram matrix and right-hand side ([`super::anderson::Anderson::local_sums_with_new`]),
     /// empty when not accelerating.
     pub(super) gram: Vec<f64>,
@@ -225,10 +281,12 @@ impl Reduced {
         comm: &impl Reduce,
         sums: &SweepSums,
         residual2: f64,
+        secant2: [f64; 2],
         gram: Vec<f64>,
     ) -> Reduced {
         let mut buf = sums.pack().to_vec();
         buf.push(residual2);
+        buf.extend(secant2);
         buf.extend(gram);
         comm.sum_in_place(&mut buf);
         let (head, tail) = buf.split_at(SweepSums::LEN);
@@ -236,7 +294,8 @@ impl Reduced {
             // The split is at LEN: the conversion cannot fail.
             sums: SweepSums::unpack(head.try_into().expect("LEN sums")),
             residual2: tail[0],
-            gram: tail[1..].to_vec(),
+            secant2: [tail[1], tail[2]],
+            gram: tail[3..].to_vec(),
         }
     }
 }
@@ -244,6 +303,8 @@ impl Reduced {
 /// One evaluation of G: its value, the quantities derived from it, and this rank's sums.
 pub(super) struct Eval {
     pub(super) gx: Vec<f64>,
+    /// G(x) - x.
+    pub(super) f: Vec<f64>,
     pub(super) out: Derived,
     pub(super) sums: SweepSums,
 }
@@ -292,9 +353,10 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
         let mut gx = vec![0.0; x.len()];
         self.new_states(&inp, frictional, &mut gx);
         let out = project_and_update(&gx, self.nodes, law, &self.aug);
-        let sums = self.local_sums(&inp, &out, frictional);
+        let f: Vec<f64> = gx.iter().zip(x).map(|(a, b)| a - b).collect();
+        let sums = self.local_sums(&inp, &out, &f, frictional);
         self.remember_statuses(&out, frictional);
-        Ok(Eval { gx, out, sums })
+        Ok(Eval { gx, f, out, sums })
     }
 
     /// Keeps the statuses of an image, which the next evaluation's `changed` compares with.
@@ -324,22 +386,25 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
         }
     }
 
-    /// This rank's sums of the sweep from `inp` to `out`.
-    fn local_sums(&self, inp: &Derived, out: &Derived, frictional: bool) -> SweepSums {
+    /// This rank's sums of the sweep from `inp` to `out`, whose state moved by `f`.
+    fn local_sums(&self, inp: &Derived, out: &Derived, f: &[f64], frictional: bool) -> SweepSums {
         let (w, r, aug) = (&self.nodes.w, self.r_ref, &self.aug);
+        let n = w.len();
         let mut s = SweepSums::default();
-        for i in 0..w.len() {
-            s.multiplier_change_n += w[i] * (out.lambda[i] - inp.lambda[i]).powi(2);
-            s.multiplier_change_t += w[i] * (out.mu[i] - inp.mu[i]).powi(2);
-            s.aux_change_n += w[i] * (r * (out.p[i] - inp.p[i])).powi(2);
-            s.aux_change_t += w[i] * (r * (out.q[i] - inp.q[i])).powi(2);
-            s.displacement_n += w[i] * (r * self.un[i]).powi(2);
-            s.displacement_t += w[i] * (r * self.ut[i]).powi(2);
-            s.multiplier_n += w[i] * out.lambda[i].powi(2);
-            s.multiplier_t += w[i] * out.mu[i].powi(2);
+        for i in 0..n {
+            s.force_change_n += w[i] * (out.lambda[i] - inp.lambda[i]).powi(2);
+            s.force_change_t += w[i] * (out.mu[i] - inp.mu[i]).powi(2);
+            s.state_change_n += w[i] * f[i].powi(2);
+            if frictional {
+                s.state_change_t += w[i] * f[n + i].powi(2);
+            }
+            s.displacement_n += w[i] * self.un[i].powi(2);
+            s.displacement_t += w[i] * self.ut[i].powi(2);
+            s.force_n += w[i] * out.lambda[i].powi(2);
+            s.force_t += w[i] * out.mu[i].powi(2);
             if out.lambda[i] > 0.0 {
                 s.active += 1.0;
-                if !frictional || out.q[i] != 0.0 {
+                if frictional && out.q[i] != 0.0 {
                     s.slip += 1.0;
                 }
             }
@@ -374,7 +439,7 @@ mod tests {
         let v: [f64; SweepSums::LEN] = std::array::from_fn(|k| k as f64 + 0.5);
         let s = SweepSums::unpack(v);
         assert_eq!(s.pack(), v);
-        assert_eq!((s.multiplier_change_n, s.multiplier_n), (0.5, 6.5));
+        assert_eq!((s.force_change_n, s.force_n), (0.5, 6.5));
         assert_eq!((s.active, s.mistuned), (8.5, 13.5));
     }
 }

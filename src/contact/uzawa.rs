@@ -40,16 +40,20 @@
 use super::anderson::{dot, metric, Anderson};
 use super::kernels::{coulomb_threshold, state};
 use super::retune::{retuned, Augmentation};
-use super::sweep::{project_and_update, relative, Derived, Law, Reduced, Sweep, Sweeper};
+use super::sweep::{
+    error_estimate, project_and_update, relative, Derived, Law, Reduced, Sweep, Sweeper,
+};
 use super::{ContactNodes, LinearStep, Reduce, Status};
 use crate::contact::{Acceleration, CoulombMode, Friction};
 use crate::error::{Error, Result};
+use std::collections::VecDeque;
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Params {
     /// Augmentation parameter r > 0.
     pub r: f64,
-    /// Relative tolerance on both residuals.
+    /// Relative accuracy asked of p_n, p_t and u at the contact nodes: the loop stops
+    /// when the estimated error of each, relative to its own size, is below it.
     pub tol: f64,
     /// Budget of sweeps (linear solves), over all outer iterations.
     pub max_iter: usize,
@@ -101,12 +105,15 @@ pub struct Snapshot {
     pub df: Vec<Vec<f64>>,
     pub dg: Vec<Vec<f64>>,
     pub last: Option<(Vec<f64>, Vec<f64>)>,
-    /// Coulomb outer mode: the frozen thresholds and the outer iteration.
-    pub outer: Option<(Vec<f64>, usize)>,
+    /// Coulomb outer mode: the frozen thresholds, the outer iteration and the last
+    /// relative change of the thresholds.
+    pub outer: Option<(Vec<f64>, usize, f64)>,
     /// This rank's r per contact direction at the last accepted point.
     pub aug: Augmentation,
     /// Retunes of r so far.
     pub retunes: usize,
+    /// The secant ratios behind the contraction estimate.
+    pub ratios: Vec<f64>,
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -116,6 +123,11 @@ pub struct Checkpoints<'a> {
     pub save: &'a mut dyn FnMut(&Snapshot) -> Result<()>,
     pub resume: Option<Snapshot>,
 }
+
+/// Secants kept for the contraction estimate: enough to span the slow modes that an
+/// Anderson memory explores (10 by default), few enough to follow a change of the
+/// active set within as many sweeps.
+const SECANTS: usize = 12;
 
 /// Runs ALG2 (accelerated or not) to convergence or to the sweep budget.
 pub fn solve(
@@ -214,7 +226,9 @@ fn statuses(last: &Derived, frictional: bool) -> Vec<Status> {
         .map(|i| {
             if last.lambda[i] <= 0.0 {
                 Status::Free
-            } else if !frictional || last.q[i] != 0.0 {
+            } else if !frictional {
+                Status::Contact
+            } else if last.q[i] != 0.0 {
                 Status::Slip
             } else {
                 Status::Stick
@@ -239,20 +253,26 @@ struct Run<'r, 'a, S: LinearStep, C: Reduce> {
     refused: usize,
     ckpt: &'r mut Checkpoints<'a>,
     resume: Option<Snapshot>,
-    outer: Option<(Vec<f64>, usize)>,
+    outer: Option<(Vec<f64>, usize, f64)>,
+    /// The last accepted point x and G(x) - x, the base of the next secant.
+    anchor: Option<(Vec<f64>, Vec<f64>)>,
+    /// The latest secant ratios |f(y) - f(x)| / |y - x| (f(x) = G(x) - x).
+    ratios: VecDeque<f64>,
 }
 
 /// An evaluation of G after the global reduction.
 struct Evaluated {
     /// G(x).
     gx: Vec<f64>,
+    /// G(x) - x.
+    f: Vec<f64>,
     /// The quantities derived from G(x).
     out: Derived,
     /// |G(x) - x|_W over all ranks.
     res: f64,
     /// Anderson Gram sums with this point's residual difference included.
     gram: Vec<f64>,
-    /// max(primal, dual) relative residual.
+    /// The estimated relative error ([`Sweep::error`]).
     worst: f64,
 }
 
@@ -280,6 +300,8 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             resume: ckpt.resume.take(),
             ckpt,
             outer: None,
+            anchor: None,
+            ratios: VecDeque::new(),
         }
     }
 
@@ -293,7 +315,10 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         // The last accepted point is `x`, `cur` its evaluation.
         let mut cur = match self.resume.take() {
             Some(snap) => self.resume_from(snap, law, x, &mut aa)?,
-            None => self.evaluate(law, x, aa.active())?,
+            None => {
+                self.forget_secants();
+                self.evaluate(law, x, aa.active())?
+            }
         };
         let mut next_save = self.next_checkpoint();
         loop {
@@ -306,8 +331,10 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
                 self.save(x, &cur, &aa)?;
                 next_save = self.next_checkpoint();
             }
+            self.anchor = Some((x.clone(), cur.f.clone()));
             cur = if self.retune(law, &cur.out, x)? {
                 aa.clear();
+                self.forget_secants();
                 self.evaluate(law, x, aa.active())?
             } else if let Some(y) = aa.propose(x, &cur.gx, &cur.gram) {
                 self.safeguard(law, y, cur, x, &mut aa)?
@@ -317,25 +344,58 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         }
     }
 
+    /// Forgets the secants of a map that is about to change (new r, new thresholds).
+    fn forget_secants(&mut self) {
+        self.anchor = None;
+        self.ratios.clear();
+    }
+
+    /// The contraction estimate after the secant `secant2` (squared |y - x| and
+    /// |f(y) - f(x)|, zero without an anchor): rho = 1 - min |f(y) - f(x)| / |y - x| over
+    /// the last [`SECANTS`] secants. For the plain map G(x) = x + f(x), a secant along its
+    /// slowest mode gives 1 - rho exactly; Anderson's points explore the same slow modes.
+    fn contraction(&mut self, secant2: [f64; 2]) -> f64 {
+        let [dx2, df2] = secant2;
+        if dx2 > 0.0 {
+            if self.ratios.len() == SECANTS {
+                self.ratios.pop_front();
+            }
+            self.ratios.push_back((df2 / dx2).sqrt());
+        }
+        match self.ratios.iter().copied().reduce(f64::min) {
+            Some(q) => (1.0 - q).clamp(0.0, 1.0),
+            None => 0.0,
+        }
+    }
+
     /// Evaluates G at `x` (one sweep) with the sweep's one all-reduce: its sums,
     /// |G(x) - x|^2 and, when accelerating, the Gram sums of `aa` at the new residual;
     /// records the sweep.
     fn evaluate(&mut self, law: Law, x: &[f64], aa: Option<&Anderson>) -> Result<Evaluated> {
         let r = self.sweeper.r_ref;
         let e = self.sweeper.eval(x, law)?;
-        let f: Vec<f64> = e.gx.iter().zip(x).map(|(a, b)| a - b).collect();
         let omega = metric(
             &self.sweeper.nodes.w,
             &self.sweeper.aug,
             r,
             law.frictional(),
         );
-        let residual2 = dot(&f, &f, &omega);
-        let gram = aa.map_or_else(Vec::new, |aa| aa.local_sums_with_new(&f, &omega));
-        let global = Reduced::all_reduce(self.comm, &e.sums, residual2, gram);
-        let sweep = global.sums.sweep(self.history.len() + 1, self.retunes);
-        if !(sweep.primal.is_finite() && sweep.dual.is_finite() && global.sums.scale().is_finite())
-        {
+        let residual2 = dot(&e.f, &e.f, &omega);
+        let secant2 = match &self.anchor {
+            Some((xa, fa)) => {
+                let dx: Vec<f64> = x.iter().zip(xa).map(|(a, b)| a - b).collect();
+                let df: Vec<f64> = e.f.iter().zip(fa).map(|(a, b)| a - b).collect();
+                [dot(&dx, &dx, &omega), dot(&df, &df, &omega)]
+            }
+            None => [0.0; 2],
+        };
+        let gram = aa.map_or_else(Vec::new, |aa| aa.local_sums_with_new(&e.f, &omega));
+        let global = Reduced::all_reduce(self.comm, &e.sums, residual2, secant2, gram);
+        let contraction = self.contraction(global.secant2);
+        let sweep = global
+            .sums
+            .sweep(self.history.len() + 1, self.retunes, r, contraction);
+        if !(global.sums.finite() && global.residual2.is_finite()) {
             return Err(Error::Numerical(format!(
                 "iteration {}: the residuals are not finite (NaN or overflow); the problem may be unstable (check the Dirichlet conditions and the material) or r = {r} unsuitable",
                 sweep.iter
@@ -345,10 +405,11 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         (self.monitor)(&sweep);
         Ok(Evaluated {
             gx: e.gx,
+            f: e.f,
             out: e.out,
             res: global.residual2.sqrt(),
             gram: global.gram,
-            worst: sweep.primal.max(sweep.dual),
+            worst: sweep.error,
         })
     }
 
@@ -425,13 +486,23 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     ) -> Result<(bool, Derived, Vec<f64>, usize)> {
         let n = self.sweeper.nodes.len();
         let resumed = self.resume.as_ref().and_then(|r| r.outer.clone());
-        let (mut s, mut done_outer) = resumed.unwrap_or((vec![0.0; n], 0));
+        let (mut s, mut done_outer, mut last_change) =
+            resumed.unwrap_or((vec![0.0; n], 0, f64::INFINITY));
         loop {
             let outer_iterations = done_outer + 1;
-            self.outer = Some((s.clone(), done_outer));
+            self.outer = Some((s.clone(), done_outer, last_change));
             let (inner_ok, d) = self.sweeps(Law::Fixed(&s), x)?;
             let s_new = coulomb_thresholds(coefficient, &d.lambda);
-            let done = self.threshold_change(&s, &s_new) <= self.params.tol;
+            // The outer iteration contracts too: its error is its change over 1 - rho,
+            // rho the ratio of its last two changes.
+            let change = self.threshold_change(&s, &s_new);
+            let rho = if last_change.is_finite() && last_change > 0.0 {
+                change / last_change
+            } else {
+                0.0
+            };
+            last_change = change;
+            let done = error_estimate(change, rho) <= self.params.tol;
             // The tangential state was converged for the old thresholds: keep it.
             s = s_new;
             done_outer += 1;
@@ -476,11 +547,15 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         let out = project_and_update(&snap.gx, sweeper.nodes, law, &sweeper.aug);
         sweeper.remember_statuses(&out, law.frictional());
         self.retunes = snap.retunes;
+        self.ratios = snap.ratios.into();
+        self.anchor = None;
         self.history = snap.history;
         self.refused = snap.refused;
+        let f = snap.gx.iter().zip(&snap.x).map(|(a, b)| a - b).collect();
         *x = snap.x;
         (aa.df, aa.dg, aa.last) = (snap.df, snap.dg, snap.last);
         Ok(Evaluated {
+            f,
             gx: snap.gx,
             out,
             res: snap.res,
@@ -513,6 +588,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             outer: self.outer.clone(),
             aug: self.sweeper.aug.clone(),
             retunes: self.retunes,
+            ratios: self.ratios.iter().copied().collect(),
         };
         (self.ckpt.save)(&snap)
     }
@@ -588,7 +664,7 @@ mod tests {
             assert!(o.converged);
             assert!((o.un[0] - 1.0).abs() < 1e-9);
             assert!((o.lambda[0] * 0.5 - 4.0).abs() < 1e-8);
-            assert_eq!(o.status[0], Status::Slip);
+            assert_eq!(o.status[0], Status::Contact);
         }
     }
 

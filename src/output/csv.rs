@@ -42,6 +42,7 @@ mod status_code {
             0 => Ok(Status::Free),
             1 => Ok(Status::Stick),
             2 => Ok(Status::Slip),
+            3 => Ok(Status::Contact),
             k => Err(serde::de::Error::custom(format!("no contact status {k}"))),
         }
     }
@@ -89,17 +90,30 @@ pub fn nodes_csv(nodes: &[[f64; 2]], u: &[[f64; 2]]) -> String {
     out
 }
 
-/// `history.csv`: header
-/// `iteration,primal_residual,dual_residual,active_nodes,slip_nodes,changed_nodes,stiff_directions,soft_directions`,
-/// one row per sweep in the given order (the other fields of [`Sweep`] are not written).
+/// The header of `history.csv`.
+pub const HISTORY_HEADER: &str = "iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,stiff_directions,soft_directions";
+
+/// `history.csv`: [`HISTORY_HEADER`], one row per sweep in the given order (the other
+/// fields of [`Sweep`] are not written).
 pub fn history_csv(rows: &[Sweep]) -> String {
-    let mut out = String::with_capacity(48 * (rows.len() + 1));
-    out.push_str("iteration,primal_residual,dual_residual,active_nodes,slip_nodes,changed_nodes,stiff_directions,soft_directions\n");
+    let mut out = String::with_capacity(96 * (rows.len() + 1));
+    out.push_str(HISTORY_HEADER);
+    out.push('\n');
     for r in rows {
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{}",
-            r.iter, r.primal, r.dual, r.active, r.slip, r.changed, r.stiff, r.soft
+            "{},{},{},{},{},{},{},{},{},{},{}",
+            r.iter,
+            r.error,
+            r.pressure,
+            r.traction,
+            r.displacement,
+            r.contraction,
+            r.active,
+            r.slip,
+            r.changed,
+            r.stiff,
+            r.soft
         );
     }
     out
@@ -239,8 +253,11 @@ mod tests {
         let rows = [
             Sweep {
                 iter: 1,
-                primal: 0.5,
-                dual: 1e-300,
+                error: 0.5,
+                pressure: 0.25,
+                traction: 1e-300,
+                displacement: 0.0,
+                contraction: 0.0,
                 active: 10,
                 slip: 0,
                 changed: 4,
@@ -251,8 +268,11 @@ mod tests {
             },
             Sweep {
                 iter: 2,
-                primal: 0.1 + 0.2,
-                dual: 2.0,
+                error: 0.1 + 0.2,
+                pressure: 0.1,
+                traction: 0.0,
+                displacement: 2.0,
+                contraction: 0.5,
                 active: 12,
                 slip: 3,
                 changed: 0,
@@ -264,15 +284,15 @@ mod tests {
         ];
         let csv = history_csv(&rows);
         let mut lines = csv.lines();
+        assert_eq!(lines.next(), Some(HISTORY_HEADER));
         assert_eq!(
             lines.next(),
-            Some("iteration,primal_residual,dual_residual,active_nodes,slip_nodes,changed_nodes,stiff_directions,soft_directions")
+            Some(format!("1,0.5,0.25,{},0,0,10,0,4,0,0", 1e-300).as_str())
         );
         assert_eq!(
             lines.next(),
-            Some(format!("1,0.5,{},10,0,4,0,0", 1e-300).as_str())
+            Some("2,0.30000000000000004,0.1,0,2,0.5,12,3,0,12,5")
         );
-        assert_eq!(lines.next(), Some("2,0.30000000000000004,2,12,3,0,12,5"));
         assert_eq!(lines.next(), None);
         assert!(csv.ends_with('\n'));
     }

@@ -138,6 +138,9 @@ impl Gathered {
     fn summary(&self, facts: RunFacts, o: &Outcome, timings: Timings) -> Summary<'_> {
         let with_status = |s: Status| self.contact.iter().filter(|r| r.status == s).count();
         let (stick, slip) = (with_status(Status::Stick), with_status(Status::Slip));
+        let frictionless = with_status(Status::Contact);
+        // Without friction there is no stick or slip to count.
+        let frictional = |n: usize| (facts.friction != "none").then_some(n);
         let last = o.history.last();
         let stats = &self.stats;
         let max_over =
@@ -154,15 +157,18 @@ impl Gathered {
             iterations: o.iterations,
             outer_iterations: o.outer_iterations,
             refused_accelerations: o.refused,
-            active_nodes: stick + slip,
-            stick_nodes: stick,
-            slip_nodes: slip,
+            active_nodes: stick + slip + frictionless,
+            stick_nodes: frictional(stick),
+            slip_nodes: frictional(slip),
             total_normal_force: self.contact.iter().map(|r| r.w * r.p_n).sum(),
             total_tangential_force: self.contact.iter().map(|r| r.w * r.p_t).sum(),
             r_retunes: o.retunes,
             final_residuals: Residuals {
-                primal: last.map(|s| s.primal),
-                dual: last.map(|s| s.dual),
+                error_estimate: last.map(|s| s.error),
+                pressure_change: last.map(|s| s.pressure),
+                traction_change: last.map(|s| s.traction),
+                displacement_change: last.map(|s| s.displacement),
+                contraction: last.map(|s| s.contraction),
             },
             timings_s: timings,
             sweep_s: timings.uzawa / o.iterations.max(1) as f64,
@@ -189,8 +195,9 @@ struct Summary<'a> {
     outer_iterations: usize,
     refused_accelerations: usize,
     active_nodes: usize,
-    stick_nodes: usize,
-    slip_nodes: usize,
+    /// Null without friction.
+    stick_nodes: Option<usize>,
+    slip_nodes: Option<usize>,
     total_normal_force: f64,
     total_tangential_force: f64,
     r_retunes: usize,
@@ -207,11 +214,14 @@ struct Summary<'a> {
     interface_gflop: f64,
 }
 
-/// The residuals of the last sweep (null without one).
+/// The stopping test's figures at the last sweep (null without one): see [`Sweep`].
 #[derive(Serialize)]
 struct Residuals {
-    primal: Option<f64>,
-    dual: Option<f64>,
+    error_estimate: Option<f64>,
+    pressure_change: Option<f64>,
+    traction_change: Option<f64>,
+    displacement_change: Option<f64>,
+    contraction: Option<f64>,
 }
 
 /// The largest or the smallest of some per-subdomain figures.

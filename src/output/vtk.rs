@@ -20,7 +20,7 @@
 //! | point | `displacement`        | Float64 | 3     | ux, uy, 0 (3D so Warp By Vector works)   |
 //! | point | `contact_pressure`    | Float64 | 1     | 0 off the contact boundary               |
 //! | point | `tangential_traction` | Float64 | 1     | 0 off the contact boundary               |
-//! | point | `contact_status`      | Int32   | 1     | -1 not a contact node, 0 free, 1 stick, 2 slip |
+//! | point | `contact_status`      | Int32   | 1     | -1 not a contact node, 0 free, 1 stick, 2 slip, 3 in contact without friction |
 //! | cell  | `stress`              | Float64 | 4     | components named xx, yy, xy, zz          |
 //! | cell  | `von_mises`           | Float64 | 1     |                                          |
 //! | cell  | `rank`                | Int32   | 1     | MPI rank that owns the triangle          |

@@ -1,0 +1,125 @@
+"""Unstructured Gmsh meshes and case files unlike the built-in cases, for the tests of
+the stopping test (tests/tolerance.rs) and the sweep counts of run-scripts/robustness.sh.
+
+Documentation of how the committed files were made; CI does not run it. Needs the Gmsh SDK:
+    pip install gmsh
+    python3 tests/data/tolerance/make_cases.py                  # the committed test meshes
+    python3 tests/data/tolerance/make_cases.py --scale 0.35 --out DIR   # finer (about 12k nodes)
+`--scale` multiplies every mesh size; the case files are written next to the meshes.
+
+The cases, each with its own units, group names and foundation:
+- cantilever: a steel beam (SI units, plane stress) clamped at one end, sagging under its
+  own weight onto a slightly inclined foundation 5e-5 m below; Coulomb 0.5. The
+  displacements are rigid-like and large next to what the contact forces cause.
+- wall: an aluminium plate (mm, MPa) clamped at its base, pushed by a traction on its
+  left flank onto a vertical wall 0.01 mm to its right; Tresca friction.
+- disc: a half disc (mm) pressed by its flat top onto a foundation inclined by 3 degrees,
+  frictionless, with an off-centre contact (no symmetry).
+- wedge: a block under self-weight and a traction, on a foundation inclined by 10 degrees
+  with a large friction coefficient (Coulomb 0.9), held by a soft side support.
+"""
+
+import argparse
+import math
+import os
+
+import gmsh
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def write(out, name):
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.option.setNumber("Mesh.Binary", 0)
+    gmsh.write(os.path.join(out, name))
+
+
+def polygon(points, lc):
+    geo = gmsh.model.geo
+    p = [geo.addPoint(x, y, 0, lc) for x, y in points]
+    lines = [geo.addLine(p[i], p[(i + 1) % len(p)]) for i in range(len(p))]
+    surface = geo.addPlaneSurface([geo.addCurveLoop(lines)])
+    return p, lines, surface
+
+
+def cantilever(scale):
+    gmsh.model.add("cantilever")
+    _, lines, surface = polygon([(0, 0), (2.0, 0), (2.0, 0.04), (0, 0.04)], 0.008 * scale)
+    gmsh.model.geo.synchronize()
+    gmsh.model.addPhysicalGroup(1, [lines[0]], name="underside")
+    gmsh.model.addPhysicalGroup(1, [lines[3]], name="clamp")
+    gmsh.model.addPhysicalGroup(2, [surface], name="steel")
+    gmsh.model.mesh.generate(2)
+
+
+def wall(scale):
+    gmsh.model.add("wall")
+    pts = [(0, 0), (40, 0), (40, 25), (30, 30), (0, 30)]
+    _, lines, surface = polygon(pts, 1.4 * scale)
+    gmsh.model.geo.synchronize()
+    gmsh.model.addPhysicalGroup(1, [lines[0]], name="base")
+    gmsh.model.addPhysicalGroup(1, [lines[1]], name="flank")
+    gmsh.model.addPhysicalGroup(1, [lines[4]], name="push")
+    gmsh.model.addPhysicalGroup(2, [surface], name="plate")
+    gmsh.model.mesh.generate(2)
+
+
+def disc(scale):
+    gmsh.model.add("disc")
+    geo = gmsh.model.geo
+    R = 20.0
+    fine, coarse = 0.35 * scale, 2.5 * scale
+    c = geo.addPoint(0, R, 0, coarse)
+    left = geo.addPoint(-R, R, 0, coarse)
+    right = geo.addPoint(R, R, 0, coarse)
+    # The arc is split where the inclined foundation first touches it.
+    a = math.radians(3.0)
+    touch = geo.addPoint(R * math.sin(a), R - R * math.cos(a), 0, fine)
+    arc1 = geo.addCircleArc(left, c, touch)
+    arc2 = geo.addCircleArc(touch, c, right)
+    top = geo.addLine(right, left)
+    surface = geo.addPlaneSurface([geo.addCurveLoop([arc1, arc2, top])])
+    geo.synchronize()
+    gmsh.model.addPhysicalGroup(1, [arc1, arc2], name="rim")
+    gmsh.model.addPhysicalGroup(1, [top], name="flat")
+    gmsh.model.addPhysicalGroup(2, [surface], name="disc")
+    gmsh.model.mesh.generate(2)
+
+
+def wedge(scale):
+    gmsh.model.add("wedge")
+    a = math.radians(10.0)
+    # A block whose base lies on the line through the origin inclined by 10 degrees.
+    d = (math.cos(a), math.sin(a))
+    n = (-math.sin(a), math.cos(a))
+    L, H = 2.0, 0.8
+    pts = [(0, 0), (L * d[0], L * d[1]), (L * d[0] + H * n[0], L * d[1] + H * n[1]),
+           (H * n[0], H * n[1])]
+    _, lines, surface = polygon(pts, 0.05 * scale)
+    gmsh.model.geo.synchronize()
+    gmsh.model.addPhysicalGroup(1, [lines[0]], name="sole")
+    gmsh.model.addPhysicalGroup(1, [lines[2]], name="lid")
+    gmsh.model.addPhysicalGroup(1, [lines[3]], name="back")
+    gmsh.model.addPhysicalGroup(2, [surface], name="block")
+    gmsh.model.mesh.generate(2)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--scale", type=float, default=1.0)
+    ap.add_argument("--out", default=HERE)
+    args = ap.parse_args()
+    os.makedirs(args.out, exist_ok=True)
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.option.setNumber("Mesh.Algorithm", 6)
+    for name, make in [("cantilever", cantilever), ("wall", wall), ("disc", disc),
+                       ("wedge", wedge)]:
+        make(args.scale)
+        write(args.out, name + ".msh")
+        gmsh.model.remove()
+    gmsh.finalize()
+
+
+if __name__ == "__main__":
+    main()
