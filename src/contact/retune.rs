@@ -41,13 +41,14 @@ pub const SETTLED_SWEEPS: usize = 1;
 /// 1000 x keeps the condition number of the contact block within three more decades;
 /// measured on frictionless full contact (block, levels 1-4): 10 x, 9-11 sweeps; 100 x,
 /// 7-8; 1000 x, 6.
-const NORMAL_FACTOR: f64 = 1000.0;
+pub(super) const NORMAL_FACTOR: f64 = 1000.0;
 /// The same for the tangents. Friction statuses are fragile (a sticking node flips to
 /// slip when a large r amplifies the remaining tangential motion): over the built-in
 /// frictional cases at levels 1-3, 10 x gave 22-42 sweeps, 30 x 19-56, 1000 x 20-112.
 const TANGENT_FACTOR: f64 = 10.0;
-/// Retunes to the statuses allowed; after them, a further settled change of the
-/// statuses returns every direction to the reference r (once).
+/// Retunes allowed in one run, all kinds together: up to MAX_RETUNES - 1 to the statuses;
+/// after them, a further settled change of the statuses returns every direction to the
+/// reference r (the last one).
 pub const MAX_RETUNES: usize = 4;
 
 /// The r of a node's normal and tangential directions once their statuses have settled:
@@ -87,8 +88,9 @@ pub enum Retune {
 ///
 /// When: the last [`SETTLED_SWEEPS`] sweeps, all with the current r, changed no status,
 /// and some direction's r differs from what its status asks for. At most
-/// [`MAX_RETUNES`] times, then once back to the reference r if the statuses move
-/// again: a retune costs one dense refactorization of the contact blocks.
+/// [`MAX_RETUNES`] - 1 times, then once back to the reference r if the statuses move
+/// again, [`MAX_RETUNES`] in all: a retune costs one dense refactorization of the
+/// contact blocks.
 pub fn retuned(history: &[Sweep], frictional: bool, n_contact: usize) -> Option<Retune> {
     let last = history.last()?;
     let settled = if frictional {
@@ -106,7 +108,7 @@ pub fn retuned(history: &[Sweep], frictional: bool, n_contact: usize) -> Option<
     {
         return None;
     }
-    match last.retunes {
+    match last.retunes + 1 {
         k if k < MAX_RETUNES && 2 * n_contact <= MAX_RETUNE_DOFS => Some(Retune::ToStatus),
         MAX_RETUNES if last.stiff + last.soft > 0 => Some(Retune::ToReference),
         _ => None,
@@ -141,6 +143,7 @@ mod tests {
             stiff: 0,
             soft: 0,
             mistuned,
+            uncertain: 0,
             retunes,
         }
     }
@@ -167,13 +170,13 @@ mod tests {
             Some(Retune::ToStatus)
         );
         // After the budget, once back to the reference r, then never again.
-        let mut spent = sweep(0, 3, MAX_RETUNES);
+        let mut spent = sweep(0, 3, MAX_RETUNES - 1);
         spent.stiff = 2;
         assert_eq!(
             retuned(&[spent, spent], false, 5),
             Some(Retune::ToReference)
         );
-        let reset = sweep(0, 3, MAX_RETUNES + 1);
+        let reset = sweep(0, 3, MAX_RETUNES);
         assert_eq!(retuned(&[reset, reset], false, 5), None);
     }
 

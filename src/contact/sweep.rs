@@ -3,7 +3,7 @@
 //! sums that the sweep's one all-reduce turns into its line of the history.
 
 use super::kernels::{coulomb_threshold, project_normal, shrink, state, update_multiplier};
-use super::retune::{tuned, Augmentation};
+use super::retune::{tuned, Augmentation, NORMAL_FACTOR};
 use super::{ContactNodes, LinearStep, Reduce};
 use crate::error::Result;
 
@@ -38,6 +38,10 @@ pub struct Sweep {
     pub soft: usize,
     /// Directions whose r differs from what their status in the image asks for.
     pub mistuned: usize,
+    /// Contact nodes whose status could still flip: the state of a direction lies closer
+    /// to its status boundary (the gap, the slip threshold) than the estimated error of
+    /// the sweep before.
+    pub uncertain: usize,
     /// Retunes of r before this sweep.
     pub retunes: usize,
 }
@@ -70,6 +74,8 @@ pub(super) struct Derived {
     pub(super) lambda: Vec<f64>,
     pub(super) q: Vec<f64>,
     pub(super) mu: Vec<f64>,
+    /// The slip threshold s_f of each node (0 without friction).
+    pub(super) threshold: Vec<f64>,
 }
 
 impl Derived {
@@ -101,6 +107,7 @@ pub(super) fn project_and_update(
         lambda: vec![0.0; n],
         q: vec![0.0; n],
         mu: vec![0.0; n],
+        threshold: vec![0.0; n],
     };
     for i in 0..n {
         let s = x[i];
@@ -108,7 +115,8 @@ pub(super) fn project_and_update(
         d.lambda[i] = update_multiplier(aug.r_n[i], s, d.p[i]);
         if law.frictional() {
             let z = x[n + i];
-            d.q[i] = shrink(z, law.threshold(i, d.lambda[i]) / aug.r_t[i]);
+            d.threshold[i] = law.threshold(i, d.lambda[i]);
+            d.q[i] = shrink(z, d.threshold[i] / aug.r_t[i]);
             d.mu[i] = update_multiplier(aug.r_t[i], z, d.q[i]);
         }
     }
@@ -143,6 +151,7 @@ pub(super) struct SweepSums {
     pub(super) stiff: f64,
     pub(super) soft: f64,
     pub(super) mistuned: f64,
+    pub(super) uncertain: f64,
 }
 
 /// The floor of each quantity's scale, as a fraction of the other quantities' sizes
@@ -155,9 +164,17 @@ pub(super) struct SweepSums {
 /// quantity that matters (a p_t of 0.1 % of p_n is still measured against itself).
 pub const SCALE_FLOOR: f64 = 1e-3;
 
+/// The round-off of one sweep, relative to its largest forces (r |u| and the
+/// multipliers): sixteen units of round-off. A change below it cannot be told from the
+/// noise of the solve, so it counts as none. Where r |u| is far above the contact forces
+/// (a body that moves a lot before it touches), this is what bounds the attainable
+/// accuracy of p_n: measured on the cantilever of tests/data/tolerance (r |u| = 1e5 |p_n|),
+/// the changes of p_n stagnate at 7e-11 of p_n, 3 units of round-off of r |u|.
+pub const ROUNDOFF: f64 = 16.0 * f64::EPSILON;
+
 impl SweepSums {
     /// The numbers [`SweepSums::pack`] puts in the all-reduce.
-    pub(super) const LEN: usize = 14;
+    pub(super) const LEN: usize = 15;
 
     pub(super) fn pack(&self) -> [f64; Self::LEN] {
         [
@@ -175,11 +192,12 @@ impl SweepSums {
             self.stiff,
             self.soft,
             self.mistuned,
+            self.uncertain,
         ]
     }
 
     pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
-        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned] =
+        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain] =
             v;
         SweepSums {
             force_change_n,
@@ -196,6 +214,7 @@ impl SweepSums {
             stiff,
             soft,
             mistuned,
+            uncertain,
         }
     }
 
@@ -210,10 +229,29 @@ impl SweepSums {
     pub(super) fn changes(&self, r: f64) -> [f64; 3] {
         let (pn, pt) = (self.force_n.sqrt(), self.force_t.sqrt());
         let u = self.displacement_n.sqrt() + self.displacement_t.sqrt();
-        let pressure = relative(self.force_change_n.sqrt(), pn + SCALE_FLOOR * (pt + r * u));
-        let traction = relative(self.force_change_t.sqrt(), pt + SCALE_FLOOR * (pn + r * u));
+        // What round-off leaves of a change: the sweep's forces are formed from r u and
+        // the multipliers, so a force change below ROUNDOFF times their size is noise;
+        // with r raised on held directions, the largest r forms them.
+        let r_max = if self.stiff > 0.0 {
+            r * NORMAL_FACTOR
+        } else {
+            r
+        };
+        let noise = ROUNDOFF * (pn + pt + r_max * u);
+        let measured = |change: f64, noise: f64| (change.sqrt() - noise).max(0.0);
+        let pressure = relative(
+            measured(self.force_change_n, noise),
+            pn + SCALE_FLOOR * (pt + r * u),
+        );
+        let traction = relative(
+            measured(self.force_change_t, noise),
+            pt + SCALE_FLOOR * (pn + r * u),
+        );
         let displacement = relative(
-            self.state_change_n.sqrt() + self.state_change_t.sqrt(),
+            measured(
+                (self.state_change_n.sqrt() + self.state_change_t.sqrt()).powi(2),
+                noise / r,
+            ),
             u + SCALE_FLOOR * (pn + pt) / r,
         );
         [pressure, traction, displacement]
@@ -236,6 +274,7 @@ impl SweepSums {
             stiff: self.stiff as usize,
             soft: self.soft as usize,
             mistuned: self.mistuned as usize,
+            uncertain: self.uncertain as usize,
             retunes,
         }
     }
@@ -269,7 +308,7 @@ pub(super) struct Reduced {
     pub(super) residual2: f64,
     /// |y - x|^2 and |(G(y) - y) - (G(x) - x)|^2 in the same norm, between this point y
     /// and the last accepted one x (zeros without one): a secant of the sweep map.
-    pub(super) secant2: [f64; 2],
+    pub(super) secant2: [f64; 3],
     /// The Anderson Gram matrix and right-hand side ([`super::anderson::Anderson::local_sums_with_new`]),
     /// empty when not accelerating.
     pub(super) gram: Vec<f64>,
@@ -281,7 +320,7 @@ impl Reduced {
         comm: &impl Reduce,
         sums: &SweepSums,
         residual2: f64,
-        secant2: [f64; 2],
+        secant2: [f64; 3],
         gram: Vec<f64>,
     ) -> Reduced {
         let mut buf = sums.pack().to_vec();
@@ -294,8 +333,8 @@ impl Reduced {
             // The split is at LEN: the conversion cannot fail.
             sums: SweepSums::unpack(head.try_into().expect("LEN sums")),
             residual2: tail[0],
-            secant2: [tail[1], tail[2]],
-            gram: tail[3..].to_vec(),
+            secant2: [tail[1], tail[2], tail[3]],
+            gram: tail[4..].to_vec(),
         }
     }
 }
@@ -319,6 +358,9 @@ pub(super) struct Sweeper<'a, S: LinearStep> {
     pub(super) aug: Augmentation,
     /// The statuses in the image of the last evaluation (empty before the first).
     last_held: Vec<(bool, bool)>,
+    /// How close (a length) a state may come to its status boundary before its status
+    /// counts as uncertain: the estimated error of the last sweep.
+    pub(super) margin: f64,
     force_n: Vec<f64>,
     force_t: Vec<f64>,
     pub(super) un: Vec<f64>,
@@ -335,6 +377,7 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             r_ref: r,
             aug: Augmentation::uniform(n, r),
             last_held: Vec::new(),
+            margin: f64::INFINITY,
             force_n: vec![0.0; n],
             force_t: vec![0.0; n],
             un: vec![0.0; n],
@@ -386,6 +429,27 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
         }
     }
 
+    /// How far node i's states lie from the boundaries of its statuses, as a length:
+    /// g - p (open) or lambda / r_n (pressed) for the normal, |q| (slipping) or
+    /// (s_f - |mu|) / r_t (sticking) for the tangent; the smaller of the two.
+    fn status_margin(&self, d: &Derived, i: usize, frictional: bool) -> f64 {
+        let aug = &self.aug;
+        let normal = if d.lambda[i] > 0.0 {
+            d.lambda[i] / aug.r_n[i]
+        } else {
+            self.nodes.g[i] - d.p[i]
+        };
+        if !frictional {
+            return normal;
+        }
+        let tangent = if d.q[i] != 0.0 {
+            d.q[i].abs()
+        } else {
+            (d.threshold[i] - d.mu[i].abs()) / aug.r_t[i]
+        };
+        normal.min(tangent)
+    }
+
     /// This rank's sums of the sweep from `inp` to `out`, whose state moved by `f`.
     fn local_sums(&self, inp: &Derived, out: &Derived, f: &[f64], frictional: bool) -> SweepSums {
         let (w, r, aug) = (&self.nodes.w, self.r_ref, &self.aug);
@@ -409,6 +473,9 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
                 }
             }
             let held = out.held(i, frictional);
+            if self.status_margin(out, i, frictional) <= self.margin {
+                s.uncertain += 1.0;
+            }
             // The first sweep compares with the statuses of its input.
             let before = self.last_held.get(i).copied();
             if before.unwrap_or_else(|| inp.held(i, frictional)) != held {
@@ -440,6 +507,6 @@ mod tests {
         let s = SweepSums::unpack(v);
         assert_eq!(s.pack(), v);
         assert_eq!((s.force_change_n, s.force_n), (0.5, 6.5));
-        assert_eq!((s.active, s.mistuned), (8.5, 13.5));
+        assert_eq!((s.active, s.uncertain), (8.5, 14.5));
     }
 }

@@ -91,7 +91,7 @@ pub fn nodes_csv(nodes: &[[f64; 2]], u: &[[f64; 2]]) -> String {
 }
 
 /// The header of `history.csv`.
-pub const HISTORY_HEADER: &str = "iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,stiff_directions,soft_directions";
+pub const HISTORY_HEADER: &str = "iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,uncertain_nodes,stiff_directions,soft_directions";
 
 /// `history.csv`: [`HISTORY_HEADER`], one row per sweep in the given order (the other
 /// fields of [`Sweep`] are not written).
@@ -102,7 +102,7 @@ pub fn history_csv(rows: &[Sweep]) -> String {
     for r in rows {
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{}",
             r.iter,
             r.error,
             r.pressure,
@@ -112,6 +112,7 @@ pub fn history_csv(rows: &[Sweep]) -> String {
             r.active,
             r.slip,
             r.changed,
+            r.uncertain,
             r.stiff,
             r.soft
         );
@@ -264,6 +265,7 @@ mod tests {
                 stiff: 0,
                 soft: 0,
                 mistuned: 7,
+                uncertain: 3,
                 retunes: 0,
             },
             Sweep {
@@ -279,6 +281,7 @@ mod tests {
                 stiff: 12,
                 soft: 5,
                 mistuned: 0,
+                uncertain: 0,
                 retunes: 1,
             },
         ];
@@ -287,11 +290,11 @@ mod tests {
         assert_eq!(lines.next(), Some(HISTORY_HEADER));
         assert_eq!(
             lines.next(),
-            Some(format!("1,0.5,0.25,{},0,0,10,0,4,0,0", 1e-300).as_str())
+            Some(format!("1,0.5,0.25,{},0,0,10,0,4,3,0,0", 1e-300).as_str())
         );
         assert_eq!(
             lines.next(),
-            Some("2,0.30000000000000004,0.1,0,2,0.5,12,3,0,12,5")
+            Some("2,0.30000000000000004,0.1,0,2,0.5,12,3,0,0,12,5")
         );
         assert_eq!(lines.next(), None);
         assert!(csv.ends_with('\n'));
