@@ -10,7 +10,7 @@ use crate::error::Result;
 /// One line of the convergence history (one linear solve).
 ///
 /// The three changes are what one sweep moved the reported quantities, each relative to
-/// its own size (see [`SweepSums::sweep`]); `error` is their largest, divided by
+/// its own size (see `SweepSums::changes`); `error` is their largest, divided by
 /// 1 - `contraction`: the estimated relative error of the reported answer, which the loop
 /// stops on (`error <= tol`).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

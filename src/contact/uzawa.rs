@@ -24,18 +24,19 @@
 //! therefore bounds the accelerated one (at the price of one extra solve per refusal).
 //!
 //! ## Communication per sweep
-//! One linear step, and one all-reduce of 15 + m(m+1)/2 + m numbers: the 14 sums of
-//! `SweepSums` (the squared W-norms of the residuals, displacements and
-//! multipliers, the active, slip, changed, stiff, soft and mistuned counts), the squared
-//! fixed-point residual, and the Anderson Gram matrix and right-hand side.
+//! One linear step, and one all-reduce of 18 + m(m+1)/2 + m numbers: the 15 sums of
+//! `SweepSums` (the squared W-norms of the changes, displacements and multipliers, the
+//! active, slip, changed, stiff, soft, mistuned and uncertain counts), the squared
+//! fixed-point residual, the secant's three squared norms, and the Anderson Gram matrix
+//! and right-hand side.
 //!
-//! ## Residuals
-//! Both are in force units and relative to S = max(|lambda|_W + |mu|_W, r (|Nu|_W +
-//! |Tu|_W)): primal = |lambda+ - lambda|_W + |mu+ - mu|_W (= r |Nu - p+|), dual =
-//! r (|p+ - p|_W + |q+ - q|_W), with the reference r whatever the r of each direction,
-//! so that a retune does not move the test. The multipliers set the scale when there is contact,
-//! the displacements when there is none: a displacement-only scale fails when contact
-//! nodes sit exactly on the foundation (Nu -> g = 0).
+//! ## The stopping test
+//! `tol` is the relative accuracy of p_n, p_t and u at the contact nodes, each against
+//! its own size. A sweep's relative changes of the three (`SweepSums::changes`)
+//! are divided by 1 - rho, rho the contraction of the plain map estimated from secants of
+//! the evaluated points (`Run::contraction`): for a map contracting by rho, the distance
+//! to the fixed point is at most |G(x) - x| / (1 - rho). The loop stops when that
+//! estimate is below tol (docs/ALGORITHM.md, "The stopping test").
 
 use super::anderson::{dot, metric, Anderson};
 use super::kernels::{coulomb_threshold, state};

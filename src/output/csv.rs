@@ -93,7 +93,7 @@ pub fn nodes_csv(nodes: &[[f64; 2]], u: &[[f64; 2]]) -> String {
 /// The header of `history.csv`.
 pub const HISTORY_HEADER: &str = "iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,uncertain_nodes,stiff_directions,soft_directions";
 
-/// `history.csv`: [`HISTORY_HEADER`], one row per sweep in the given order (the other
+/// `history.csv`: `HISTORY_HEADER`, one row per sweep in the given order (the other
 /// fields of [`Sweep`] are not written).
 pub fn history_csv(rows: &[Sweep]) -> String {
     let mut out = String::with_capacity(96 * (rows.len() + 1));
