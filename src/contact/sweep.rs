@@ -238,18 +238,18 @@ impl SweepSums {
             r
         };
         let noise = ROUNDOFF * (pn + pt + r_max * u);
-        let measured = |change: f64, noise: f64| (change.sqrt() - noise).max(0.0);
+        let measured = |change: f64, noise: f64| (change - noise).max(0.0);
         let pressure = relative(
-            measured(self.force_change_n, noise),
+            measured(self.force_change_n.sqrt(), noise),
             pn + SCALE_FLOOR * (pt + r * u),
         );
         let traction = relative(
-            measured(self.force_change_t, noise),
+            measured(self.force_change_t.sqrt(), noise),
             pt + SCALE_FLOOR * (pn + r * u),
         );
         let displacement = relative(
             measured(
-                (self.state_change_n.sqrt() + self.state_change_t.sqrt()).powi(2),
+                self.state_change_n.sqrt() + self.state_change_t.sqrt(),
                 noise / r,
             ),
             u + SCALE_FLOOR * (pn + pt) / r,
