@@ -95,3 +95,28 @@ fn block_flat() {
     fast.expect_code(0);
     assert_same_columns(&plain.contact(), &fast.contact(), 1e-8, "block_flat");
 }
+
+/// A body that nothing holds before it touches: while every contact node is open, the
+/// sweep map is a translation (each sweep moves the block by the same amount towards the
+/// foundation), so the newest Anderson difference is zero up to round-off. Mixing with
+/// it once threw the state 1e13 steps away, where the run stalled for good (r = 6e4,
+/// 1e6) or stopped with no node in contact and no contact force (r = 1e5). With a fixed
+/// r (no retune to hide it) the accelerated run must find the exact answer: every node
+/// pressed, the contact force equal to the applied load.
+#[test]
+fn floating_body_over_a_gap() {
+    for r in ["6e4", "1e5", "1e6"] {
+        let run = run_builtin("block_flat", 1, &["--r", r, "--max-iter", "200"]);
+        run.expect_code(0);
+        let s = run.summary();
+        assert_eq!(s["converged"], true, "r = {r}");
+        assert_eq!(num(&s, "active_nodes"), num(&s, "contact_nodes"), "r = {r}");
+        // 50 MPa on a top of length 40 (the case's traction and mesh).
+        let force = num(&s, "total_normal_force");
+        assert!(
+            (force - 2000.0).abs() <= 1e-7 * 2000.0,
+            "r = {r}: contact force {force}"
+        );
+        assert!(num(&s, "iterations") <= 50.0, "r = {r}");
+    }
+}

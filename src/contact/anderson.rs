@@ -32,6 +32,11 @@ pub(super) fn metric(w: &[f64], aug: &Augmentation, r_ref: f64, frictional: bool
     omega
 }
 
+/// The secant ratio below which the sweep map counts as a translation (see
+/// [`Anderson::propose`]); far below the slowest contraction worth accelerating (1e-6 is
+/// rho = 0.999999).
+const FLAT_SECANT: f64 = 1e-8;
+
 /// Anderson memory (m = 0: no acceleration): differences of residuals and of images of the last iterations.
 pub(super) struct Anderson {
     m: usize,
@@ -58,11 +63,27 @@ impl Anderson {
     /// The Anderson step after the accepted point x with image gx: records
     /// (G(x) - x, G(x)) and mixes with the global Gram sums `gram` of that point.
     /// `None` without acceleration, with an empty memory or a singular system.
-    pub(super) fn propose(&mut self, x: &[f64], gx: &[f64], gram: &[f64]) -> Option<Vec<f64>> {
+    /// `secant` is |f(x) - f(x_prev)| / |x - x_prev| for the previous accepted point: below
+    /// [`FLAT_SECANT`] the map is a translation along the step (a body that nothing holds
+    /// yet, moving towards the contact by the same amount each sweep), the newest
+    /// difference is noise, and the least-squares coefficients blow up (measured: a jump
+    /// 1e13 times the step on block_flat without retunes): the memory restarts.
+    pub(super) fn propose(
+        &mut self,
+        x: &[f64],
+        gx: &[f64],
+        gram: &[f64],
+        secant: f64,
+    ) -> Option<Vec<f64>> {
         if self.m == 0 {
             return None;
         }
         let f: Vec<f64> = gx.iter().zip(x).map(|(a, b)| a - b).collect();
+        if secant < FLAT_SECANT {
+            self.clear();
+            self.push(&f, gx);
+            return None;
+        }
         self.push(&f, gx);
         self.mix(gx, gram)
     }
@@ -229,5 +250,26 @@ mod tests {
             .collect();
         let expected: f64 = (0..4).map(|k| w[k % 2] * (force[k] / r).powi(2)).sum();
         assert!((dot(&dx, &dx, &omega) - expected).abs() <= 1e-12 * expected);
+    }
+
+    #[test]
+    fn a_flat_secant_restarts_the_memory() {
+        // G(x) = x + c: a translation, f constant. The newest difference of f is round-off.
+        let omega = [1.0, 1.0];
+        let mut aa = Anderson::new(5);
+        let (x0, g0) = ([0.0, 0.0], [1.0, 2.0]);
+        assert!(aa.propose(&x0, &g0, &[], f64::INFINITY).is_none());
+        let (x1, g1) = (g0, [2.0, 4.0 + 1e-15]);
+        let f1: Vec<f64> = g1.iter().zip(&x1).map(|(a, b)| a - b).collect();
+        let gram = aa.local_sums_with_new(&f1, &omega);
+        // Mixing would divide by |f1 - f0| ~ 1e-15.
+        assert!(aa.propose(&x1, &g1, &gram, 1e-15).is_none());
+        assert!(aa.df.is_empty() && aa.dg.is_empty());
+        assert_eq!(aa.last.as_ref().map(|(f, _)| f.clone()), Some(f1));
+        // A contracting step mixes as before.
+        let (x2, g2) = (g1, [2.5, 4.5]);
+        let f2: Vec<f64> = g2.iter().zip(&x2).map(|(a, b)| a - b).collect();
+        let gram = aa.local_sums_with_new(&f2, &omega);
+        assert!(aa.propose(&x2, &g2, &gram, 0.5).is_some());
     }
 }

@@ -114,6 +114,8 @@ pub struct Snapshot {
     pub retunes: usize,
     /// The smallest secant ratio so far, behind the contraction estimate.
     pub min_secant: f64,
+    /// The secant ratio of the last accepted point, which the Anderson step reads.
+    pub secant: f64,
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -281,6 +283,8 @@ struct Evaluated {
     gram: Vec<f64>,
     /// The estimated relative error ([`Sweep::error`]).
     worst: f64,
+    /// |f(x) - f(anchor)| / |x - anchor| (infinite without an anchor).
+    secant: f64,
 }
 
 impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
@@ -344,7 +348,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
                 aa.clear();
                 self.forget_secants();
                 self.evaluate(law, x, aa.active())?
-            } else if let Some(y) = aa.propose(x, &cur.gx, &cur.gram) {
+            } else if let Some(y) = aa.propose(x, &cur.gx, &cur.gram, cur.secant) {
                 self.safeguard(law, y, cur, x, &mut aa)?
             } else {
                 self.plain_step(law, cur, x, aa.active())?
@@ -367,10 +371,13 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// secant, not the latest: Anderson's last points may all lie off the slowest mode,
     /// which the error still contains (measured on the cantilever of tests/data/tolerance:
     /// the last 12 secants gave rho = 0.999 where the error implied 0.99995).
-    fn contraction(&mut self, secant2: [f64; 3]) -> f64 {
+    fn contraction(&mut self, secant2: [f64; 3], statuses_changed: bool) -> f64 {
         let [dx2, df2, x2] = secant2;
-        // A step at round-off's scale gives a ratio of noise.
-        if dx2 > SECANT_FLOOR * SECANT_FLOOR * x2 {
+        // A step at round-off's scale gives a ratio of noise. A step across a change of
+        // status joins two pieces of the piecewise affine map: its ratio belongs to
+        // neither (a floating body's open piece is a translation, ratio 0, which would
+        // hold rho at 1 long after the contact has closed).
+        if !statuses_changed && dx2 > SECANT_FLOOR * SECANT_FLOOR * x2 {
             self.min_secant = self.min_secant.min((df2 / dx2).sqrt());
         }
         if self.min_secant.is_finite() {
@@ -407,7 +414,13 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         };
         let gram = aa.map_or_else(Vec::new, |aa| aa.local_sums_with_new(&e.f, &omega));
         let global = Reduced::all_reduce(self.comm, &e.sums, residual2, secant2, gram);
-        let contraction = self.contraction(global.secant2);
+        let contraction = self.contraction(global.secant2, global.sums.changed > 0.0);
+        let [dx2, df2, _] = global.secant2;
+        let secant = if dx2 > 0.0 {
+            (df2 / dx2).sqrt()
+        } else {
+            f64::INFINITY
+        };
         let sweep = global
             .sums
             .sweep(self.history.len() + 1, self.retunes, r, contraction);
@@ -432,6 +445,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             res: global.residual2.sqrt(),
             gram: global.gram,
             worst: sweep.error,
+            secant,
         })
     }
 
@@ -583,6 +597,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             res: snap.res,
             gram: snap.gram,
             worst: snap.worst,
+            secant: snap.secant,
         })
     }
 
@@ -611,6 +626,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             aug: self.sweeper.aug.clone(),
             retunes: self.retunes,
             min_secant: self.min_secant,
+            secant: cur.secant,
         };
         (self.ckpt.save)(&snap)
     }
@@ -687,6 +703,37 @@ mod tests {
             assert!((o.un[0] - 1.0).abs() < 1e-9);
             assert!((o.lambda[0] * 0.5 - 4.0).abs() < 1e-8);
             assert_eq!(o.status[0], Status::Contact);
+        }
+    }
+
+    #[test]
+    fn a_floating_node_crosses_its_gap_and_touches() {
+        // Nothing holds the node but the contact (k ~ 0): while open, each sweep moves it
+        // by f / (r w) towards the foundation, a translation whose secants are round-off.
+        for acc in [PLAIN, ANDERSON] {
+            let nodes = ContactNodes {
+                w: vec![0.5],
+                g: vec![1.0],
+            };
+            let mut s = Springs {
+                k: vec![1e-13],
+                rw: vec![5.0],
+                f: vec![[2.0, 0.0]],
+                calls: 0,
+                kick: None,
+            };
+            let o = solve(
+                &mut s,
+                &NoComm,
+                &nodes,
+                &params(Friction::None, acc),
+                &mut |_| {},
+            )
+            .unwrap();
+            assert!(o.converged);
+            assert!(o.iterations <= 20, "{} sweeps", o.iterations);
+            assert!((o.un[0] - 1.0).abs() < 1e-9);
+            assert!((o.lambda[0] * 0.5 - 2.0).abs() < 1e-8);
         }
     }
 
