@@ -200,6 +200,7 @@ impl Fixture {
             coulomb: self.case.solver.coulomb,
             acceleration: Acceleration::None,
             adapt_r: false,
+            mesh_stiffness: f64::NAN,
         }
     }
 

@@ -261,6 +261,8 @@ impl<'a> Subdomain<'a> {
 struct Setup {
     case: Case,
     r: f64,
+    /// E_eff / h (`Problem::mesh_stiffness`).
+    mesh_stiffness: f64,
     /// Shift of the interface block of every local matrix (see `LocalFactor`).
     alpha: f64,
     n_boundary: usize,
@@ -323,6 +325,7 @@ impl Setup {
             acceleration: solver.acceleration,
             // A given r is the user's: kept as it is.
             adapt_r: solver.r.is_none(),
+            mesh_stiffness: self.mesh_stiffness,
         }
     }
 }
@@ -357,9 +360,11 @@ fn prepare(
         Ok((subs, map, part.quality.to_string()))
     })?;
     let r = case.solver.r.unwrap_or_else(|| prob.default_r(&case));
+    let mesh_stiffness = prob.mesh_stiffness(&case);
     let m = &case.material;
     let setup = Setup {
         r,
+        mesh_stiffness,
         alpha: m.young / (1.0 - m.poisson * m.poisson),
         n_boundary: map.n_boundary,
         n_interface: map.n_interface,
@@ -710,6 +715,13 @@ fn report(ctx: &Subdomain, sub: &SubProblem, o: &Outcome, t: &Timings) -> Result
         o.iterations,
         (stick + slip + frictionless) as usize,
     ));
+    if o.r != ctx.setup.r {
+        ctx.print.line(format!(
+            "r lowered to {:e}: the body is {:.3} times as stiff as a compact one for smooth contact modes (it bends)",
+            o.r,
+            o.smooth_stiffness.unwrap_or(f64::NAN)
+        ));
+    }
     for line in t.table(o.iterations) {
         ctx.print.line(line);
     }

@@ -41,11 +41,19 @@ impl Problem {
     /// (r = E/h) or worse. Measured on the built-in cases at four levels: within 1.3x of
     /// the best r of a sweep over two decades (see the note of the core issue).
     pub fn default_r(&self, case: &Case) -> f64 {
-        let m = &case.material;
-        let e_eff = match m.hypothesis {
-            Hypothesis::PlaneStrain => m.young / (1.0 - m.poisson * m.poisson),
-            Hypothesis::PlaneStress => m.young,
-        };
+        (self.mesh_stiffness(case) * self.compact_stiffness(case)).sqrt()
+    }
+
+    /// E_eff / h: how stiff the body is, seen from the contact boundary, for modes at the
+    /// scale of the mesh (the stiffest).
+    pub fn mesh_stiffness(&self, case: &Case) -> f64 {
+        effective_modulus(case) / self.contact_h
+    }
+
+    /// E_eff / L, L the smaller side of the bounding box: how stiff a compact body is for
+    /// smooth modes (the softest). A slender body is far softer (it bends): the loop
+    /// measures that and lowers r (see `contact::probe`).
+    pub fn compact_stiffness(&self, case: &Case) -> f64 {
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for p in &self.mesh.nodes {
             for c in 0..2 {
@@ -54,11 +62,20 @@ impl Problem {
             }
         }
         let size = (hi[0] - lo[0]).min(hi[1] - lo[1]).max(self.contact_h);
-        e_eff / (self.contact_h * size).sqrt()
+        effective_modulus(case) / size
     }
 
     pub fn is_frictional(case: &Case) -> bool {
         !matches!(case.contact.friction, Friction::None)
+    }
+}
+
+/// The modulus of a plane problem: E / (1 - nu^2) in plane strain, E in plane stress.
+fn effective_modulus(case: &Case) -> f64 {
+    let m = &case.material;
+    match m.hypothesis {
+        Hypothesis::PlaneStrain => m.young / (1.0 - m.poisson * m.poisson),
+        Hypothesis::PlaneStress => m.young,
     }
 }
 
@@ -167,6 +184,13 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
     let contact = ContactNodes {
         w: contact_nodes.iter().map(|i| weight[i]).collect(),
         g: contact_nodes.iter().map(|&i| gap(mesh.nodes[i])).collect(),
+        s: contact_nodes
+            .iter()
+            .map(|&i| {
+                let x = mesh.nodes[i];
+                (x[0] - p0[0]) * m[1] - (x[1] - p0[1]) * m[0]
+            })
+            .collect(),
     };
     let contact_h = total_len / lines.len() as f64;
     // Round-off in mesh coordinates can put a touching node a hair below the line.

@@ -5,6 +5,7 @@ mod anderson;
 pub mod kernels;
 mod law;
 pub mod operators;
+pub mod probe;
 pub mod retune;
 mod sweep;
 pub mod uzawa;
@@ -59,6 +60,8 @@ pub struct ContactNodes {
     pub w: Vec<f64>,
     /// Initial gap g_i = (x_i - p0) . m.
     pub g: Vec<f64>,
+    /// Position along the foundation, (x_i - p0) . t.
+    pub s: Vec<f64>,
 }
 
 impl ContactNodes {

@@ -164,6 +164,7 @@ pub fn split(
             contact: ContactNodes {
                 w: mine.iter().map(|&k| prob.contact.w[k]).collect(),
                 g: mine.iter().map(|&k| prob.contact.g[k]).collect(),
+                s: mine.iter().map(|&k| prob.contact.s[k]).collect(),
             },
             boundary_dofs,
             n_contact_dofs,

@@ -163,6 +163,8 @@ impl Gathered {
             total_normal_force: self.contact.iter().map(|r| r.w * r.p_n).sum(),
             total_tangential_force: self.contact.iter().map(|r| r.w * r.p_t).sum(),
             r_retunes: o.retunes,
+            r_loop: o.r,
+            smooth_stiffness_ratio: o.smooth_stiffness,
             final_residuals: Residuals {
                 error_estimate: last.map(|s| s.error),
                 pressure_change: last.map(|s| s.pressure),
@@ -201,6 +203,11 @@ struct Summary<'a> {
     total_normal_force: f64,
     total_tangential_force: f64,
     r_retunes: usize,
+    /// The reference r of the loop: `r`, or lower for a body far softer than a compact
+    /// one.
+    r_loop: f64,
+    /// The body's measured smooth-mode stiffness over E_eff / L (null when r was given).
+    smooth_stiffness_ratio: Option<f64>,
     final_residuals: Residuals,
     timings_s: Timings,
     sweep_s: f64,
