@@ -133,6 +133,23 @@ fn restart_after_a_retune_of_r_continues_exactly() {
     assert!(s["r_retunes"].as_u64().unwrap() >= 1, "{s}");
 }
 
+/// A slender beam: the loop lowers r before its first sweep (the body is far softer
+/// than a compact one); the restart must continue with that r, not the automatic one.
+#[test]
+fn restart_after_r_was_lowered_for_a_slender_body_continues_exactly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case: std::path::PathBuf = [
+        env!("CARGO_MANIFEST_DIR"),
+        "tests/data/tolerance/cantilever.toml",
+    ]
+    .iter()
+    .collect();
+    check_restart_in(tmp.path(), 2, &[case.to_str().unwrap()], &[], (120, 50));
+    let s = common::read_summary(&tmp.path().join("straight/summary.json"));
+    let (r, r_loop) = (common::num(&s, "r"), common::num(&s, "r_loop"));
+    assert!(r_loop < 0.5 * r, "r {r}, r_loop {r_loop}");
+}
+
 #[test]
 fn restart_with_another_rank_count_is_refused_clearly() {
     let tmp = tempfile::tempdir().unwrap();

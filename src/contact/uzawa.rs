@@ -128,6 +128,10 @@ pub struct Snapshot {
     pub secant: f64,
     /// The reference r of the loop (see [`softened_r`]).
     pub r_ref: f64,
+    /// Every r per direction handed to the linear step before this point, in order: a
+    /// retune that moves few directions updates the factor in place, so the factor
+    /// depends on the sequence, and a resumed run replays it to continue bit for bit.
+    pub applied: Vec<Augmentation>,
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -182,6 +186,9 @@ pub fn solve_with(
         (params.r, None)
     };
     let mut run = Run::new(Sweeper::new(step, nodes, r), comm, params, monitor, ckpt);
+    if r != params.r {
+        run.applied.push(Augmentation::uniform(n, r));
+    }
     let mut outer_iterations = 1;
     let (converged, last, threshold) = match (params.friction, params.coulomb) {
         (Friction::None, _) => {
@@ -325,6 +332,9 @@ struct Run<'r, 'a, S: LinearStep, C: Reduce> {
     ckpt: &'r mut Checkpoints<'a>,
     resume: Option<Snapshot>,
     outer: Option<(Vec<f64>, usize, f64)>,
+    /// Every r per direction handed to the linear step, in order (see
+    /// [`Snapshot::applied`]).
+    applied: Vec<Augmentation>,
     /// The last accepted point x and G(x) - x, the base of the next secant.
     anchor: Option<(Vec<f64>, Vec<f64>)>,
     /// The smallest secant ratio |f(y) - f(x)| / |y - x| (f(x) = G(x) - x) since the map
@@ -375,6 +385,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             resume: ckpt.resume.take(),
             ckpt,
             outer: None,
+            applied: Vec::new(),
             anchor: None,
             min_secant: f64::INFINITY,
         }
@@ -570,6 +581,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
                 x[n + i] = state(last.q[i], last.mu[i], aug.r_t[i]);
             }
         }
+        self.applied.push(aug.clone());
         self.sweeper.aug = aug;
         self.retunes += 1;
         Ok(true)
@@ -633,16 +645,15 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         aa: &mut Anderson,
     ) -> Result<Evaluated> {
         let sweeper = &mut self.sweeper;
-        if snap.aug != sweeper.aug {
-            if snap.aug.r_n.len() != sweeper.aug.r_n.len()
-                || !sweeper.step.set_r(&snap.aug.r_n, &snap.aug.r_t)?
-            {
+        for aug in &snap.applied {
+            if aug.r_n.len() != sweeper.aug.r_n.len() || !sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
                 return Err(Error::Input(
                     "the checkpoint was taken with r retuned per contact direction and this linear step cannot change r; restart without --restart".into(),
                 ));
             }
-            sweeper.aug = snap.aug;
         }
+        sweeper.aug = snap.aug;
+        self.applied = snap.applied;
         sweeper.r_ref = snap.r_ref;
         let out = project_and_update(&snap.gx, sweeper.nodes, law, &sweeper.aug);
         sweeper.remember_statuses(&out, law.frictional());
@@ -692,6 +703,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             min_secant: self.min_secant,
             secant: cur.secant,
             r_ref: self.sweeper.r_ref,
+            applied: self.applied.clone(),
         };
         (self.ckpt.save)(&snap)
     }
