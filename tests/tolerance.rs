@@ -1,8 +1,8 @@
 //! `tol` is the relative accuracy of what the run reports: on unstructured cases unlike the
 //! built-in ones (tests/data/tolerance, made with Gmsh by make_cases.py), a run at
-//! tol = 1e-6 lands within a small multiple of tol of a run converged to 1e-11, for p_n,
-//! p_t and u at the contact nodes, each against its own size; runs on 1 and 3 ranks agree
-//! as closely.
+//! tol = 1e-6 lands within tol of a run converged to 1e-11, for p_n, p_t and u at the
+//! contact nodes, each against its own size; runs on 1 and 3 ranks land within tol of
+//! each other.
 //!
 //! Each case fails the old test (residuals relative to max(|lambda|, r |u|), no
 //! contraction factor): the cantilever stopped 0.9 from the answer in p_n at tol 1e-6,
@@ -14,10 +14,12 @@ use std::path::PathBuf;
 
 const TOL: f64 = 1e-6;
 const TIGHT: &str = "1e-11";
-/// How far past tol a run may stop. The stopping test estimates the error as the last
-/// change over 1 - rho, rho from secants of the sweep map; measured: 0.3-4x tol on
-/// these cases, the cantilever (rho = 0.9999) the worst.
-const MULTIPLE: f64 = 10.0;
+/// How far past tol a run may stop: not at all. The loop stops at an estimated error of
+/// tol / 4 (`STOP_MARGIN`), its estimate from secants of the sweep map having fallen
+/// up to 3.5 times short on these cases (the cantilever, rho = 0.9995); measured with
+/// the margin: at most 0.2 tol from the converged answer, and runs on 1 and 3 ranks within
+/// 0.13 tol of each other.
+const MULTIPLE: f64 = 1.0;
 
 fn case(name: &str) -> String {
     let p: PathBuf = [env!("CARGO_MANIFEST_DIR"), "tests/data/tolerance", name]
