@@ -86,6 +86,9 @@ pub enum Retune {
 /// direction gets its own r (ALG2 converges for any positive r per direction: it is the
 /// same method for rescaled constraints).
 ///
+/// Undone: when more than half of the [`CYCLE_WINDOW`] sweeps since a retune changed a
+/// status, every direction returns to the reference r (within the budget).
+///
 /// When: the last [`SETTLED_SWEEPS`] sweeps, all with the current r, changed no status,
 /// and some direction's r differs from what its status asks for. At most
 /// [`MAX_RETUNES`] - 1 times, then once back to the reference r if the statuses move
@@ -98,6 +101,18 @@ pub fn retuned(history: &[Sweep], frictional: bool, n_contact: usize) -> Option<
     } else {
         SETTLED_SWEEPS
     };
+    // A retune whose statuses keep flipping: the node at the edge of the contact zone
+    // alternates between r x 1000 (held) and r / 1000 (free), a factor 1e6 that its
+    // projection overshoots, a cycle no settling ends (seen: one node flipping every
+    // sweep for 10000 sweeps on a beam). ALG2 with one r converges: back to it.
+    if last.stiff + last.soft > 0 && last.retunes < MAX_RETUNES && history.len() >= CYCLE_WINDOW {
+        let tail = &history[history.len() - CYCLE_WINDOW..];
+        if tail.iter().all(|s| s.retunes == last.retunes)
+            && 2 * tail.iter().filter(|s| s.changed > 0).count() > CYCLE_WINDOW
+        {
+            return Some(Retune::ToReference);
+        }
+    }
     if history.len() < settled || last.mistuned == 0 {
         return None;
     }
@@ -114,6 +129,14 @@ pub fn retuned(history: &[Sweep], frictional: bool, n_contact: usize) -> Option<
         _ => None,
     }
 }
+
+/// Sweeps after a retune over which a majority of status changes undoes it (see
+/// [`retuned`]). Measured on clamped beams and the cantilever of tests/data/tolerance
+/// (sweeps, frictionless / Coulomb): without the rule 58/95, 173/258, 517/483 for the
+/// 0.4, 1 and 2 m beams and 478/643 for the cantilever; with 20 sweeps 58/91, 173/152,
+/// 380/401 and 350/440; with 10, 58/78, 157/144, 410/823, 403/1112; with 30, 58/95,
+/// 173/158, 517/278, 478/445. The compact and built-in cases never trigger it.
+const CYCLE_WINDOW: usize = 20;
 
 /// Contact dofs (two per contact node, over all ranks) above which r is not retuned. The
 /// first retune refactors the dense contact blocks, about c^3 / 3 flops for c contact
@@ -178,6 +201,31 @@ mod tests {
         );
         let reset = sweep(0, 3, MAX_RETUNES);
         assert_eq!(retuned(&[reset, reset], false, 5), None);
+    }
+
+    #[test]
+    fn a_retune_whose_statuses_keep_flipping_is_undone() {
+        let mut flipping = sweep(1, 3, 1);
+        flipping.stiff = 4;
+        let mut quiet = flipping;
+        quiet.changed = 0;
+        // 11 of 20 sweeps since the retune changed a status: back to the reference r.
+        let mut h: Vec<Sweep> = (0..CYCLE_WINDOW)
+            .map(|i| if i % 2 == 0 { flipping } else { quiet })
+            .collect();
+        h[CYCLE_WINDOW - 1] = flipping;
+        assert_eq!(retuned(&h, false, 5), Some(Retune::ToReference));
+        // 10 of 20: not a majority (the last sweep changed nothing: the statuses settle).
+        h[CYCLE_WINDOW - 1] = quiet;
+        assert_eq!(retuned(&h, false, 5), Some(Retune::ToStatus));
+        // The window must lie after the retune.
+        let mut before = h.clone();
+        before[0].retunes = 0;
+        before[CYCLE_WINDOW - 1] = flipping;
+        assert_ne!(retuned(&before, false, 5), Some(Retune::ToReference));
+        // At the reference r there is nothing to undo.
+        let at_reference: Vec<Sweep> = (0..CYCLE_WINDOW).map(|_| sweep(1, 3, 1)).collect();
+        assert_eq!(retuned(&at_reference, false, 5), None);
     }
 
     #[test]
