@@ -4,17 +4,22 @@
 # of tests/data/tolerance (made by its make_cases.py), their frictionless variants, and
 # hertz, block and block_flat at levels 1-3. Iteration counts only: the result does not
 # depend on the machine's load.
-#   bash run-scripts/robustness.sh [--bin target/release/contact-par] [--out DIR]
+#   bash run-scripts/robustness.sh [--bin target/release/contact-par] [--out DIR] [--beams DIR]
+# --beams DIR also runs the clamped beams that
+#   python3 tests/data/tolerance/make_cases.py --beams --out DIR
+# writes (needs the Gmsh SDK: pip install gmsh).
 # Writes OUT/robustness.csv (case, nodes, iterations, refused, retunes, converged).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=target/release/contact-par
 OUT=robustness
+BEAMS=
 while [ $# -gt 0 ]; do
   case "$1" in
     --bin) BIN="$2"; shift 2 ;;
     --out) OUT="$2"; shift 2 ;;
-    *) echo "robustness.sh: unknown option $1 (expected --bin FILE or --out DIR)" >&2; exit 2 ;;
+    --beams) BEAMS=$(realpath "$2"); shift 2 ;;
+    *) echo "robustness.sh: unknown option $1 (expected --bin FILE, --out DIR or --beams DIR)" >&2; exit 2 ;;
   esac
 done
 BIN=$(realpath "$BIN")
@@ -41,6 +46,9 @@ echo "case,nodes,iterations,refused,retunes,converged" > "$OUT/robustness.csv"
 for c in cantilever cantilever_frictionless wall disc wedge wedge_frictionless; do
   row "$c" "$WORK/$c.toml"
 done
+if [ -n "$BEAMS" ]; then
+  for f in "$BEAMS"/beam_*.toml; do row "$(basename "$f" .toml)" "$f"; done
+fi
 for b in hertz block block_flat; do
   for l in 1 2 3; do row "$b-$l" --builtin "$b" --level "$l"; done
 done

@@ -5,6 +5,7 @@ Documentation of how the committed files were made; CI does not run it. Needs th
     pip install gmsh
     python3 tests/data/tolerance/make_cases.py                  # the committed test meshes
     python3 tests/data/tolerance/make_cases.py --scale 0.35 --out DIR   # finer (about 12k nodes)
+    python3 tests/data/tolerance/make_cases.py --beams --out DIR        # clamped beams 0.2-2 m
 `--scale` multiplies every mesh size; the case files are written next to the meshes.
 
 The cases, each with its own units, group names and foundation:
@@ -104,12 +105,78 @@ def wedge(scale):
     gmsh.model.mesh.generate(2)
 
 
+BEAM_CASE = """# A clamped steel beam {length} m long, 0.04 m deep (SI units), sagging under its own
+# weight onto a flat foundation a hundredth of its free tip deflection below; {law}.
+# Made by make_cases.py --beams.
+title = "Beam {length} m under self-weight on a foundation"
+
+[mesh]
+file = "{mesh}"
+
+[material]
+young = 2.1e11
+poisson = 0.3
+hypothesis = "plane_stress"
+
+[[dirichlet]]
+group = "clamp"
+ux = 0.0
+uy = 0.0
+
+[body_force]
+f = [0.0, -77008.5]
+
+[contact]
+group = "underside"
+obstacle_point = [0.0, {gap:.6e}]
+obstacle_normal = [0.0, 1.0]
+{friction}
+"""
+
+
+def beams(scale, out):
+    """Clamped beams of 0.2, 0.4, 1 and 2 m (the slender-body study of
+    docs/performance-history.md): beam_L.msh and beam_L_coulomb.toml, beam_L_none.toml."""
+    t, E, weight = 0.04, 2.1e11, 77008.5
+    for length in [0.2, 0.4, 1.0, 2.0]:
+        gmsh.model.add("beam")
+        lc = 0.008 * math.sqrt(length / 2.0) * scale
+        _, lines, surface = polygon([(0, 0), (length, 0), (length, t), (0, t)], lc)
+        gmsh.model.geo.synchronize()
+        gmsh.model.addPhysicalGroup(1, [lines[0]], name="underside")
+        gmsh.model.addPhysicalGroup(1, [lines[3]], name="clamp")
+        gmsh.model.addPhysicalGroup(2, [surface], name="steel")
+        gmsh.model.mesh.generate(2)
+        mesh = f"beam_{length}.msh"
+        write(out, mesh)
+        gmsh.model.remove()
+        # Free tip deflection q L^4 / (8 E I) of a cantilever under its own weight.
+        tip = weight * t * length**4 / (8 * E * t**3 / 12)
+        for name, law, friction in [
+            ("coulomb", "Coulomb 0.5", 'friction = "coulomb"\ncoefficient = 0.5'),
+            ("none", "frictionless", 'friction = "none"'),
+        ]:
+            text = BEAM_CASE.format(length=length, law=law, mesh=mesh, gap=-tip / 100,
+                                    friction=friction)
+            with open(os.path.join(out, f"beam_{length}_{name}.toml"), "w") as f:
+                f.write(text)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--scale", type=float, default=1.0)
     ap.add_argument("--out", default=HERE)
+    ap.add_argument("--beams", action="store_true",
+                    help="write the clamped beams of the slender-body study instead")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
+    if args.beams:
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("Mesh.Algorithm", 6)
+        beams(args.scale, args.out)
+        gmsh.finalize()
+        return
     gmsh.initialize()
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.option.setNumber("Mesh.Algorithm", 6)
