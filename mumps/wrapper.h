@@ -1,0 +1,1 @@
+#include <dmumps_c.h>
