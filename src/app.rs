@@ -47,8 +47,20 @@ pub struct Options {
     pub restart: bool,
     /// Fill-reducing ordering of the subdomain interiors.
     pub ordering: Ordering,
+    /// Where the interface system is factored.
+    pub interface: InterfaceMode,
     /// Subdomains per rank, each on its own thread; `None`: [`host::subdomains_per_rank`].
     pub subdomains_per_rank: Option<usize>,
+}
+
+/// Where the interface system (the subdomains' condensed parts, summed) is factored and
+/// solved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
+pub enum InterfaceMode {
+    /// Gathered, summed and factored on the first rank, which solves each sweep.
+    Rank0,
+    /// Assembled where its parts are and factored across the ranks by MUMPS.
+    Mumps,
 }
 
 /// How step 1 of the method (the linear solve) is made inside the loop.
@@ -275,6 +287,7 @@ struct Setup {
     contact_nodes: usize,
     partition: String,
     ordering: Ordering,
+    interface: InterfaceMode,
     /// Subdomains per rank.
     per_rank: usize,
 }
@@ -291,6 +304,7 @@ impl Setup {
             frictional: Problem::is_frictional(&self.case),
             n_interface: self.n_interface,
             ordering: self.ordering,
+            interface_mumps: self.interface == InterfaceMode::Mumps,
         }
     }
 
@@ -376,6 +390,7 @@ fn prepare(
         contact_nodes: prob.contact_nodes.len(),
         partition: quality,
         ordering: opts.ordering,
+        interface: opts.interface,
         per_rank,
         case,
     };

@@ -9,7 +9,7 @@
 //! 4 numerical failure, 5 outputs could not be written.
 
 use clap::Parser;
-use contact_par::app::{self, LinearMode, Options, Printer};
+use contact_par::app::{self, InterfaceMode, LinearMode, Options, Printer};
 use contact_par::case;
 use contact_par::contact::{Acceleration, CoulombMode, DEFAULT_ANDERSON_MEMORY};
 use contact_par::dd::comm::Mpi;
@@ -65,6 +65,11 @@ struct Cli {
     /// less fill, worth it on very large subdomains).
     #[arg(long, default_value = "auto", value_parser = parse_ordering)]
     ordering: Ordering,
+    /// Where the interface system is factored and solved: rank0 (summed and factored on
+    /// the first rank; default) or mumps (assembled where its parts are and factored
+    /// across the ranks by MUMPS, solved with distributed right-hand side and solution).
+    #[arg(long, default_value = "rank0", value_parser = parse_interface)]
+    interface: InterfaceMode,
     /// Save the loop state every N sweeps in OUT/checkpoint/ (atomically).
     #[arg(long, default_value_t = 0)]
     checkpoint_every: usize,
@@ -104,6 +109,14 @@ fn parse_ordering(s: &str) -> Result<Ordering, String> {
         "amd" => Ok(Ordering::Amd),
         "nd" => Ok(Ordering::NestedDissection),
         _ => Err(format!("\"{s}\" is not auto, amd or nd")),
+    }
+}
+
+fn parse_interface(s: &str) -> Result<InterfaceMode, String> {
+    match s {
+        "rank0" => Ok(InterfaceMode::Rank0),
+        "mumps" => Ok(InterfaceMode::Mumps),
+        _ => Err(format!("\"{s}\" is not rank0 or mumps")),
     }
 }
 
@@ -213,6 +226,7 @@ fn run() -> i32 {
         checkpoint_every: cli.checkpoint_every,
         restart: cli.restart,
         ordering: cli.ordering,
+        interface: cli.interface,
         subdomains_per_rank: cli.subdomains_per_rank.map(|k| k as usize),
     };
     let print = Printer {

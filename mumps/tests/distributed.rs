@@ -126,8 +126,12 @@ fn distributed_spd_factor_and_solve_on_1_to_4_ranks() {
         return;
     }
     let me = std::env::current_exe().unwrap();
+    // A session directory of its own: Open MPI's shared one races with other mpiruns.
+    let tmp = std::env::temp_dir().join(format!("mumps-test-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
     for np in 1..=4 {
         let out = Command::new("mpirun")
+            .env("TMPDIR", &tmp)
             .args(["-n", &np.to_string(), "--oversubscribe"])
             .arg(&me)
             .args([
@@ -147,4 +151,5 @@ fn distributed_spd_factor_and_solve_on_1_to_4_ranks() {
             String::from_utf8_lossy(&out.stderr)
         );
     }
+    let _ = std::fs::remove_dir_all(&tmp);
 }

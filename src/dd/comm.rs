@@ -11,8 +11,9 @@
 use crate::contact::Reduce;
 use crate::error::{Error, Result};
 use mpi::collective::SystemOperation;
-use mpi::datatype::PartitionMut;
+use mpi::datatype::{Partition, PartitionMut};
 use mpi::point_to_point::{Destination, Source};
+use mpi::raw::AsRaw;
 use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::traits::{CommunicatorCollectives, Root};
 use std::any::Any;
@@ -119,6 +120,66 @@ pub struct Mpi {
     pub mpi_size: usize,
     team: Arc<Team>,
     member: usize,
+}
+
+/// MPI as a team's leader sees it inside [`Mpi::on_leader`]: one caller per rank.
+pub struct Leader<'a> {
+    mpi: &'a Mpi,
+}
+
+impl Leader<'_> {
+    /// The number of ranks.
+    pub fn ranks(&self) -> usize {
+        self.mpi.mpi_size
+    }
+
+    /// The ranks' communicator as a Fortran handle (MPI_Comm_c2f), which is what MUMPS
+    /// keeps.
+    pub fn fortran_comm(&self) -> i32 {
+        // SAFETY: the communicator is valid as long as this rank's `Mpi` lives.
+        unsafe { mpi::ffi::MPI_Comm_c2f(self.mpi.world().as_raw()) }
+    }
+
+    /// All-to-all with lists of any length: `send[q]` goes to rank q; returns what each
+    /// rank sent here, by rank. Two collectives: the counts, then the values.
+    pub fn exchange<T>(&self, send: Vec<Vec<T>>) -> Vec<Vec<T>>
+    where
+        T: mpi::datatype::Equivalence + Copy + Default,
+    {
+        let p = self.mpi.mpi_size;
+        assert_eq!(send.len(), p, "exchange: one list per rank");
+        if p == 1 {
+            return send;
+        }
+        let world = self.mpi.world();
+        let counts: Vec<i32> = send.iter().map(|v| v.len() as i32).collect();
+        let mut recv_counts = vec![0i32; p];
+        world.all_to_all_into(&counts[..], &mut recv_counts[..]);
+        let displs = |c: &[i32]| -> Vec<i32> {
+            c.iter()
+                .scan(0, |acc, &x| {
+                    let d = *acc;
+                    *acc += x;
+                    Some(d)
+                })
+                .collect()
+        };
+        let flat: Vec<T> = send.concat();
+        let (sd, rd) = (displs(&counts), displs(&recv_counts));
+        let mut received = vec![T::default(); recv_counts.iter().sum::<i32>() as usize];
+        {
+            let out = Partition::new(&flat[..], &counts[..], &sd[..]);
+            let mut into = PartitionMut::new(&mut received[..], &recv_counts[..], &rd[..]);
+            world.all_to_all_varcount_into(&out, &mut into);
+        }
+        let mut by_rank = Vec::with_capacity(p);
+        let mut at = 0;
+        for &c in &recv_counts {
+            by_rank.push(received[at..at + c as usize].to_vec());
+            at += c as usize;
+        }
+        by_rank
+    }
 }
 
 /// What a member thread needs to build its [`Mpi`] (which holds no MPI handle).
@@ -277,6 +338,17 @@ impl Mpi {
                 }
             }
         })
+    }
+
+    /// The team hands its values to its leader, which runs `f` (MPI included, through
+    /// the [`Leader`] it is given) and hands every member the result. For work that only
+    /// one thread per rank may do, such as calling MUMPS.
+    pub fn on_leader<T: Send + 'static, R: Clone + Send + 'static>(
+        &self,
+        local: T,
+        f: impl FnOnce(&Leader, Vec<T>) -> R,
+    ) -> R {
+        self.leader_then_all(local, |s, parts| f(&Leader { mpi: s }, parts))
     }
 
     /// Concatenation over subdomains of `local` (subdomain s contributes `counts[s]`

@@ -66,6 +66,7 @@
 pub mod comm;
 pub mod condense;
 pub mod full;
+pub mod interface_mumps;
 pub mod local_factor;
 pub mod split;
 pub mod step;

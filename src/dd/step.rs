@@ -7,6 +7,7 @@ use crate::contact::operators::contact_blocks;
 use crate::contact::LinearStep;
 use crate::dd::comm::Mpi;
 use crate::dd::condense::{boundary_entries, ContactRows, InterfaceSystem, LocalResponse};
+use crate::dd::interface_mumps::{self, MumpsInterface};
 use crate::dd::local_factor::{InteriorForward, LocalFactor};
 use crate::dd::split::SubProblem;
 use crate::error::Result;
@@ -30,6 +31,9 @@ pub struct StepSetup<'a> {
     /// Interface dofs of the whole mesh (0: a single subdomain).
     pub n_interface: usize,
     pub ordering: Ordering,
+    /// The interface system factored across the ranks by MUMPS (see
+    /// [`crate::dd::interface_mumps`]), not on the first rank.
+    pub interface_mumps: bool,
 }
 
 /// This subdomain's factored matrix, boundary dofs last.
@@ -103,6 +107,8 @@ pub struct CondensedStep<'a> {
     response: LocalResponse,
     /// The interface system, on the first rank only.
     interface: Option<InterfaceSystem>,
+    /// The interface system factored by MUMPS, on each rank's team leader.
+    mumps: Option<MumpsInterface>,
     /// "dense" or "sparse", and its factorization's flops, as first built.
     interface_figures: (Option<&'static str>, f64),
     interface_counts: Vec<usize>,
@@ -139,22 +145,40 @@ impl<'a> CondensedStep<'a> {
         ))?;
         drop(schur);
 
-        // First rank: the interface system, summed and factored once.
+        // The interface system, summed and factored once: on the first rank, or across
+        // the ranks by MUMPS.
         let has_interface = setup.n_interface > 0;
-        let interface = if has_interface {
-            build_interface(mpi, sub, s_local, setup.n_interface)?
+        let mut mumps = None;
+        let (interface, interface_figures) = if has_interface && setup.interface_mumps {
+            let flops = interface_mumps::build(
+                mpi,
+                setup.n_interface,
+                sub.interface_global.clone(),
+                s_local,
+                &mut mumps,
+            )?;
+            // A rank's MUMPS work is its leader subdomain's.
+            (
+                None,
+                (Some("mumps"), if mumps.is_some() { flops } else { 0.0 }),
+            )
         } else {
-            None
+            let interface = if has_interface {
+                build_interface(mpi, sub, s_local, setup.n_interface)?
+            } else {
+                None
+            };
+            let figures = (
+                interface
+                    .as_ref()
+                    .map(|i| if i.is_sparse() { "sparse" } else { "dense" }),
+                interface
+                    .as_ref()
+                    .map_or(0.0, InterfaceSystem::factor_flops),
+            );
+            (interface, figures)
         };
-        let interface_counts = interface_counts(mpi, sub, has_interface);
-        let interface_figures = (
-            interface
-                .as_ref()
-                .map(|i| if i.is_sparse() { "sparse" } else { "dense" }),
-            interface
-                .as_ref()
-                .map_or(0.0, InterfaceSystem::factor_flops),
-        );
+        let interface_counts = interface_counts(mpi, sub, has_interface && !setup.interface_mumps);
         Ok(CondensedStep {
             mpi,
             setup,
@@ -163,6 +187,7 @@ impl<'a> CondensedStep<'a> {
             interior_forward,
             response: LocalResponse::new(rows, g_local),
             interface,
+            mumps,
             interface_figures,
             interface_counts,
             forces: Vec::new(),
@@ -200,8 +225,10 @@ impl<'a> CondensedStep<'a> {
             self.solve(&zero, &zero, &mut un, &mut ut)?;
         }
         let x_b = self.response.boundary_values();
-        // Free the interface system before the solve, as its last use has been.
+        // Free the interface system before the solve, as its last use has been (MUMPS's
+        // on every leader at once: its end is collective).
         drop(self.interface.take());
+        drop(self.mumps.take());
         let u_free = timer.time(Phase::OneSolve, || {
             self.local.factor.recover(&self.interior_forward, &x_b)
         });
@@ -231,7 +258,17 @@ impl LinearStep for CondensedStep<'_> {
         let updated = boundary_entries(&blocks, &self.sub.fixed, &self.sub.boundary_dofs)
             .and_then(|delta| self.local.factor.update_boundary(&delta));
         self.mpi.agree(updated)?;
-        if self.setup.n_interface > 0 {
+        if self.setup.n_interface > 0 && self.setup.interface_mumps {
+            // The old factor ends on every leader before the new one starts.
+            drop(self.mumps.take());
+            interface_mumps::build(
+                self.mpi,
+                self.setup.n_interface,
+                self.sub.interface_global.clone(),
+                self.local.factor.interface_schur(),
+                &mut self.mumps,
+            )?;
+        } else if self.setup.n_interface > 0 {
             self.interface = build_interface(
                 self.mpi,
                 self.sub,
@@ -257,7 +294,10 @@ impl LinearStep for CondensedStep<'_> {
         }
         let z = self.response.forward(&self.local.factor, &self.forces);
         self.x_g.resize(z.len(), 0.0);
-        if self.setup.n_interface > 0 {
+        if self.setup.n_interface > 0 && self.setup.interface_mumps {
+            let x = interface_mumps::solve(self.mpi, z, &mut self.mumps)?;
+            self.x_g.copy_from_slice(&x);
+        } else if self.setup.n_interface > 0 {
             self.mpi
                 .gather_to_root(z, &self.interface_counts, &mut self.gathered);
             if let Some(sys) = self.interface.as_mut() {
