@@ -57,10 +57,32 @@ pub struct Options {
 /// solved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 pub enum InterfaceMode {
+    /// [`InterfaceMode::Mumps`] from [`AUTO_MUMPS_SUBDOMAINS`] subdomains on, else
+    /// [`InterfaceMode::Rank0`].
+    Auto,
     /// Gathered, summed and factored on the first rank, which solves each sweep.
     Rank0,
     /// Assembled where its parts are and factored across the ranks by MUMPS.
     Mumps,
+}
+
+/// Subdomains from which `--interface auto` takes MUMPS. Measured on hertz level 4 with
+/// one subdomain per rank (docs/performance-history.md): up to 8, the first rank's
+/// factor is small (1.2 Gflop at 2187 interface dofs) and its solve per sweep faster
+/// (3 ms against 7 ms on 2 ranks); at 16 its factor is 25.8 Gflop, 9 times any
+/// subdomain's, and rank 0's peak memory 7 times the median rank's (MUMPS: 1.4 Gflop on
+/// the largest rank, 1.2 times the median memory); at 32, 107 Gflop.
+pub const AUTO_MUMPS_SUBDOMAINS: usize = 16;
+
+impl InterfaceMode {
+    /// The mode a job of `subdomains` subdomains runs with.
+    pub fn resolved(self, subdomains: usize) -> InterfaceMode {
+        match self {
+            InterfaceMode::Auto if subdomains >= AUTO_MUMPS_SUBDOMAINS => InterfaceMode::Mumps,
+            InterfaceMode::Auto => InterfaceMode::Rank0,
+            chosen => chosen,
+        }
+    }
 }
 
 /// How step 1 of the method (the linear solve) is made inside the loop.
@@ -390,7 +412,7 @@ fn prepare(
         contact_nodes: prob.contact_nodes.len(),
         partition: quality,
         ordering: opts.ordering,
-        interface: opts.interface,
+        interface: opts.interface.resolved(ranks * per_rank),
         per_rank,
         case,
     };

@@ -66,9 +66,10 @@ struct Cli {
     #[arg(long, default_value = "auto", value_parser = parse_ordering)]
     ordering: Ordering,
     /// Where the interface system is factored and solved: rank0 (summed and factored on
-    /// the first rank; default) or mumps (assembled where its parts are and factored
-    /// across the ranks by MUMPS, solved with distributed right-hand side and solution).
-    #[arg(long, default_value = "rank0", value_parser = parse_interface)]
+    /// the first rank), mumps (assembled where its parts are and factored across the
+    /// ranks by MUMPS, solved with distributed right-hand side and solution) or auto
+    /// (default: mumps from 16 subdomains on).
+    #[arg(long, default_value = "auto", value_parser = parse_interface)]
     interface: InterfaceMode,
     /// Save the loop state every N sweeps in OUT/checkpoint/ (atomically).
     #[arg(long, default_value_t = 0)]
@@ -114,9 +115,10 @@ fn parse_ordering(s: &str) -> Result<Ordering, String> {
 
 fn parse_interface(s: &str) -> Result<InterfaceMode, String> {
     match s {
+        "auto" => Ok(InterfaceMode::Auto),
         "rank0" => Ok(InterfaceMode::Rank0),
         "mumps" => Ok(InterfaceMode::Mumps),
-        _ => Err(format!("\"{s}\" is not rank0 or mumps")),
+        _ => Err(format!("\"{s}\" is not auto, rank0 or mumps")),
     }
 }
 

@@ -124,3 +124,28 @@ fn mumps_interface_equals_rank0_with_retunes_and_teams() {
 fn mumps_interface_equals_rank0_on_32_ranks() {
     compare(&["--builtin", "block", "--level", "3"], 32, 1);
 }
+
+/// `--interface auto` (the default) keeps the first rank's factor below 16 subdomains
+/// and takes MUMPS from 16 on, counting subdomains, not ranks.
+#[test]
+fn auto_takes_mumps_from_16_subdomains() {
+    let dir = tempfile::tempdir().unwrap();
+    for (np, k, expected) in [(4, 1, false), (4, 3, false), (16, 1, true), (4, 4, true)] {
+        let out = dir.path().join(format!("auto-{np}x{k}"));
+        let k = k.to_string();
+        let o = common::mpirun(np, dir.path())
+            .args(["--builtin", "block", "--level", "2"])
+            .args(["--subdomains-per-rank", &k, "--threads", "1"])
+            .args(["--quiet", "--out", out.to_str().unwrap()])
+            .output()
+            .expect("mpirun");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s = common::read_summary(&out.join("summary.json"));
+        assert_eq!(
+            s["interface_factor"] == "mumps",
+            expected,
+            "{np} x {k}: {}",
+            s["interface_factor"]
+        );
+    }
+}

@@ -1,7 +1,8 @@
 //! The condensed linear step of one subdomain: its matrix assembled and factored with
 //! the boundary dofs last, its contact dofs eliminated, the interface system summed and
-//! factored on the first rank, then per sweep one solve on the boundary system and, after
-//! the loop, the interior recovered. Collective calls go through [`Mpi`].
+//! factored on the first rank or across the ranks by MUMPS (`--interface`, see
+//! [`crate::dd::interface_mumps`]), then per sweep one solve on the boundary system and,
+//! after the loop, the interior recovered. Collective calls go through [`Mpi`].
 
 use crate::contact::operators::contact_blocks;
 use crate::contact::LinearStep;
