@@ -20,6 +20,7 @@ use crate::linear::Ordering;
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::{self, Gathered, PieceRows, RankStats, RunFacts, SubdomainSolution};
 use crate::problem::{self, Problem};
+use crate::split_dir::{self, Facts, Split};
 use crate::timer::{Phase, Timer, Timings};
 use serde::Serialize;
 use std::path::PathBuf;
@@ -51,6 +52,8 @@ pub struct Options {
     pub interface: InterfaceMode,
     /// Subdomains per rank, each on its own thread; `None`: [`host::subdomains_per_rank`].
     pub subdomains_per_rank: Option<usize>,
+    /// A directory of `contact-par split`: each subdomain reads its own part there.
+    pub mesh_split: Option<PathBuf>,
 }
 
 /// Where the interface system (the subdomains' condensed parts, summed) is factored and
@@ -136,6 +139,7 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
         .then(|| host::on_idle_cores(mpi.node_ranks, || prepare(opts, mpi.size, threads, &timer)));
     mpi.barrier_sleeping();
     let (setup, subs) = mpi.agree(prepared.transpose())?.unzip();
+    let subs = subs.flatten();
 
     // 3. Distribute: the set-up to every rank, every subdomain of a rank on a thread of
     // its own (this one included), then each its subproblem (`run_subdomain`).
@@ -160,9 +164,11 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
 /// One subdomain's run, from its subproblem to its outputs (collective over all).
 fn run_subdomain(ctx: &Subdomain, subs: Option<Vec<SubProblem>>) -> Result<RunReport> {
     let mpi = ctx.mpi;
-    let sub = &ctx
-        .timer
-        .time(Phase::Scatter, || mpi.agree(mpi.scatter_parts(subs)))?;
+    // From the first subdomain, or each its own from the split directory.
+    let sub = &ctx.timer.time(Phase::Scatter, || match &ctx.setup.split {
+        Some(split) => mpi.agree(split.read_part(mpi.rank)),
+        None => mpi.agree(mpi.scatter_parts(subs)),
+    })?;
     print_header(ctx);
 
     // 4-7. Assemble and factor, condense, iterate, recover.
@@ -299,15 +305,10 @@ struct Setup {
     mesh_stiffness: f64,
     /// Shift of the interface block of every local matrix (see `LocalFactor`).
     alpha: f64,
-    n_boundary: usize,
-    n_interface: usize,
-    normal: [f64; 2],
-    tangent: [f64; 2],
-    nodes: usize,
-    elements: usize,
-    free_dofs: usize,
-    contact_nodes: usize,
-    partition: String,
+    /// The figures of the whole problem and its partition.
+    facts: Facts,
+    /// Where each subdomain reads its part (`--mesh-split`), or `None`: from the first.
+    split: Option<Split>,
     ordering: Ordering,
     interface: InterfaceMode,
     /// Subdomains per rank.
@@ -315,16 +316,41 @@ struct Setup {
 }
 
 impl Setup {
+    fn new(
+        opts: &Options,
+        case: Case,
+        facts: Facts,
+        split: Option<Split>,
+        ranks: usize,
+        per_rank: usize,
+    ) -> Self {
+        let m = &case.material;
+        Setup {
+            r: case
+                .solver
+                .r
+                .unwrap_or_else(|| facts.lengths.default_r(&case)),
+            mesh_stiffness: facts.lengths.mesh_stiffness(&case),
+            alpha: m.young / (1.0 - m.poisson * m.poisson),
+            facts,
+            split,
+            ordering: opts.ordering,
+            interface: opts.interface.resolved(ranks * per_rank),
+            per_rank,
+            case,
+        }
+    }
+
     /// What every subdomain's condensed step shares.
     fn step(&self) -> StepSetup<'_> {
         StepSetup {
             material: &self.case.material,
             r: self.r,
             alpha: self.alpha,
-            normal: self.normal,
-            tangent: self.tangent,
+            normal: self.facts.normal,
+            tangent: self.facts.tangent,
             frictional: Problem::is_frictional(&self.case),
-            n_interface: self.n_interface,
+            n_interface: self.facts.n_interface,
             ordering: self.ordering,
             interface_mumps: self.interface == InterfaceMode::Mumps,
         }
@@ -341,8 +367,8 @@ impl Setup {
             contact: ContactDofs {
                 nodes: &sub.contact_nodes,
                 w: &sub.contact.w,
-                normal: self.normal,
-                tangent: self.tangent,
+                normal: self.facts.normal,
+                tangent: self.facts.tangent,
                 frictional: Problem::is_frictional(&self.case),
             },
             r: self.r,
@@ -366,14 +392,26 @@ impl Setup {
     }
 }
 
-/// Phases 1 and 2 on the first rank. `threads`: of each rank (for the default number of
-/// subdomains per rank).
+/// Phases 1 and 2 on the first rank: the set-up, and the subproblems unless each
+/// subdomain reads its own from a split directory. `threads`: of each rank (for the
+/// default number of subdomains per rank).
 fn prepare(
     opts: &Options,
     ranks: usize,
     threads: usize,
     timer: &Timer,
-) -> Result<(Setup, Vec<SubProblem>)> {
+) -> Result<(Setup, Option<Vec<SubProblem>>)> {
+    if let Some(dir) = &opts.mesh_split {
+        let (case, split) = timer.time(Phase::Read, || -> Result<_> {
+            let case = load_case(opts)?;
+            let split = split_dir::open(dir, &case)?;
+            Ok((case, split))
+        })?;
+        let per_rank = split_per_rank(opts, &split, ranks)?;
+        let facts = split.facts.clone();
+        let setup = Setup::new(opts, case, facts, Some(split), ranks, per_rank);
+        return Ok((setup, None));
+    }
     // 1. Read and validate the case and the mesh.
     let (case, prob, mesh_name) = timer.time(Phase::Read, || read(opts))?;
     // 2. Partition the mesh into subdomains and split the problem along the cut.
@@ -383,40 +421,121 @@ fn prepare(
         None if opts.linear == LinearMode::Full => 1,
         None => host::subdomains_per_rank(threads, ranks, triangles),
     };
-    let (subs, map, quality) = timer.time(Phase::Partition, || -> Result<_> {
+    let (facts, subs) = timer.time(Phase::Partition, || {
         let nparts = check_subdomains(&mesh_name, triangles, ranks, per_rank)?;
-        let part = partition::partition_mesh(
-            prob.mesh.num_nodes(),
-            &prob.mesh.triangles,
-            &prob.contact_nodes,
-            nparts,
-        )
-        .map_err(|e| Error::Input(format!("{mesh_name}: cannot partition the mesh: {e}")))?;
-        let (subs, map) = split(&prob, &part, Problem::is_frictional(&case))?;
-        Ok((subs, map, part.quality.to_string()))
+        partition_problem(&case, &prob, &mesh_name, nparts)
     })?;
-    let r = case.solver.r.unwrap_or_else(|| prob.default_r(&case));
-    let mesh_stiffness = prob.mesh_stiffness(&case);
-    let m = &case.material;
-    let setup = Setup {
-        r,
-        mesh_stiffness,
-        alpha: m.young / (1.0 - m.poisson * m.poisson),
+    let setup = Setup::new(opts, case, facts, None, ranks, per_rank);
+    Ok((setup, Some(subs)))
+}
+
+/// Subdomains per rank of a run from `split`: its parts over the ranks, which must
+/// divide them.
+fn split_per_rank(opts: &Options, split: &Split, ranks: usize) -> Result<usize> {
+    let (parts, dir) = (split.parts, split.dir.display());
+    if parts % ranks != 0 {
+        let divisors: Vec<String> = (1..=parts)
+            .filter(|k| parts % k == 0)
+            .map(|k| k.to_string())
+            .collect();
+        return Err(Error::Input(format!(
+            "{dir}: the split has {parts} parts for {ranks} ranks; run on a number of ranks that divides {parts} ({}), or split again with --parts {ranks}",
+            divisors.join(", ")
+        )));
+    }
+    let per_rank = parts / ranks;
+    match opts.subdomains_per_rank {
+        Some(k) if k != per_rank => Err(Error::Input(format!(
+            "{dir}: --subdomains-per-rank {k} on {ranks} ranks makes {} subdomains, the split has {parts} parts; leave --subdomains-per-rank out (it is {per_rank} here)",
+            k * ranks
+        ))),
+        _ if opts.linear == LinearMode::Full && parts > 1 => Err(Error::Input(format!(
+            "{dir}: --linear full runs on one subdomain, the split has {parts} parts; use the default (condensed) or a split with --parts 1"
+        ))),
+        _ => Ok(per_rank),
+    }
+}
+
+/// Partitions `prob` into `nparts` subdomains and splits it along the cut.
+fn partition_problem(
+    case: &Case,
+    prob: &Problem,
+    mesh_name: &str,
+    nparts: usize,
+) -> Result<(Facts, Vec<SubProblem>)> {
+    let part = partition::partition_mesh(
+        prob.mesh.num_nodes(),
+        &prob.mesh.triangles,
+        &prob.contact_nodes,
+        nparts,
+    )
+    .map_err(|e| Error::Input(format!("{mesh_name}: cannot partition the mesh: {e}")))?;
+    let (subs, map) = split(prob, &part, Problem::is_frictional(case))?;
+    let facts = Facts {
+        lengths: prob.lengths(),
         n_boundary: map.n_boundary,
         n_interface: map.n_interface,
         normal: prob.normal,
         tangent: prob.tangent,
         nodes: prob.mesh.num_nodes(),
-        elements: triangles,
+        elements: prob.mesh.triangles.len(),
         free_dofs: prob.fixed.iter().filter(|f| f.is_none()).count(),
         contact_nodes: prob.contact_nodes.len(),
-        partition: quality,
-        ordering: opts.ordering,
-        interface: opts.interface.resolved(ranks * per_rank),
-        per_rank,
-        case,
+        partition: part.quality.to_string(),
     };
-    Ok((setup, subs))
+    Ok((facts, subs))
+}
+
+/// What `contact-par split` is asked for.
+#[derive(Debug, Clone)]
+pub struct SplitOptions {
+    /// A case file, or `None` for a built-in case.
+    pub case_file: Option<PathBuf>,
+    pub builtin: String,
+    pub level: u32,
+    pub parts: usize,
+    pub out: PathBuf,
+}
+
+/// `contact-par split`: reads the case and its mesh, partitions and splits them into
+/// `parts` subdomains, the same as a run on that many would, and writes one file per
+/// part (see `split_dir`). Serial: one process holds the whole mesh, once.
+pub fn split_case(opts: &SplitOptions, print: &Printer) -> Result<()> {
+    let case = match &opts.case_file {
+        Some(path) => case::read_case(path)?,
+        None => case::builtin_case(&opts.builtin, opts.level)?,
+    };
+    let (mesh, mesh_name) = load_mesh(&case)?;
+    let prob = problem::build(&case, mesh, &mesh_name)?;
+    let triangles = prob.mesh.triangles.len();
+    if opts.parts > triangles {
+        return Err(Error::Input(format!(
+            "{mesh_name}: --parts {} for {triangles} triangles; use at most as many parts as triangles (better: thousands of triangles each)",
+            opts.parts
+        )));
+    }
+    let (facts, subs) = partition_problem(&case, &prob, &mesh_name, opts.parts)?;
+    drop(prob);
+    let split = split_dir::write(&opts.out, &case, &facts, &subs)?;
+    print.line(format!(
+        "split: {} nodes, {} triangles, {} contact nodes into {} parts ({}) in {}",
+        facts.nodes,
+        facts.elements,
+        facts.contact_nodes,
+        split.parts,
+        facts.partition,
+        opts.out.display()
+    ));
+    let case_arg = match &opts.case_file {
+        Some(p) => p.display().to_string(),
+        None => format!("--builtin {} --level {}", opts.builtin, opts.level),
+    };
+    print.line(format!(
+        "run it with: mpirun -n N contact-par {case_arg} --mesh-split {}   (N dividing {})",
+        opts.out.display(),
+        split.parts
+    ));
+    Ok(())
 }
 
 /// The case, its problem on its mesh, and the mesh's name for messages.
@@ -486,9 +605,9 @@ fn print_header(ctx: &Subdomain) {
     ctx.print.line(format!(
         "contact-par: {} | {} nodes, {} triangles, {} contact nodes | friction {} | r = {:e}, tol = {:e} | {} rank(s) x {} thread(s){}",
         if case.title.is_empty() { &case.origin } else { &case.title },
-        setup.nodes,
-        setup.elements,
-        setup.contact_nodes,
+        setup.facts.nodes,
+        setup.facts.elements,
+        setup.facts.contact_nodes,
         friction_name(&case.contact.friction),
         setup.r,
         case.solver.tol,
@@ -501,7 +620,8 @@ fn print_header(ctx: &Subdomain) {
         }
     ));
     if ctx.mpi.size > 1 {
-        ctx.print.line(format!("partition: {}", setup.partition));
+        ctx.print
+            .line(format!("partition: {}", setup.facts.partition));
     }
 }
 
@@ -575,8 +695,8 @@ impl Solved {
     ) -> Self {
         for (k, &node) in sub.contact_nodes.iter().enumerate() {
             let u = u[node];
-            outcome.un[k] = -(setup.normal[0] * u[0] + setup.normal[1] * u[1]);
-            outcome.ut[k] = setup.tangent[0] * u[0] + setup.tangent[1] * u[1];
+            outcome.un[k] = -(setup.facts.normal[0] * u[0] + setup.facts.normal[1] * u[1]);
+            outcome.ut[k] = setup.facts.tangent[0] * u[0] + setup.facts.tangent[1] * u[1];
         }
         Solved {
             outcome,
@@ -707,17 +827,17 @@ fn run_facts(ctx: &Subdomain) -> RunFacts {
         ranks: ctx.mpi.mpi_size,
         threads: rayon::current_num_threads(),
         linear: format!("{:?}", ctx.opts.linear).to_lowercase(),
-        nodes: setup.nodes,
-        elements: setup.elements,
-        dofs: 2 * setup.nodes,
-        free_dofs: setup.free_dofs,
-        boundary_dofs: setup.n_boundary,
-        interface_dofs: setup.n_interface,
-        contact_nodes: setup.contact_nodes,
+        nodes: setup.facts.nodes,
+        elements: setup.facts.elements,
+        dofs: 2 * setup.facts.nodes,
+        free_dofs: setup.facts.free_dofs,
+        boundary_dofs: setup.facts.n_boundary,
+        interface_dofs: setup.facts.n_interface,
+        contact_nodes: setup.facts.contact_nodes,
         friction: friction_name(&case.contact.friction),
         r: setup.r,
         tol: case.solver.tol,
-        partition: setup.partition.clone(),
+        partition: setup.facts.partition.clone(),
         subdomains: ctx.mpi.size,
         subdomains_per_rank: setup.per_rank,
     }

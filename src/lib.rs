@@ -17,4 +17,5 @@ pub mod linear;
 pub mod mesh;
 pub mod output;
 pub mod problem;
+pub mod split_dir;
 pub mod timer;

@@ -22,9 +22,12 @@ use std::path::PathBuf;
 #[command(
     name = "contact-par",
     version,
-    about = "2D elastic contact (frictionless, Tresca, Coulomb) with a rigid foundation, Uzawa block relaxation, on one core or many MPI ranks"
+    about = "2D elastic contact (frictionless, Tresca, Coulomb) with a rigid foundation, Uzawa block relaxation, on one core or many MPI ranks",
+    args_conflicts_with_subcommands = true
 )]
 struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
     /// Case file (TOML). Without it, the built-in case given by --builtin runs.
     case: Option<PathBuf>,
     /// Output directory.
@@ -94,6 +97,36 @@ struct Cli {
     /// comparison: a sparse forward and backward solve per sweep).
     #[arg(long, default_value = "condensed", value_parser = parse_linear)]
     linear: LinearMode,
+    /// A directory written by `contact-par split`: each subdomain reads its own part
+    /// there, and no rank reads the whole mesh. The ranks must divide its parts (each
+    /// runs parts / ranks subdomains).
+    #[arg(long, value_name = "DIR")]
+    mesh_split: Option<PathBuf>,
+}
+
+#[derive(clap::Subcommand, Debug)]
+enum Command {
+    /// Read, partition and split a case once, on one process, into one file per part,
+    /// for runs with --mesh-split (where no rank then reads the whole mesh).
+    Split(SplitArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct SplitArgs {
+    /// Case file (TOML). Without it, the built-in case given by --builtin.
+    case: Option<PathBuf>,
+    /// Number of parts: the subdomains of the runs (ranks x subdomains per rank).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    parts: u64,
+    /// Directory of the part files and their manifest (split.json).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Built-in case when no case file is given: hertz, block, block_flat.
+    #[arg(long, default_value = "hertz")]
+    builtin: String,
+    /// Refinement level of the built-in case.
+    #[arg(long, default_value_t = 1)]
+    level: u32,
 }
 
 fn parse_linear(s: &str) -> Result<LinearMode, String> {
@@ -176,6 +209,9 @@ fn run() -> i32 {
             return if e.use_stderr() { 2 } else { 0 };
         }
     };
+    if let Some(Command::Split(args)) = cli.command {
+        return split(args, world.size(), rank);
+    }
     if cli.print_case {
         if rank == 0 {
             match case::builtin_case_text(&cli.builtin, cli.level) {
@@ -230,6 +266,7 @@ fn run() -> i32 {
         ordering: cli.ordering,
         interface: cli.interface,
         subdomains_per_rank: cli.subdomains_per_rank.map(|k| k as usize),
+        mesh_split: cli.mesh_split,
     };
     let print = Printer {
         enabled: rank == 0 && !opts.quiet,
@@ -237,6 +274,28 @@ fn run() -> i32 {
     match app::run(&opts, mpi, &print) {
         Ok(report) if report.converged => 0,
         Ok(_) => 3,
+        Err(e) => report(e),
+    }
+}
+
+/// `contact-par split`: one process, as it holds the whole mesh (several would write the
+/// same files).
+fn split(args: SplitArgs, ranks: i32, rank: i32) -> i32 {
+    if ranks > 1 {
+        if rank == 0 {
+            eprintln!("contact-par: error: split runs on one process, it reads the whole mesh once; run it without mpirun, then mpirun -n N contact-par ... --mesh-split DIR");
+        }
+        return 2;
+    }
+    let opts = app::SplitOptions {
+        case_file: args.case,
+        builtin: args.builtin,
+        level: args.level,
+        parts: args.parts as usize,
+        out: args.out,
+    };
+    match app::split_case(&opts, &Printer { enabled: true }) {
+        Ok(()) => 0,
         Err(e) => report(e),
     }
 }

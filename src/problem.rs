@@ -9,6 +9,7 @@ use crate::fem::assembly::{add_body_force, add_edge_traction, edge_length};
 use crate::fem::Hypothesis;
 use crate::mesh::validate::{self, Free, Holds};
 use crate::mesh::Mesh;
+use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
 /// The discrete problem on the whole mesh.
@@ -41,19 +42,17 @@ impl Problem {
     /// (r = E/h) or worse. Measured on the built-in cases at four levels: within 1.3x of
     /// the best r of a sweep over two decades (see the note of the core issue).
     pub fn default_r(&self, case: &Case) -> f64 {
-        (self.mesh_stiffness(case) * self.compact_stiffness(case)).sqrt()
+        self.lengths().default_r(case)
     }
 
     /// E_eff / h: how stiff the body is, seen from the contact boundary, for modes at the
     /// scale of the mesh (the stiffest).
     pub fn mesh_stiffness(&self, case: &Case) -> f64 {
-        effective_modulus(case) / self.contact_h
+        self.lengths().mesh_stiffness(case)
     }
 
-    /// E_eff / L, L the smaller side of the bounding box: how stiff a compact body is for
-    /// smooth modes (the softest). A slender body is far softer (it bends): the loop
-    /// measures that and lowers r (see `contact::probe`).
-    pub fn compact_stiffness(&self, case: &Case) -> f64 {
+    /// The mesh's two lengths behind r: h, and L the smaller side of the bounding box.
+    pub fn lengths(&self) -> Lengths {
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for p in &self.mesh.nodes {
             for c in 0..2 {
@@ -61,12 +60,43 @@ impl Problem {
                 hi[c] = hi[c].max(p[c]);
             }
         }
-        let size = (hi[0] - lo[0]).min(hi[1] - lo[1]).max(self.contact_h);
-        effective_modulus(case) / size
+        Lengths {
+            contact_h: self.contact_h,
+            compact: (hi[0] - lo[0]).min(hi[1] - lo[1]).max(self.contact_h),
+        }
     }
 
     pub fn is_frictional(case: &Case) -> bool {
         !matches!(case.contact.friction, Friction::None)
+    }
+}
+
+/// The two lengths of the mesh that set the default r (kept in a split directory, so that
+/// a run from it needs no mesh and may change the material).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Lengths {
+    /// Mean length of the contact edges, h.
+    pub contact_h: f64,
+    /// The smaller side of the body's bounding box, L (at least h).
+    pub compact: f64,
+}
+
+impl Lengths {
+    /// See [`Problem::default_r`].
+    pub fn default_r(&self, case: &Case) -> f64 {
+        (self.mesh_stiffness(case) * self.compact_stiffness(case)).sqrt()
+    }
+
+    /// See [`Problem::mesh_stiffness`].
+    pub fn mesh_stiffness(&self, case: &Case) -> f64 {
+        effective_modulus(case) / self.contact_h
+    }
+
+    /// E_eff / L: how stiff a compact body is for smooth modes (the softest). A slender
+    /// body is far softer (it bends): the loop measures that and lowers r (see
+    /// `contact::probe`).
+    pub fn compact_stiffness(&self, case: &Case) -> f64 {
+        effective_modulus(case) / self.compact
     }
 }
 

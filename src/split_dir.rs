@@ -1,0 +1,364 @@
+//! Split directories: a case read, partitioned and split once, serially (`contact-par
+//! split`), into one file per part, so that a run (`--mesh-split DIR`) has each subdomain
+//! read its own part and no rank reads the whole mesh.
+//!
+//! `DIR/split.json`, the manifest, is written last (a split cut short has none): how many
+//! parts, what they were made from, and the figures of the whole problem that a run prints
+//! and starts from. `DIR/part-NNNNN.bin` holds one [`SubProblem`] behind a header that
+//! names its split and its index, so that a part of another split is refused.
+//!
+//! A run reads the case file again. Only what the parts are made of must be unchanged:
+//! the mesh, the Dirichlet conditions, the tractions, the body force, the contact group,
+//! the foundation and whether there is friction (which decides the boundary dofs). The
+//! material, the friction coefficient or threshold and the solver settings may change
+//! between runs of one split: the split keeps the mesh's lengths, not the default r.
+
+use crate::case::{Case, MeshSource};
+use crate::contact::Friction;
+use crate::dd::split::SubProblem;
+use crate::error::{Error, Result};
+use crate::output::write_atomic;
+use crate::problem::Lengths;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// The manifest's file name in a split directory.
+pub const MANIFEST: &str = "split.json";
+/// Bumped whenever the part files or the manifest change layout.
+const FORMAT: u32 = 1;
+const MAGIC: &[u8; 8] = b"CPSPLIT\x01";
+
+/// What partitioning and splitting a case fixes, whoever did it (the first rank of a run,
+/// or `contact-par split` before): the figures of the whole problem that every rank needs
+/// and no rank can compute from its own part.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Facts {
+    pub lengths: Lengths,
+    pub n_boundary: usize,
+    pub n_interface: usize,
+    pub normal: [f64; 2],
+    pub tangent: [f64; 2],
+    pub nodes: usize,
+    pub elements: usize,
+    pub free_dofs: usize,
+    pub contact_nodes: usize,
+    /// The partition's quality report.
+    pub partition: String,
+}
+
+/// A split directory checked against the case of the run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Split {
+    pub dir: PathBuf,
+    pub parts: usize,
+    /// Every part file of this split carries it.
+    pub id: String,
+    pub facts: Facts,
+}
+
+#[derive(Serialize, Deserialize)]
+struct Manifest {
+    format: u32,
+    program: String,
+    parts: usize,
+    id: String,
+    /// Where the case came from, for messages.
+    case: String,
+    mesh_file: Option<MeshFile>,
+    /// A hash of each part of the case that the part files depend on.
+    fingerprint: BTreeMap<String, String>,
+    facts: Facts,
+}
+
+#[derive(Serialize, Deserialize)]
+struct MeshFile {
+    name: String,
+    bytes: u64,
+    sha256: String,
+}
+
+#[derive(Serialize, Deserialize)]
+struct PartHeader {
+    format: u32,
+    id: String,
+    part: usize,
+    parts: usize,
+}
+
+/// The file of part `part` in `dir`.
+pub fn part_path(dir: &Path, part: usize) -> PathBuf {
+    dir.join(format!("part-{part:05}.bin"))
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn sha256(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
+/// The hashes of what the parts are made of, section by section (so that a mismatch can
+/// be named). The mesh file by its name only: its bytes are checked apart.
+fn fingerprint(case: &Case) -> BTreeMap<String, String> {
+    let mesh = match &case.mesh {
+        MeshSource::File(p) => format!(
+            "file {}",
+            p.file_name()
+                .map_or_else(String::new, |f| f.to_string_lossy().into_owned())
+        ),
+        MeshSource::Builtin { name, level } => format!("builtin {name:?} {level}"),
+    };
+    let c = &case.contact;
+    let contact = format!(
+        "{} {} {} {}",
+        json(&c.group),
+        json(&c.obstacle_point),
+        json(&c.obstacle_normal),
+        !matches!(c.friction, Friction::None)
+    );
+    [
+        ("mesh", mesh),
+        ("dirichlet", json(&case.dirichlet)),
+        ("traction", json(&case.traction)),
+        ("body_force", json(&case.body_force)),
+        ("contact", contact),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), sha256(v.as_bytes())[..16].to_string()))
+    .collect()
+}
+
+fn json<T: Serialize + ?Sized>(v: &T) -> String {
+    serde_json::to_string(v).unwrap_or_default()
+}
+
+/// The mesh file's name, size and hash, read in pieces (it may be large).
+fn mesh_file(case: &Case) -> Result<Option<MeshFile>> {
+    let MeshSource::File(path) = &case.mesh else {
+        return Ok(None);
+    };
+    let fail = |e: std::io::Error| Error::Input(format!("{}: cannot read: {e}", path.display()));
+    let mut file = std::fs::File::open(path).map_err(fail)?;
+    let (mut hasher, mut buf, mut bytes) = (Sha256::new(), vec![0u8; 1 << 20], 0u64);
+    loop {
+        let n = file.read(&mut buf).map_err(fail)?;
+        if n == 0 {
+            break;
+        }
+        hasher.update(&buf[..n]);
+        bytes += n as u64;
+    }
+    Ok(Some(MeshFile {
+        name: path
+            .file_name()
+            .map_or_else(String::new, |f| f.to_string_lossy().into_owned()),
+        bytes,
+        sha256: hex(&hasher.finalize()),
+    }))
+}
+
+/// Writes `subs` (part k at index k) and then the manifest into `dir`, each file
+/// atomically. Part files of an earlier split with more parts are removed first, so
+/// that the directory holds one split only.
+pub fn write(dir: &Path, case: &Case, facts: &Facts, subs: &[SubProblem]) -> Result<Split> {
+    let parts = subs.len();
+    let out = |e: std::io::Error| {
+        Error::Output(format!(
+            "{}: cannot write the split: {e}; check that the directory is writable",
+            dir.display()
+        ))
+    };
+    std::fs::create_dir_all(dir).map_err(out)?;
+    // An old manifest must not vouch for a half-written new split.
+    match std::fs::remove_file(dir.join(MANIFEST)) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(out(e)),
+        _ => {}
+    }
+    for entry in std::fs::read_dir(dir).map_err(out)? {
+        let name = entry.map_err(out)?.file_name();
+        let name = name.to_string_lossy();
+        let index = name
+            .strip_prefix("part-")
+            .and_then(|s| s.strip_suffix(".bin"))
+            .and_then(|s| s.parse::<usize>().ok());
+        if index.is_some_and(|k| k >= parts) {
+            std::fs::remove_file(dir.join(&*name)).map_err(out)?;
+        }
+    }
+    let mesh_file = mesh_file(case)?;
+    let fingerprint = fingerprint(case);
+    let id = {
+        let mut h = Sha256::new();
+        h.update(env!("CARGO_PKG_VERSION").as_bytes());
+        h.update(format!("{FORMAT} {parts} {fingerprint:?}").as_bytes());
+        if let Some(m) = &mesh_file {
+            h.update(m.sha256.as_bytes());
+        }
+        hex(&h.finalize())[..16].to_string()
+    };
+    for (part, sub) in subs.iter().enumerate() {
+        let header = PartHeader {
+            format: FORMAT,
+            id: id.clone(),
+            part,
+            parts,
+        };
+        let mut bytes = MAGIC.to_vec();
+        bytes = postcard::to_extend(&header, bytes).map_err(|e| encode_failed(dir, e))?;
+        bytes = postcard::to_extend(sub, bytes).map_err(|e| encode_failed(dir, e))?;
+        write_atomic(&part_path(dir, part), &bytes)?;
+    }
+    let manifest = Manifest {
+        format: FORMAT,
+        program: format!("contact-par {}", env!("CARGO_PKG_VERSION")),
+        parts,
+        id: id.clone(),
+        case: case.origin.clone(),
+        mesh_file,
+        fingerprint,
+        facts: facts.clone(),
+    };
+    let text = serde_json::to_string_pretty(&manifest).map_err(|e| encode_failed(dir, e))?;
+    write_atomic(&dir.join(MANIFEST), format!("{text}\n").as_bytes())?;
+    Ok(Split {
+        dir: dir.to_path_buf(),
+        parts,
+        id,
+        facts: facts.clone(),
+    })
+}
+
+fn encode_failed(dir: &Path, e: impl std::fmt::Display) -> Error {
+    Error::Output(format!("{}: cannot encode the split: {e}", dir.display()))
+}
+
+/// The way out of a bad or mismatched split directory.
+fn split_again(case: &Case, dir: &Path) -> String {
+    let case_arg = match &case.mesh {
+        MeshSource::Builtin { .. } => format!("--builtin ... --level ... (as for {})", case.origin),
+        MeshSource::File(_) => case.origin.clone(),
+    };
+    format!(
+        "make it again: contact-par split {case_arg} --parts N --out {}",
+        dir.display()
+    )
+}
+
+/// Reads the manifest of `dir` and checks it against the run's `case`: same sections of
+/// the case, same mesh file size where the mesh file is at hand (a run on a cluster may
+/// have the split directory only).
+pub fn open(dir: &Path, case: &Case) -> Result<Split> {
+    let path = dir.join(MANIFEST);
+    let again = || split_again(case, dir);
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        Error::Input(format!(
+            "{}: cannot read the split's manifest ({e}): --mesh-split wants a directory written by contact-par split; {}",
+            path.display(),
+            again()
+        ))
+    })?;
+    let m: Manifest = serde_json::from_str(&text).map_err(|e| {
+        Error::Input(format!(
+            "{}: not a manifest of contact-par split ({e}); {}",
+            path.display(),
+            again()
+        ))
+    })?;
+    if m.format != FORMAT {
+        return Err(Error::Input(format!(
+            "{}: split by another version of contact-par ({}, format {}; this one reads format {FORMAT}); {}",
+            path.display(),
+            m.program,
+            m.format,
+            again()
+        )));
+    }
+    let ours = fingerprint(case);
+    let differ: Vec<&str> = ours
+        .iter()
+        .filter(|(k, v)| m.fingerprint.get(*k) != Some(v))
+        .map(|(k, _)| k.as_str())
+        .collect();
+    if !differ.is_empty() {
+        return Err(Error::Input(format!(
+            "{}: split from another case ({}): its {} {} from {}; {}",
+            path.display(),
+            m.case,
+            differ.join(", "),
+            if differ.len() == 1 {
+                "section differs"
+            } else {
+                "sections differ"
+            },
+            case.origin,
+            again()
+        )));
+    }
+    if let (MeshSource::File(mesh), Some(recorded)) = (&case.mesh, &m.mesh_file) {
+        if let Ok(meta) = std::fs::metadata(mesh) {
+            if meta.len() != recorded.bytes {
+                return Err(Error::Input(format!(
+                    "{}: split from another {} ({} bytes, this one has {}); {}",
+                    path.display(),
+                    mesh.display(),
+                    recorded.bytes,
+                    meta.len(),
+                    again()
+                )));
+            }
+        }
+    }
+    if m.parts == 0 {
+        return Err(Error::Input(format!(
+            "{}: the split has no parts; {}",
+            path.display(),
+            again()
+        )));
+    }
+    Ok(Split {
+        dir: dir.to_path_buf(),
+        parts: m.parts,
+        id: m.id,
+        facts: m.facts,
+    })
+}
+
+impl Split {
+    /// Reads part `part` and checks that it belongs to this split.
+    pub fn read_part(&self, part: usize) -> Result<SubProblem> {
+        let path = part_path(&self.dir, part);
+        let bad = |why: String| {
+            Error::Input(format!(
+                "{}: {why}; the split in {} is damaged: make it again with contact-par split",
+                path.display(),
+                self.dir.display()
+            ))
+        };
+        let bytes = std::fs::read(&path)
+            .map_err(|e| bad(format!("cannot read part {part} of {} ({e})", self.parts)))?;
+        let body = bytes
+            .strip_prefix(MAGIC.as_slice())
+            .ok_or_else(|| bad("not a part file of contact-par split".into()))?;
+        let (header, rest): (PartHeader, &[u8]) =
+            postcard::take_from_bytes(body).map_err(|e| bad(format!("unreadable header ({e})")))?;
+        if header.format != FORMAT || header.id != self.id || header.parts != self.parts {
+            return Err(bad(format!(
+                "belongs to another split (id {}, {} parts; {MANIFEST} says id {}, {} parts)",
+                header.id, header.parts, self.id, self.parts
+            )));
+        }
+        if header.part != part {
+            return Err(bad(format!("holds part {}, not {part}", header.part)));
+        }
+        let sub: SubProblem =
+            postcard::from_bytes(rest).map_err(|e| bad(format!("truncated or corrupt ({e})")))?;
+        if sub.rank != part {
+            return Err(bad(format!("holds subdomain {}, not {part}", sub.rank)));
+        }
+        Ok(sub)
+    }
+}
