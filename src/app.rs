@@ -18,7 +18,9 @@ use crate::error::{Error, Result};
 use crate::host;
 use crate::linear::Ordering;
 use crate::mesh::{builtin, gmsh, Mesh};
-use crate::output::{self, Gathered, PieceRows, RankStats, RunFacts, SubdomainSolution};
+use crate::output::{
+    self, blocks, Gathered, PieceRows, RankStats, RunFacts, SharedFile, SubdomainSolution,
+};
 use crate::problem::{self, Problem};
 use crate::split_dir::{self, Facts, Split};
 use crate::timer::{Phase, Timer, Timings};
@@ -254,9 +256,15 @@ fn write(ctx: &Subdomain, sub: &SubProblem, solved: &Solved) -> Result<Timings> 
         let Some(mut all) = gathered else {
             return Ok(None);
         };
-        all.write_tables(&opts.out, &solved.outcome, opts.nodes_csv)?;
+        all.write_tables(&opts.out, &solved.outcome)?;
         Ok(Some(all))
     });
+    // Every subdomain takes part, also where the tables failed (see write_nodes_csv).
+    let nodes = match opts.nodes_csv {
+        true => write_nodes_csv(ctx, sub, &solved.u),
+        false => Ok(()),
+    };
+    let tables = nodes.and(tables);
     drop(output);
     let timings = timer.finish();
     let summary = tables.and_then(|all| match all {
@@ -265,6 +273,63 @@ fn write(ctx: &Subdomain, sub: &SubProblem, solved: &Solved) -> Result<Timings> 
     });
     mpi.agree(summary)?;
     Ok(timings)
+}
+
+/// `nodes.csv` from every rank (collective): the rows of the nodes each subdomain owns go
+/// to the rank whose block of global ids holds them (`output::blocks`), and each rank
+/// writes its block's text at its offset in one shared file, which the first renames
+/// into place once all have written. No rank holds more than its block.
+fn write_nodes_csv(ctx: &Subdomain, sub: &SubProblem, u: &[[f64; 2]]) -> Result<()> {
+    let rows: Vec<(u64, [f64; 4])> = (0..sub.nodes.len())
+        .filter(|&l| sub.owned[l])
+        .map(|l| {
+            let (p, d) = (sub.nodes[l], u[l]);
+            (sub.global_nodes[l] as u64, [p[0], p[1], d[0], d[1]])
+        })
+        .collect();
+    let n = ctx.setup.facts.nodes;
+    let path = ctx.opts.out.join("nodes.csv");
+    ctx.mpi.on_leader(rows, move |leader, parts| {
+        let (ranks, me) = (leader.ranks(), leader.mpi_rank());
+        let mut ids = vec![Vec::new(); ranks];
+        let mut values = vec![Vec::new(); ranks];
+        for (id, v) in parts.into_iter().flatten() {
+            let q = blocks::block_of(id as usize, n, ranks);
+            ids[q].push(id);
+            values[q].extend_from_slice(&v);
+        }
+        let (ids, values) = (leader.exchange(ids), leader.exchange(values));
+        let rows = ids.iter().zip(&values).flat_map(|(ids, values)| {
+            ids.iter()
+                .zip(values.chunks_exact(4))
+                .map(|(&id, v)| (id as usize, [v[0], v[1], v[2], v[3]]))
+        });
+        let text = blocks::block_text(me, n, ranks, rows)
+            .map_err(|e| Error::Numerical(format!("internal: nodes.csv: {e}")));
+        let lengths = leader.all_gather_u64(text.as_ref().map_or(0, |t| t.len() as u64));
+        let offset: u64 = lengths[..me].iter().sum();
+        let file = SharedFile::new(&path, leader.broadcast_u64(std::process::id() as u64));
+        let created = match (&text, me) {
+            (Ok(_), 0) => file.create(lengths.iter().sum()),
+            _ => Ok(()),
+        };
+        let text = created.and(text);
+        // A rank that failed reports; the others stay quiet (Mpi::agree).
+        let quiet = || Err(Error::Silent(Error::Output(String::new()).exit_code()));
+        if !leader.all_true(text.is_ok()) {
+            file.discard();
+            return text.and_then(|_| quiet());
+        }
+        let wrote = text.and_then(|t| file.write_at(offset, t.as_bytes()));
+        if !leader.all_true(wrote.is_ok()) {
+            file.discard();
+            return wrote.and_then(|_| quiet());
+        }
+        match me {
+            0 => file.commit(),
+            _ => Ok(()),
+        }
+    })
 }
 
 /// What one subdomain's phases share.
@@ -754,23 +819,15 @@ fn write_piece(ctx: &Subdomain, sub: &SubProblem, solved: &Solved) -> Result<Pie
         output::create_output_dir(dir)?;
         let vtu_files = solution.write_vtu(dir)?;
         let contact = solution.contact_rows();
-        let nodes = match ctx.opts.nodes_csv {
-            true => solution.owned_nodes(),
-            false => Vec::new(),
-        };
-        Ok((contact, nodes, vtu_files, host::peak_memory_bytes()))
+        Ok((contact, vtu_files, host::peak_memory_bytes()))
     });
-    let (contact, nodes, vtu_files, peak_memory_bytes) = written?;
+    let (contact, vtu_files, peak_memory_bytes) = written?;
     let stats = RankStats {
         vtu_files,
         peak_memory_bytes,
         ..rank_stats(ctx, sub, &solved.factors)
     };
-    Ok(PieceRows {
-        contact,
-        nodes,
-        stats,
-    })
+    Ok(PieceRows { contact, stats })
 }
 
 /// The subdomain's figures for summary.json, its phases read from its timer.

@@ -211,3 +211,55 @@ fn contact_csv_numbers_round_trip_and_rows_are_sorted() {
     );
     println!("{count} numbers round-trip, {} rows sorted", keys.len());
 }
+
+/// nodes.csv is written by every rank, each its block of node ids at its offset: the file
+/// keeps the one-rank run's layout (header, one row per node in global order, the same
+/// coordinates byte for byte) whatever the ranks and subdomains per rank, and no
+/// temporary is left behind.
+#[test]
+fn nodes_csv_written_in_blocks_by_the_ranks_keeps_the_one_rank_layout() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |np: usize, k: &str, out: &str| {
+        let o = mpirun(np, dir.path())
+            .args(["--builtin", "block", "--level", "2", "--tol", "1e-11"])
+            .args(["--subdomains-per-rank", k, "--threads", "1", "--nodes-csv"])
+            .args(["--quiet", "--out", out])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read_to_string(dir.path().join(out).join("nodes.csv")).unwrap()
+    };
+    let one = run(1, "1", "one");
+    let nodes = read_summary(&dir.path().join("one/summary.json"))["nodes"]
+        .as_u64()
+        .unwrap() as usize;
+    assert_eq!(one.lines().count(), nodes + 1);
+    let scale = read_nodes(&dir.path().join("one/nodes.csv"))
+        .iter()
+        .flat_map(|n| [n[2].abs(), n[3].abs()])
+        .fold(0.0, f64::max);
+    for (np, k) in [(5, "1"), (3, "2")] {
+        let out = format!("np{np}x{k}");
+        let many = run(np, k, &out);
+        assert_eq!(many.lines().count(), one.lines().count(), "{out}");
+        assert!(
+            many.starts_with("x,y,ux,uy\n") && many.ends_with('\n'),
+            "{out}"
+        );
+        for (a, b) in one.lines().zip(many.lines()).skip(1) {
+            let (fa, fb): (Vec<&str>, Vec<&str>) = (a.split(',').collect(), b.split(',').collect());
+            assert_eq!(fb.len(), 4, "{out}: {b}");
+            assert_eq!(fa[..2], fb[..2], "{out}: rows out of order");
+            for c in 2..4 {
+                let d = (fa[c].parse::<f64>().unwrap() - fb[c].parse::<f64>().unwrap()).abs();
+                assert!(d <= 1e-8 * scale, "{out}: {a} against {b}");
+            }
+        }
+        let left: Vec<String> = std::fs::read_dir(dir.path().join(&out))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with('.'))
+            .collect();
+        assert!(left.is_empty(), "{out}: {left:?}");
+    }
+}

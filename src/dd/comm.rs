@@ -133,6 +133,34 @@ impl Leader<'_> {
         self.mpi.mpi_size
     }
 
+    /// This rank (not the subdomain: that is `Mpi::rank`).
+    pub fn mpi_rank(&self) -> usize {
+        self.mpi.mpi_rank
+    }
+
+    /// Every rank's `value`, by rank.
+    pub fn all_gather_u64(&self, value: u64) -> Vec<u64> {
+        let mut all = vec![0u64; self.mpi.mpi_size];
+        self.mpi.world().all_gather_into(&value, &mut all[..]);
+        all
+    }
+
+    /// The first rank's `value` on every rank.
+    pub fn broadcast_u64(&self, value: u64) -> u64 {
+        let mut v = value;
+        self.mpi.world().process_at_rank(0).broadcast_into(&mut v);
+        v
+    }
+
+    /// Whether `ok` holds on every rank.
+    pub fn all_true(&self, ok: bool) -> bool {
+        let (mine, mut all) = (ok as i32, 0i32);
+        self.mpi
+            .world()
+            .all_reduce_into(&mine, &mut all, SystemOperation::min());
+        all == 1
+    }
+
     /// The ranks' communicator as a Fortran handle (MPI_Comm_c2f), which is what MUMPS
     /// keeps.
     pub fn fortran_comm(&self) -> i32 {

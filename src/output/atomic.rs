@@ -69,6 +69,79 @@ fn write_then_rename(temp: &Path, path: &Path, bytes: &[u8]) -> io::Result<()> {
     fs::rename(temp, path)
 }
 
+/// A file that several processes fill at offsets of their own: created at its full length
+/// under a hidden temporary name beside `path` (by one process), written at offsets
+/// ([`SharedFile::write_at`], by each), then renamed over `path` ([`SharedFile::commit`],
+/// by one), so that readers never see it half-written. `tag` is the same on every writer
+/// and distinguishes concurrent jobs (the creating process's id).
+pub struct SharedFile {
+    pub path: PathBuf,
+    pub temp: PathBuf,
+}
+
+impl SharedFile {
+    pub fn new(path: &Path, tag: u64) -> Self {
+        let name = path
+            .file_name()
+            .map_or_else(Default::default, |f| f.to_string_lossy().into_owned());
+        let dir = path.parent().unwrap_or(Path::new("."));
+        SharedFile {
+            path: path.to_path_buf(),
+            temp: dir.join(format!(".{name}.tmp.shared.{tag}")),
+        }
+    }
+
+    fn fail(&self, e: io::Error) -> Error {
+        Error::Output(format!(
+            "cannot write {}: {e}; check that the output directory is writable (and, on several nodes, on a file system they share)",
+            self.path.display()
+        ))
+    }
+
+    /// Creates the temporary at `len` bytes (one process, before any `write_at`).
+    pub fn create(&self, len: u64) -> Result<()> {
+        let file = OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&self.temp)
+            .and_then(|f| f.set_len(len).map(|_| f));
+        file.map(drop).map_err(|e| self.fail(e))
+    }
+
+    /// Writes `bytes` at `offset` and flushes them to disk.
+    pub fn write_at(&self, offset: u64, bytes: &[u8]) -> Result<()> {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::FileExt;
+            let file = OpenOptions::new()
+                .write(true)
+                .open(&self.temp)
+                .map_err(|e| self.fail(e))?;
+            file.write_all_at(bytes, offset)
+                .and_then(|_| file.sync_data())
+                .map_err(|e| self.fail(e))
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = (offset, bytes);
+            Err(self.fail(io::Error::other("writes at offsets need a Unix system")))
+        }
+    }
+
+    /// Renames the complete temporary over `path` (one process, after every `write_at`).
+    pub fn commit(&self) -> Result<()> {
+        fs::rename(&self.temp, &self.path).map_err(|e| self.fail(e))?;
+        sync_dir(self.path.parent().unwrap_or(Path::new(".")));
+        Ok(())
+    }
+
+    /// Removes the temporary after a failure (best effort: the failure is what matters).
+    pub fn discard(&self) {
+        let _ = fs::remove_file(&self.temp);
+    }
+}
+
 /// Makes the rename itself durable. Failure is ignored: the file is already complete and
 /// in place, and some file systems refuse to sync a directory.
 fn sync_dir(dir: &Path) {
@@ -91,6 +164,25 @@ mod tests {
             .collect();
         names.sort();
         names
+    }
+
+    #[test]
+    fn a_shared_file_filled_at_offsets_appears_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("nodes.csv");
+        let f = SharedFile::new(&path, 7);
+        f.create(10).unwrap();
+        // The pieces in any order, as ranks finish.
+        f.write_at(6, b"ghij").unwrap();
+        f.write_at(0, b"abcdef").unwrap();
+        assert!(!path.exists());
+        f.commit().unwrap();
+        assert_eq!(fs::read(&path).unwrap(), b"abcdefghij");
+        assert_eq!(entries(dir.path()), ["nodes.csv"]);
+        let g = SharedFile::new(&dir.path().join("missing/nodes.csv"), 7);
+        let e = g.create(3).unwrap_err();
+        assert_eq!(e.exit_code(), 5);
+        assert!(e.to_string().contains("missing/nodes.csv"), "{e}");
     }
 
     #[test]

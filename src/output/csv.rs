@@ -83,11 +83,19 @@ pub fn nodes_csv(nodes: &[[f64; 2]], u: &[[f64; 2]]) -> String {
         u.len()
     );
     let mut out = String::with_capacity(48 * (nodes.len() + 1));
-    out.push_str("x,y,ux,uy\n");
+    out.push_str(NODES_HEADER);
+    push_node_rows(&mut out, nodes, u);
+    out
+}
+
+/// The first line of `nodes.csv`.
+pub const NODES_HEADER: &str = "x,y,ux,uy\n";
+
+/// Appends the rows of `nodes.csv` for `nodes` and their displacements `u`.
+pub fn push_node_rows(out: &mut String, nodes: &[[f64; 2]], u: &[[f64; 2]]) {
     for (p, d) in nodes.iter().zip(u) {
         let _ = writeln!(out, "{},{},{},{}", p[0], p[1], d[0], d[1]);
     }
-    out
 }
 
 /// The header of `history.csv`.

@@ -3,7 +3,7 @@
 //!
 //! The formatters are pure functions from data to bytes: they know neither MPI nor physics,
 //! so each rank formats its own piece and the caller decides who writes what. Only
-//! [`write_atomic`] touches the file system.
+//! [`write_atomic`] and [`SharedFile`] touch the file system.
 //!
 //! ```no_run
 //! # use contact_par::contact::Status;
@@ -16,15 +16,14 @@
 //! ```
 
 mod atomic;
+pub mod blocks;
 mod csv;
 mod piece;
 mod summary;
 mod vtk;
 
-pub use atomic::write_atomic;
+pub use atomic::{write_atomic, SharedFile};
 pub use csv::{contact_csv, history_csv, nodes_csv, ContactRow};
-pub use piece::{
-    create_output_dir, element_stresses, vtu_file_name, NodeRowOut, PieceRows, SubdomainSolution,
-};
+pub use piece::{create_output_dir, element_stresses, vtu_file_name, PieceRows, SubdomainSolution};
 pub use summary::{Gathered, RankStats, RunFacts};
 pub use vtk::{file_ranges, pvtu_bytes, vtu_bytes, Piece, SubPiece, MAX_TRIANGLES_PER_FILE};

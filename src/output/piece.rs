@@ -13,20 +13,10 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// A node owned by the subdomain: global id, position, displacement (`nodes.csv`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct NodeRowOut {
-    pub id: usize,
-    pub xy: [f64; 2],
-    pub u: [f64; 2],
-}
-
 /// What each subdomain sends the first one for the gathered files.
 #[derive(Serialize, Deserialize)]
 pub struct PieceRows {
     pub contact: Vec<ContactRow>,
-    /// Empty unless `nodes.csv` is asked for.
-    pub nodes: Vec<NodeRowOut>,
     pub stats: RankStats,
 }
 
@@ -137,19 +127,6 @@ impl SubdomainSolution<'_> {
                     status: o.status[k],
                     w: sub.contact.w[k],
                 }
-            })
-            .collect()
-    }
-
-    /// The rows of the nodes the subdomain owns.
-    pub fn owned_nodes(&self) -> Vec<NodeRowOut> {
-        let sub = self.sub;
-        (0..sub.nodes.len())
-            .filter(|&l| sub.owned[l])
-            .map(|l| NodeRowOut {
-                id: sub.global_nodes[l],
-                xy: sub.nodes[l],
-                u: self.u[l],
             })
             .collect()
     }

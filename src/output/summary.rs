@@ -1,8 +1,8 @@
 //! The files the first subdomain writes for the whole run from every subdomain's rows:
 //! `contact.csv`, `nodes.csv`, `history.csv`, `solution.pvtu` and `summary.json`.
 
-use super::piece::{vtu_file_name, NodeRowOut, PieceRows};
-use super::{contact_csv, history_csv, nodes_csv, pvtu_bytes, write_atomic, ContactRow};
+use super::piece::{vtu_file_name, PieceRows};
+use super::{contact_csv, history_csv, pvtu_bytes, write_atomic, ContactRow};
 use crate::contact::{Outcome, Status};
 use crate::error::{Error, Result};
 use crate::timer::Timings;
@@ -76,7 +76,6 @@ pub struct RunFacts {
 /// Every subdomain's rows, in subdomain order.
 pub struct Gathered {
     pub contact: Vec<ContactRow>,
-    pub nodes: Vec<NodeRowOut>,
     pub stats: Vec<RankStats>,
 }
 
@@ -85,30 +84,22 @@ impl Gathered {
     pub fn new(pieces: Vec<PieceRows>) -> Self {
         let mut all = Gathered {
             contact: Vec::new(),
-            nodes: Vec::new(),
             stats: Vec::new(),
         };
         for p in pieces {
             all.contact.extend(p.contact);
-            all.nodes.extend(p.nodes);
             all.stats.push(p.stats);
         }
         all
     }
 
-    /// Writes `contact.csv`, `nodes.csv` (if `nodes` are given), `history.csv` and
-    /// `solution.pvtu` into `dir`.
-    pub fn write_tables(&mut self, dir: &Path, o: &Outcome, with_nodes: bool) -> Result<()> {
+    /// Writes `contact.csv`, `history.csv` and `solution.pvtu` into `dir` (`nodes.csv` is
+    /// written by all ranks: [`super::blocks`]).
+    pub fn write_tables(&mut self, dir: &Path, o: &Outcome) -> Result<()> {
         write_atomic(
             &dir.join("contact.csv"),
             contact_csv(&self.contact).as_bytes(),
         )?;
-        if with_nodes {
-            self.nodes.sort_unstable_by_key(|n| n.id);
-            let xy: Vec<[f64; 2]> = self.nodes.iter().map(|n| n.xy).collect();
-            let uu: Vec<[f64; 2]> = self.nodes.iter().map(|n| n.u).collect();
-            write_atomic(&dir.join("nodes.csv"), nodes_csv(&xy, &uu).as_bytes())?;
-        }
         write_atomic(&dir.join("history.csv"), history_csv(&o.history).as_bytes())?;
         let sources: Vec<String> = self
             .stats
