@@ -227,6 +227,7 @@ fn solve_full(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
 fn iterate(ctx: &Subdomain, sub: &SubProblem, step: &mut impl LinearStep) -> Result<Outcome> {
     let (opts, mpi) = (ctx.opts, ctx.mpi);
     let mut monitor = Monitor::new(ctx.print, opts.monitor_every);
+    let sent_before = crate::dd::comm::bytes_sent();
     let outcome = {
         let _t = ctx.timer.phase(Phase::Loop);
         let files = CheckpointFiles::new(&opts.out, opts.checkpoint_every, opts.restart, mpi);
@@ -242,6 +243,9 @@ fn iterate(ctx: &Subdomain, sub: &SubProblem, step: &mut impl LinearStep) -> Res
         contact::solve_with(step, mpi, &sub.contact, &params, &mut on_sweep, &mut ckpt)?
     };
     monitor.last(&outcome);
+    let sent = crate::dd::comm::bytes_sent() - sent_before;
+    ctx.sent_per_sweep
+        .set(sent as f64 / outcome.iterations.max(1) as f64);
     Ok(outcome)
 }
 
@@ -341,6 +345,8 @@ struct Subdomain<'a> {
     /// The subdomain's own; the first subdomain's also holds the set-up's phases.
     timer: &'a Timer,
     print: &'a Printer,
+    /// Bytes this subdomain's rank sent per sweep of the loop (all its subdomains').
+    sent_per_sweep: std::cell::Cell<f64>,
 }
 
 impl<'a> Subdomain<'a> {
@@ -357,6 +363,7 @@ impl<'a> Subdomain<'a> {
             setup,
             timer,
             print,
+            sent_per_sweep: std::cell::Cell::new(0.0),
         }
     }
 }
@@ -851,6 +858,7 @@ fn rank_stats(ctx: &Subdomain, sub: &SubProblem, f: &FactorFigures) -> RankStats
         schur_s: t(Phase::Schur),
         interface_factor: f.interface.map(str::to_string),
         interface_gflop: f.interface_flops / 1e9,
+        sent_bytes_per_sweep: ctx.sent_per_sweep.get(),
         loop_s: t(Phase::Loop),
         one_solve_s: t(Phase::OneSolve),
         output_s: t(Phase::Piece),

@@ -111,6 +111,15 @@ fn compare(source: &[&str], np: usize, k: usize) {
     let total: f64 = per.iter().sum();
     assert!(total > 0.0, "{what}: {per:?}");
     assert!((common::num(&sb, "interface_gflop") - total).abs() <= 1e-9 * total);
+    // Each sweep every rank sends at least its part of the sweep's sums (one
+    // all-reduce of 14 or more values); on the rank0 path the others also send their
+    // interface right-hand sides to the first.
+    for s in [&sa, &sb] {
+        for p in s["per_subdomain"].as_array().unwrap() {
+            let sent = p["sent_bytes_per_sweep"].as_f64().unwrap();
+            assert!(sent >= 8.0 * 14.0, "{what}: {sent} bytes per sweep");
+        }
+    }
 }
 
 #[test]

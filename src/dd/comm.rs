@@ -17,6 +17,7 @@ use mpi::raw::AsRaw;
 use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::traits::{CommunicatorCollectives, Root};
 use std::any::Any;
+use std::sync::atomic::{AtomicU64, Ordering as AtomicOrdering};
 use std::sync::{Arc, Barrier, Mutex, PoisonError};
 
 /// The threads of one rank, each running a subdomain, and where they meet.
@@ -122,6 +123,20 @@ pub struct Mpi {
     member: usize,
 }
 
+/// Payload bytes this process has handed MPI to send to other ranks (a reduction's or a
+/// broadcast's vector counted once, whatever algorithm MPI runs; MUMPS's own messages
+/// not counted). For the figures of summary.json.
+static SENT: AtomicU64 = AtomicU64::new(0);
+
+fn count_sent(bytes: usize) {
+    SENT.fetch_add(bytes as u64, AtomicOrdering::Relaxed);
+}
+
+/// The bytes this process has sent so far (see [`SENT`]).
+pub fn bytes_sent() -> u64 {
+    SENT.load(AtomicOrdering::Relaxed)
+}
+
 /// MPI as a team's leader sees it inside [`Mpi::on_leader`]: one caller per rank.
 pub struct Leader<'a> {
     mpi: &'a Mpi,
@@ -141,6 +156,7 @@ impl Leader<'_> {
     /// Every rank's `value`, by rank.
     pub fn all_gather_u64(&self, value: u64) -> Vec<u64> {
         let mut all = vec![0u64; self.mpi.mpi_size];
+        count_sent(8);
         self.mpi.world().all_gather_into(&value, &mut all[..]);
         all
     }
@@ -148,6 +164,9 @@ impl Leader<'_> {
     /// The first rank's `value` on every rank.
     pub fn broadcast_u64(&self, value: u64) -> u64 {
         let mut v = value;
+        if self.mpi.mpi_rank == 0 {
+            count_sent(8);
+        }
         self.mpi.world().process_at_rank(0).broadcast_into(&mut v);
         v
     }
@@ -155,6 +174,7 @@ impl Leader<'_> {
     /// Whether `ok` holds on every rank.
     pub fn all_true(&self, ok: bool) -> bool {
         let (mine, mut all) = (ok as i32, 0i32);
+        count_sent(4);
         self.mpi
             .world()
             .all_reduce_into(&mine, &mut all, SystemOperation::min());
@@ -192,6 +212,9 @@ impl Leader<'_> {
                 })
                 .collect()
         };
+        let me = self.mpi.mpi_rank;
+        let others: usize = (0..p).filter(|&q| q != me).map(|q| send[q].len()).sum();
+        count_sent(4 * p + others * std::mem::size_of::<T>());
         let flat: Vec<T> = send.concat();
         let (sd, rd) = (displs(&counts), displs(&recv_counts));
         let mut received = vec![T::default(); recv_counts.iter().sum::<i32>() as usize];
@@ -391,6 +414,7 @@ impl Mpi {
             let mut all = vec![0.0; rank_counts.iter().sum()];
             let (c, d) = counts_displs(&rank_counts);
             let mut part = PartitionMut::new(&mut all[..], &c[..], &d[..]);
+            count_sent(8 * mine.len());
             s.world().all_gather_varcount_into(&mine[..], &mut part);
             all
         });
@@ -423,6 +447,7 @@ impl Mpi {
             let mut part = PartitionMut::new(&mut out[..], &c[..], &d[..]);
             root.gather_varcount_into_root(mine, &mut part);
         } else {
+            count_sent(8 * mine.len());
             root.gather_varcount_into(mine);
         }
     }
@@ -455,6 +480,7 @@ impl Mpi {
         let root = self.world().process_at_rank(0);
         if self.is_root() {
             let (c, d) = counts_displs(&self.rank_counts(counts));
+            count_sent(8 * (all.len() - segment.len()));
             let part = mpi::datatype::Partition::new(all, &c[..], &d[..]);
             root.scatter_varcount_into_root(&part, segment);
         } else {
@@ -603,6 +629,7 @@ impl Mpi {
         // One subdomain per rank (every sweep of a cluster job): MPI alone.
         if self.per_rank() == 1 {
             let local = values.to_vec();
+            count_sent(8 * local.len());
             self.world().all_reduce_into(&local[..], values, mpi_op);
             return;
         }
@@ -615,6 +642,7 @@ impl Mpi {
             }
             if s.mpi_size > 1 {
                 let local = acc.clone();
+                count_sent(8 * local.len());
                 s.world().all_reduce_into(&local[..], &mut acc[..], mpi_op);
             }
             acc
@@ -635,6 +663,7 @@ impl Mpi {
             let mut first = parts.iter().map(|p| p.1).min().unwrap_or(i32::MAX);
             if s.mpi_size > 1 {
                 let (w, f) = (worst, first);
+                count_sent(4);
                 s.world()
                     .all_reduce_into(&w, &mut worst, SystemOperation::max());
                 if worst != 0 {

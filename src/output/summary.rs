@@ -38,6 +38,10 @@ pub struct RankStats {
     pub interface_factor: Option<String>,
     /// Its factorization's floating-point operations, 1e9 (0 on the others).
     pub interface_gflop: f64,
+    /// Bytes the subdomain's rank handed MPI to send per sweep of the loop (the payloads
+    /// of its reductions, gathers, scatters and all-to-alls; MUMPS's own messages not
+    /// counted). The same on every subdomain of a rank.
+    pub sent_bytes_per_sweep: f64,
     pub loop_s: f64,
     /// One sparse forward+backward solve with this rank's factor (the cost a sweep
     /// would have without condensation).
@@ -230,6 +234,7 @@ struct Extremes {
     loop_s: f64,
     elements: f64,
     interface_nodes: f64,
+    sent_bytes_per_sweep: f64,
 }
 
 impl Extremes {
@@ -241,6 +246,7 @@ impl Extremes {
             loop_s: over(|s| s.loop_s),
             elements: over(|s| s.elements as f64),
             interface_nodes: over(|s| s.interface_nodes as f64),
+            sent_bytes_per_sweep: over(|s| s.sent_bytes_per_sweep),
         }
     }
 }
