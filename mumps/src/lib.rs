@@ -25,11 +25,17 @@ mod ffi {
 /// MUMPS's JOB codes.
 const JOB_INIT: i32 = -1;
 const JOB_END: i32 = -2;
-const JOB_ANALYSE_FACTOR: i32 = 4;
+const JOB_ANALYSE: i32 = 1;
+const JOB_FACTOR: i32 = 2;
 const JOB_SOLVE: i32 = 3;
 
 /// A failed MUMPS phase, with MUMPS's own error code (INFOG(1) < 0) and its detail
 /// (INFOG(2)).
+/// INFOG(1) values that say a work array or buffer was estimated too small.
+fn is_short_of_room(infog1: i32) -> bool {
+    matches!(infog1, -8 | -9 | -14 | -15 | -17 | -20)
+}
+
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct MumpsError {
     pub phase: &'static str,
@@ -41,7 +47,9 @@ impl fmt::Display for MumpsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let hint = match self.infog1 {
             -5 | -7 | -13 => "out of memory",
-            -8 | -9 | -14 | -15 => "a work array was too small",
+            -8 | -9 | -14 | -15 | -17 | -20 => {
+                "a work array was too small, even 320% above MUMPS's estimate"
+            }
             -10 => "the matrix is singular",
             -6 => "the matrix is structurally singular",
             -40 => "the matrix is not positive definite",
@@ -128,7 +136,8 @@ impl SpdFactor {
         f.id.irn_loc = f.irn.as_mut_ptr();
         f.id.jcn_loc = f.jcn.as_mut_ptr();
         f.id.a_loc = f.a.as_mut_ptr();
-        f.call(JOB_ANALYSE_FACTOR, "analysis and factorization")?;
+        f.call(JOB_ANALYSE, "analysis")?;
+        f.factor_with_room()?;
         // INFO(23): the solution entries this rank will hold.
         let local = f.id.info[22].max(0) as usize;
         f.sol = vec![0.0; local.max(1)];
@@ -199,6 +208,23 @@ impl SpdFactor {
     fn quiet(&mut self) {
         for (k, v) in [(1, -1), (2, -1), (3, -1), (4, 0)] {
             self.set_icntl(k, v);
+        }
+    }
+
+    /// The factorization, retried with more room where MUMPS's estimate of its work
+    /// arrays fell short (it can, in parallel: INFOG(1) -8, -9, -14, -15, -17 or -20),
+    /// doubling ICNTL(14), the percentage added to the estimate, from 20 up to 320.
+    /// Every rank sees the same INFOG(1), so all retry together. Seen: -9 on the
+    /// interface system of hertz level 5 on 64 ranks ordered by QAMD, factored on the
+    /// first retry.
+    fn factor_with_room(&mut self) -> Result<(), MumpsError> {
+        let mut extra = self.id.icntl[13].max(20);
+        loop {
+            self.set_icntl(14, extra);
+            match self.call(JOB_FACTOR, "factorization") {
+                Err(e) if is_short_of_room(e.infog1) && extra < 16 * 20 => extra *= 2,
+                done => return done,
+            }
         }
     }
 

@@ -218,12 +218,14 @@ pub fn build(
     if let Some(state) = built {
         *slot = state.ok();
     }
-    match flops {
+    let result = match flops {
         (Some(f), _) => Ok(f),
         (None, message) => Err(Error::Numerical(
             message.unwrap_or_else(|| "interface system: MUMPS failed".into()),
         )),
-    }
+    };
+    // A MUMPS failure is every rank's (INFOG is global); one line says it.
+    mpi.agree(result)
 }
 
 /// One solve (collective over subdomains): `z` is this subdomain's part of the
@@ -238,7 +240,10 @@ pub fn solve(mpi: &Mpi, z: &[f64], slot: &mut Option<MumpsInterface>) -> Result<
     });
     match result {
         Ok(mut all) => Ok(std::mem::take(&mut all[me])),
-        Err(message) => Err(Error::Numerical(message)),
+        // MUMPS fails on every rank at once (INFOG is global): the first says it, and
+        // no extra reduction per sweep is needed to agree.
+        Err(message) if mpi.rank == 0 => Err(Error::Numerical(message)),
+        Err(_) => Err(Error::Silent(Error::Numerical(String::new()).exit_code())),
     }
 }
 
