@@ -1,15 +1,17 @@
 #!/usr/bin/env python3
-"""The cost model of docs/cost-model.md: fitted to the summary.json files of a scaling
-study (run-scripts/scale_study.sh --keep), then used to predict a run of any size.
+"""The cost model of docs/cost-model.md, fitted to the summary.json files of scaling
+studies (run-scripts/scale_study.sh writes them as OUT/summary-P.json), then used to
+predict a run of another size.
 
-    python3 run-scripts/cost_model.py STUDY_DIR/summary-*.json [--dofs 1e8 --ranks 512]
-        [--contact-nodes N] [--sweeps S] [--flops 12e9 --bandwidth 10e9
-        --latency 2e-6 --net-bandwidth 10e9 --mumps-efficiency 0.3]
+    python3 run-scripts/cost_model.py DIR1/summary-*.json DIR2/summary-*.json \\
+        [--dofs 1e8 --ranks 512 --contact-nodes N --sweeps S \\
+         --flops F --bandwidth B --latency L --net-bandwidth W --mumps-efficiency E]
 
-Every fit is printed with its residuals (model over measurement) on the data it came
-from, then the prediction. Only flops, sizes, bytes and memory are fitted (the same on
-an oversubscribed machine as on a cluster); times follow from them and the node's
-parameters, which are arguments.
+The laws are fitted on the runs with at least --min-ranks subdomains (the regime they
+describe: subdomains with interface all round, the interface factored by MUMPS), and
+printed with the ratio model / measured on every run. Only work, sizes, bytes and
+memory are fitted: they are the same on an oversubscribed machine as on a cluster.
+Times follow from them and a node's parameters, which are arguments.
 """
 import argparse
 import json
@@ -18,189 +20,188 @@ import statistics
 import sys
 
 
-def load(paths):
-    runs = []
-    for p in paths:
-        s = json.load(open(p))
-        runs.append(s)
-    runs.sort(key=lambda s: (s["dofs"], s["subdomains"]))
-    return runs
+def fit_power(rows):
+    """y = a * prod(x_k ^ g_k): least squares in logs; rows are ([x_k], y)."""
+    k = len(rows[0][0])
+    X = [[1.0] + [math.log(x) for x in xs] for xs, _ in rows]
+    Y = [math.log(y) for _, y in rows]
+    # Normal equations, (k+1) x (k+1), by Gaussian elimination.
+    A = [[sum(r[i] * r[j] for r in X) for j in range(k + 1)] for i in range(k + 1)]
+    b = [sum(r[i] * y for r, y in zip(X, Y)) for i in range(k + 1)]
+    for i in range(k + 1):
+        p = A[i][i]
+        for j in range(i + 1, k + 1):
+            f = A[j][i] / p
+            A[j] = [a - f * c for a, c in zip(A[j], A[i])]
+            b[j] -= f * b[i]
+    c = [0.0] * (k + 1)
+    for i in reversed(range(k + 1)):
+        c[i] = (b[i] - sum(A[i][j] * c[j] for j in range(i + 1, k + 1))) / A[i][i]
+    return math.exp(c[0]), c[1:]
 
 
-def fit_ratio(pairs):
-    """The a of y = a x by least squares on log y - log x (relative errors)."""
-    return math.exp(statistics.mean(math.log(y) - math.log(x) for x, y in pairs if x > 0 and y > 0))
+def fit_scale(rows):
+    """y = a * x: the geometric mean of y / x."""
+    return math.exp(statistics.mean(math.log(y / x) for x, y in rows))
 
 
-def fit_power(pairs):
-    """y = a x^g by least squares in log-log."""
-    xs = [math.log(x) for x, y in pairs]
-    ys = [math.log(y) for x, y in pairs]
-    mx, my = statistics.mean(xs), statistics.mean(ys)
-    g = sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
-    return math.exp(my - g * mx), g
-
-
-def fit_two(rows):
-    """y = a x1 + b x2 minimising the sum of (model / y - 1)^2."""
-    s11 = sum((x1 / y) ** 2 for (x1, _), y in rows)
-    s22 = sum((x2 / y) ** 2 for (_, x2), y in rows)
-    s12 = sum(x1 * x2 / y**2 for (x1, x2), y in rows)
-    r1 = sum(x1 / y for (x1, _), y in rows)
-    r2 = sum(x2 / y for (_, x2), y in rows)
-    det = s11 * s22 - s12 * s12
-    return (r1 * s22 - r2 * s12) / det, (s11 * r2 - s12 * r1) / det
-
-
-def fit_linear(pairs):
+def fit_linear(rows):
     """y = a + b x by least squares."""
-    xs, ys = [x for x, _ in pairs], [y for _, y in pairs]
+    xs, ys = [x for x, _ in rows], [y for _, y in rows]
     mx, my = statistics.mean(xs), statistics.mean(ys)
     b = sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
     return my - b * mx, b
 
 
+def figures(s):
+    """What the model needs from one summary.json."""
+    per = s["per_subdomain"]
+    peaks = s["peak_memory_bytes_per_rank"]
+    return dict(
+        n=s["dofs"], P=s["subdomains"], n_G=s["interface_dofs"], sweeps=s["iterations"],
+        contact=s["contact_nodes"], frictional=s["friction"] != "none",
+        F_max=max(q["factor_gflop"] for q in per) * 1e9,
+        F_one=per[0]["factor_gflop"] * 1e9,
+        factor_s=per[0]["factor_s"],
+        b_max=max(q["boundary_dofs"] for q in per),
+        F_G=s["interface_gflop"] * 1e9, mumps=s.get("interface_factor") == "mumps",
+        share_max=max(q["interface_gflop"] for q in per) * 1e9,
+        crit=max(q["factor_gflop"] + q["interface_gflop"] for q in per) * 1e9,
+        mem0=peaks[0], mem_med=statistics.median(peaks), mem_max=max(peaks),
+        sent_med=statistics.median(q["sent_bytes_per_sweep"] for q in per),
+        sent_max=max(q["sent_bytes_per_sweep"] for q in per),
+    )
+
+
 class Model:
-    """Per subdomain s of a run of n dofs on P subdomains (one per rank):
-    n_s = n / P, its interface dofs i_s = a_i sqrt(n_s), its contact dofs c_s = C / P
-    (the partition balances the contact nodes), its dense block b_s = c_s + i_s;
-    factor work F_s = a_f n_s^1.5 + a_d b_s^3 (sparse nested dissection of the interior,
-    then the dense trailing block, whose Cholesky alone is b_s^3 / 3); the interface system n_G = a_G sqrt(n P), its work
-    F_G = a_I n_G^g spread over the ranks by MUMPS (the largest share k_I F_G / P),
-    its factor entries E_G = f_E sum_s b_s^2 / 2 (the subdomains' dense blocks assembled,
-    f_E the fill, an assumption); memory per rank M = M_0 + m_n n_s + 8 b_s^2 +
-    8 E_G / P (bytes)."""
+    """Per rank of a run of n dofs on P ranks (one subdomain each), 2D:
+      n_G   = a_G sqrt(n P)                the interface dofs
+      b     = a_b sqrt(n / P)              the largest subdomain's dense block
+      F_s   = a_f (n / P)^1.5              the largest subdomain's factor (flops; one
+                                           rank's whole factor: a_1 n^1.5)
+      F_G   = a_I n^1.5 P^beta             MUMPS's interface factorization (flops)
+      share = k_I F_G / P                  the largest rank's share of it
+      E_G   = kappa F_G^(2/3)              the interface factor's entries
+      M     = M_0 + m_n n / P + 8 E_G / P  a rank's peak memory (bytes; rank 0 r_0 x)
+    """
 
-    def __init__(self, runs):
-        self.runs = runs
-        subs = [(s, q) for s in runs for q in s["per_subdomain"]]
-        dofs = lambda q: 2 * q["nodes"]
-        contact_dofs = lambda s, q: q["boundary_dofs"] - q.get("interface_dofs_est", 0)
-        # Interface dofs of a subdomain: its boundary dofs less its own contact dofs
-        # (the contact dofs per node are 1 without friction, 2 with).
-        self.contact_per_node = {}
-        for s in runs:
-            frictional = s["friction"] != "none"
-            self.contact_per_node[id(s)] = 2 if frictional else 1
-        multi = [(s, q) for s, q in subs if s["subdomains"] > 1]
-        self.a_i = fit_ratio(
-            [(math.sqrt(dofs(q)), self.interface_of(s, q)) for s, q in multi if self.interface_of(s, q) > 0]
-        )
-        # F_s = a_f n_s^1.5 + a_d b_s^3, least squares on relative errors.
-        rows = [((dofs(q) ** 1.5, q["boundary_dofs"] ** 3), q["factor_gflop"] * 1e9) for _, q in subs]
-        self.a_f, self.a_d = fit_two(rows)
-        self.a_G = fit_ratio([(math.sqrt(s["dofs"] * s["subdomains"]), s["interface_dofs"]) for s in runs if s["subdomains"] > 1])
-        mumps = [s for s in runs if s.get("interface_factor") == "mumps"]
-        if len(mumps) >= 2:
-            self.a_I, self.g = fit_power([(s["interface_dofs"], s["interface_gflop"] * 1e9) for s in mumps])
-            self.k_I = max(
-                max(q["interface_gflop"] for q in s["per_subdomain"]) / (s["interface_gflop"] / s["subdomains"])
-                for s in mumps
-            )
+    KAPPA = 1.6  # E_G / F_G^(2/3): MUMPS's INFOG(29) and RINFOG(3), hertz level 4, 16 ranks
+
+    def __init__(self, runs, min_ranks):
+        fit = [r for r in runs if r["P"] >= min_ranks]
+        if len(fit) < 2:
+            sys.exit(f"cost_model.py: at least two runs with {min_ranks} or more subdomains needed")
+        self.a_G = fit_scale([(math.sqrt(r["n"] * r["P"]), r["n_G"]) for r in fit])
+        self.a_b = fit_scale([(math.sqrt(r["n"] / r["P"]), r["b_max"]) for r in fit])
+        self.a_f = fit_scale([((r["n"] / r["P"]) ** 1.5, r["F_max"]) for r in fit])
+        mumps = [r for r in fit if r["mumps"]]
+        sizes = {r["n"] for r in mumps}
+        if len(sizes) >= 2:
+            self.a_I, (g_n, self.beta) = fit_power([([r["n"], r["P"]], r["F_G"]) for r in mumps])
+            self.g_n = g_n
         else:
-            self.a_I, self.g, self.k_I = float("nan"), float("nan"), float("nan")
-        self.f_E = 2.0
-        pts = []
-        for s in runs:
-            peaks = s["peak_memory_bytes_per_rank"]
-            for q, m in zip(s["per_subdomain"], peaks):
-                rest = m - 8 * q["boundary_dofs"] ** 2 - 8 * self.entries(s) / s["subdomains"]
-                pts.append((dofs(q), rest))
-        self.M_0, self.m_n = fit_linear(pts)
+            # One mesh size: the exponent of n is the theory's (the top separator of the
+            # interface graph has about sqrt(n) dofs, its front costs n^1.5).
+            self.g_n = 1.5
+            self.a_I, (self.beta,) = fit_power([([r["P"]], r["F_G"] / r["n"] ** 1.5) for r in mumps])
+        self.k_I = statistics.median(r["share_max"] / (r["F_G"] / r["P"]) for r in mumps)
+        self.M_0, self.m_n = fit_linear(
+            [(r["n"] / r["P"], r["mem_med"] - 8 * self.entries(r["F_G"]) / r["P"]) for r in fit]
+        )
+        # The one-rank factorization, against which the critical path is measured.
+        ones = [r for r in runs if r["P"] == 1]
+        self.a_1 = fit_scale([(r["n"] ** 1.5, r["F_max"]) for r in ones]) if ones else self.a_f
+        self.r_0 = max(r["mem0"] / r["mem_med"] for r in fit)
+        self.r_max = max(r["mem_max"] / r["mem_med"] for r in fit)
 
-    def interface_of(self, s, q):
-        return max(q["boundary_dofs"] - self.contact_per_node[id(s)] * q["contact_nodes"], 0)
+    def entries(self, F_G):
+        return self.KAPPA * F_G ** (2 / 3)
 
-    def entries(self, s):
-        if s.get("interface_factor") != "mumps":
-            return 0.0
-        return self.f_E * sum(q["boundary_dofs"] ** 2 for q in s["per_subdomain"]) / 2
+    def predict(self, n, P):
+        F_G = self.a_I * n**self.g_n * P**self.beta if P > 1 else 0.0
+        E_G = self.entries(F_G)
+        return dict(
+            n_G=self.a_G * math.sqrt(n * P) if P > 1 else 0.0,
+            b=self.a_b * math.sqrt(n / P) if P > 1 else 0.0,
+            F_s=self.a_f * (n / P) ** 1.5,
+            F_G=F_G, share=self.k_I * F_G / P, E_G=E_G,
+            M=self.M_0 + self.m_n * n / P + 8 * E_G / P,
+        )
 
-    def predict(self, n, P, contact_dofs):
-        n_s = n / P
-        i_s = self.a_i * math.sqrt(n_s) if P > 1 else 0.0
-        b_s = contact_dofs / P + i_s
-        F_s = self.a_f * n_s**1.5 + self.a_d * b_s**3
-        n_G = self.a_G * math.sqrt(n * P) if P > 1 else 0.0
-        F_G = self.a_I * n_G**self.g if P > 1 else 0.0
-        share = self.k_I * F_G / P
-        E_G = self.f_E * P * b_s**2 / 2
-        M = self.M_0 + self.m_n * n_s + 8 * b_s**2 + 8 * E_G / P
-        return dict(n_s=n_s, i_s=i_s, b_s=b_s, F_s=F_s, n_G=n_G, F_G=F_G, share=share, E_G=E_G, M=M)
+    def describe(self):
+        return "\n".join([
+            f"  n_G   = {self.a_G:.3f} sqrt(n P)",
+            f"  b     = {self.a_b:.3f} sqrt(n / P)",
+            f"  F_s   = {self.a_f:.1f} (n / P)^1.5  (one rank: {self.a_1:.1f} n^1.5)",
+            f"  F_G   = {self.a_I:.4g} n^{self.g_n:.2f} P^{self.beta:.2f};  share = {self.k_I:.2f} F_G / P",
+            f"  E_G   = {self.KAPPA} F_G^(2/3)  (measured once, not fitted)",
+            f"  M     = {self.M_0 / 1e6:.0f} MB + {self.m_n:.0f} B x n / P + 8 E_G / P;"
+            f"  rank 0 at most {self.r_0:.2f} x, the largest rank {self.r_max:.2f} x the median",
+        ])
 
 
-def times(m, pred, P, sweeps, a):
-    """Seconds: factor (critical path), one sweep, the loop, from the node's parameters."""
-    factor = pred["F_s"] / a.flops + pred["share"] / (a.mumps_efficiency * a.flops)
-    # A sweep reads each subdomain's dense blocks twice (forward and backward) and its
-    # share of the interface factor twice; it makes one all-reduce, the interface
-    # solve's tree (2 log2 P messages) and the all-to-all of its solution entries.
-    local = 2 * 8 * pred["b_s"] ** 2 / a.bandwidth
-    itf = 2 * 8 * pred["E_G"] / P / a.bandwidth if P > 1 else 0.0
-    msgs = (1 + 2 * math.ceil(math.log2(P))) * a.latency if P > 1 else 0.0
-    volume = 8 * (pred["i_s"] * 2 + 32) / a.net_bandwidth
-    sweep = local + itf + msgs + volume
+def times(pr, P, sweeps, contact_dofs, a):
+    """Seconds on the critical path: factorization, one sweep, the loop."""
+    factor = pr["F_s"] / a.flops + pr["share"] / (a.mumps_efficiency * a.flops)
+    # A sweep: the dense block of the largest subdomain read twice (forward and
+    # backward, memory-bound), the rank's share of the interface factor read twice,
+    # one all-reduce (log2 P steps) and the interface solve's tree (2 log2 P), the
+    # interface values of the subdomain sent and received.
+    local = 2 * 8 * pr["b"] ** 2 / a.bandwidth
+    itf = 2 * 8 * pr["E_G"] / P / a.bandwidth if P > 1 else 0.0
+    steps = 3 * math.ceil(math.log2(P)) if P > 1 else 0
+    volume = 2 * 8 * pr["b"] / a.net_bandwidth if P > 1 else 0.0
+    sweep = local + itf + steps * a.latency + volume
     return factor, sweep, sweeps * sweep
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("summaries", nargs="+")
+    ap.add_argument("--min-ranks", type=int, default=16)
     ap.add_argument("--dofs", type=float, default=1e8)
     ap.add_argument("--ranks", type=int, default=512)
-    ap.add_argument("--contact-nodes", type=float, default=None,
-                    help="default: the study's, scaled like the boundary (sqrt of the dofs)")
-    ap.add_argument("--sweeps", type=float, default=None, help="default: the study's largest run's")
+    ap.add_argument("--sweeps", type=float, default=None,
+                    help="default: those of the study's largest run (the count depends on the case, not on P)")
     ap.add_argument("--flops", type=float, default=None,
-                    help="flop/s of one core in the factorization (default: the one-rank run's)")
-    ap.add_argument("--bandwidth", type=float, default=10e9, help="memory bytes/s per core")
+                    help="flop/s of one core in a factorization (default: the one-rank run's, else 10e9)")
+    ap.add_argument("--bandwidth", type=float, default=10e9, help="memory bytes/s of one core")
     ap.add_argument("--latency", type=float, default=2e-6, help="network latency, s")
     ap.add_argument("--net-bandwidth", type=float, default=10e9, help="network bytes/s per rank")
     ap.add_argument("--mumps-efficiency", type=float, default=0.3,
-                    help="MUMPS's flop rate over --flops in the interface factorization")
+                    help="MUMPS's flop rate in the interface factorization over --flops")
     a = ap.parse_args()
-    runs = load(a.summaries)
-    m = Model(runs)
+    runs = sorted((figures(json.load(open(p))) for p in a.summaries), key=lambda r: (r["n"], r["P"]))
+    m = Model(runs, a.min_ranks)
+    ones = [r for r in runs if r["P"] == 1]
     if a.flops is None:
-        one = [s for s in runs if s["subdomains"] == 1]
-        s = one[-1] if one else runs[0]
-        q = max(s["per_subdomain"], key=lambda q: q["factor_gflop"])
-        a.flops = q["factor_gflop"] * 1e9 / q["factor_s"]
-    print(f"fit: interface dofs of a subdomain i_s = {m.a_i:.3f} sqrt(n_s); factor F_s = {m.a_f:.1f} n_s^1.5 + {m.a_d:.3f} b_s^3;")
-    print(f"     interface n_G = {m.a_G:.3f} sqrt(n P); MUMPS work F_G = {m.a_I:.3g} n_G^{m.g:.2f}, largest share {m.k_I:.2f} F_G / P;")
-    print(f"     memory M = {m.M_0 / 1e6:.0f} MB + {m.m_n:.0f} B x n_s + 8 b_s^2 + 8 E_G / P  (E_G = {m.f_E} sum b_s^2 / 2, assumed)")
-    print(f"     node: {a.flops / 1e9:.1f} Gflop/s, {a.bandwidth / 1e9:.0f} GB/s, latency {a.latency * 1e6:.1f} us, network {a.net_bandwidth / 1e9:.0f} GB/s, MUMPS at {a.mumps_efficiency:.0%}")
+        a.flops = ones[-1]["F_one"] / ones[-1]["factor_s"] if ones else 10e9
+    big = max(runs, key=lambda r: r["n"])
+    sweeps = a.sweeps if a.sweeps is not None else big["sweeps"]
+    print(f"fitted on {sum(r['P'] >= a.min_ranks for r in runs)} runs with {a.min_ranks} or more subdomains:")
+    print(m.describe())
+    print(f"node: {a.flops / 1e9:.1f} Gflop/s per core, {a.bandwidth / 1e9:.0f} GB/s, latency "
+          f"{a.latency * 1e6:.1f} us, network {a.net_bandwidth / 1e9:.0f} GB/s, MUMPS at {a.mumps_efficiency:.0%}")
     print()
-    print("check on the study (model / measured):")
-    print(f"{'dofs':>9} {'P':>4} {'n_G':>12} {'critical Gflop':>16} {'median MB':>14} {'max MB':>14}")
-    for s in runs:
-        P = s["subdomains"]
-        c = m.contact_per_node[id(s)] * s["contact_nodes"]
-        pr = m.predict(s["dofs"], P, c)
-        per = s["per_subdomain"]
-        crit = max(q["factor_gflop"] + q["interface_gflop"] for q in per)
-        peaks = [b / 1e6 for b in s["peak_memory_bytes_per_rank"]]
-        model_crit = (pr["F_s"] + (pr["share"] if s.get("interface_factor") == "mumps" else 0)) / 1e9
-        if s.get("interface_factor") in ("dense", "sparse"):
-            model_crit = max(model_crit, s["interface_gflop"])  # rank 0's own factor
-        print(f"{s['dofs']:>9} {P:>4} {pr['n_G']:>6.0f}/{s['interface_dofs']:<5} {model_crit:>7.1f}/{crit:<8.1f} "
-              f"{pr['M'] / 1e6:>6.0f}/{statistics.median(peaks):<7.0f} {pr['M'] / 1e6:>6.0f}/{max(peaks):<7.0f}")
+    print("model / measured on every run (G = Gflop, MB):")
+    print(f"{'dofs':>9} {'P':>4} {'n_G':>13} {'F_s max G':>13} {'F_G G':>13} {'share G':>11} {'median MB':>11}")
+    ratio = lambda x, y: f"{x:.3g}/{y:.3g}"
+    for r in runs:
+        pr = m.predict(r["n"], r["P"])
+        print(f"{r['n']:>9} {r['P']:>4} {ratio(pr['n_G'], r['n_G']):>13} {ratio(pr['F_s'] / 1e9, r['F_max'] / 1e9):>13} "
+              f"{ratio(pr['F_G'] / 1e9, r['F_G'] / 1e9):>13} {ratio(pr['share'] / 1e9, r['share_max'] / 1e9):>11} "
+              f"{ratio(pr['M'] / 1e6, r['mem_med'] / 1e6):>11}")
     print()
-    big = max(runs, key=lambda s: s["dofs"])
-    scale = math.sqrt(a.dofs / big["dofs"])
-    contact = a.contact_nodes if a.contact_nodes is not None else big["contact_nodes"] * scale
-    c_dofs = m.contact_per_node[id(big)] * contact
-    sweeps = a.sweeps if a.sweeps is not None else big["iterations"]
-    one = m.predict(a.dofs, 1, c_dofs)
-    print(f"prediction: {a.dofs:.3g} dofs on {a.ranks} ranks, {contact:.0f} contact nodes, {sweeps:.0f} sweeps")
-    for P in sorted({1, 64, a.ranks}):
-        pr = m.predict(a.dofs, P, c_dofs)
-        f, sw, loop = times(m, pr, P, sweeps, a)
-        crit = pr["F_s"] + pr["share"]
-        print(f"  P = {P:>4}: n_s {pr['n_s']:.3g} dofs, dense block b_s {pr['b_s']:.0f}, interface n_G {pr['n_G']:.0f}; "
-              f"factor {pr['F_s'] / 1e9:.1f} + interface share {pr['share'] / 1e9:.2f} Gflop "
-              f"({crit / one['F_s']:.4f} of one rank's); memory {pr['M'] / 2**30:.2f} GiB per rank; "
-              f"factor {f:.1f} s, sweep {sw * 1e3:.2f} ms, loop {loop:.1f} s")
+    one = m.a_1 * a.dofs**1.5
+    print(f"prediction for {a.dofs:.3g} dofs, {sweeps:.0f} sweeps (one rank's factor: {one / 1e9:.3g} Gflop):")
+    print(f"{'P':>5} {'n/P':>9} {'b':>6} {'n_G':>8} {'F_s G':>8} {'share G':>8} {'crit/one':>9} "
+          f"{'median GiB':>10} {'rank0 GiB':>9} {'factor s':>9} {'sweep ms':>9} {'loop s':>7}")
+    for P in sorted({64, 128, 256, a.ranks}):
+        pr = m.predict(a.dofs, P)
+        f, sw, loop = times(pr, P, sweeps, 0, a)
+        print(f"{P:>5} {a.dofs / P:>9.3g} {pr['b']:>6.0f} {pr['n_G']:>8.0f} {pr['F_s'] / 1e9:>8.1f} "
+              f"{pr['share'] / 1e9:>8.2f} {(pr['F_s'] + pr['share']) / one:>9.5f} "
+              f"{pr['M'] / 2**30:>10.2f} {m.r_0 * pr['M'] / 2**30:>9.2f} {f:>9.1f} {sw * 1e3:>9.2f} {loop:>7.1f}")
 
 
 if __name__ == "__main__":

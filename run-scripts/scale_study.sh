@@ -4,7 +4,8 @@
 # each, with the default --interface (MUMPS from 16 subdomains on); per-rank figures from
 # summary.json, and each answer against the P = 1 run's.
 #   bash run-scripts/scale_study.sh [--case hertz] [--level 5] [--ranks "1 2 4 8 16 32 64"] [--out DIR]
-# Writes OUT/scale.csv (one row per P) and prints it as a table. On a machine with fewer
+# Writes OUT/scale.csv (one row per P) and OUT/summary-P.json (for run-scripts/cost_model.py),
+# and prints the table. On a machine with fewer
 # cores than ranks (oversubscribed) flops, memory and bytes are what a cluster would see;
 # times are the sum of the ranks' work more than its critical path.
 #
@@ -73,6 +74,7 @@ print(",".join(str(v) for v in [
     round(statistics.median(sent), 1), round(max(sent), 1),
     round(split_s, 2), round(t["loop"], 2), round(t["total"], 2), f"{diff:.2e}"]))
 PY
+  cp "$run/summary.json" "$OUT/summary-$p.json"
   # Keep the P = 1 run as the reference; the others' files are large.
   [ "$run" != "$REF" ] && rm -rf "$run"
   rm -rf "$parts"
