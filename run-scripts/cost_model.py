@@ -65,6 +65,7 @@ def figures(s):
         factor_s=per[0]["factor_s"],
         b_max=max(q["boundary_dofs"] for q in per),
         F_G=s["interface_gflop"] * 1e9, mumps=s.get("interface_factor") == "mumps",
+        E_G=s.get("interface_factor_entries", 0.0),
         share_max=max(q["interface_gflop"] for q in per) * 1e9,
         crit=max(q["factor_gflop"] + q["interface_gflop"] for q in per) * 1e9,
         mem0=peaks[0], mem_med=statistics.median(peaks), mem_max=max(peaks),
@@ -85,12 +86,15 @@ class Model:
       M     = M_0 + m_n n / P + 8 E_G / P  a rank's peak memory (bytes; rank 0 r_0 x)
     """
 
-    KAPPA = 1.6  # E_G / F_G^(2/3): MUMPS's INFOG(29) and RINFOG(3), hertz level 4, 16 ranks
-
     def __init__(self, runs, min_ranks):
         fit = [r for r in runs if r["P"] >= min_ranks]
         if len(fit) < 2:
             sys.exit(f"cost_model.py: at least two runs with {min_ranks} or more subdomains needed")
+        # E_G / F_G^(2/3) from MUMPS's INFOG(29) and RINFOG(3) (summary.json
+        # interface_factor_entries and interface_gflop).
+        sized = [r for r in fit if r["mumps"] and r["E_G"] > 0]
+        self.KAPPA = fit_scale([(r["F_G"] ** (2 / 3), r["E_G"]) for r in sized]) if sized else 1.6
+        self.kappa_runs = len(sized)
         self.a_G = fit_scale([(math.sqrt(r["n"] * r["P"]), r["n_G"]) for r in fit])
         self.a_b = fit_scale([(math.sqrt(r["n"] / r["P"]), r["b_max"]) for r in fit])
         self.a_f = fit_scale([((r["n"] / r["P"]) ** 1.5, r["F_max"]) for r in fit])
@@ -134,7 +138,7 @@ class Model:
             f"  b     = {self.a_b:.3f} sqrt(n / P)",
             f"  F_s   = {self.a_f:.1f} (n / P)^1.5  (one rank: {self.a_1:.1f} n^1.5)",
             f"  F_G   = {self.a_I:.4g} n^{self.g_n:.2f} P^{self.beta:.2f};  share = {self.k_I:.2f} F_G / P",
-            f"  E_G   = {self.KAPPA} F_G^(2/3)  (measured once, not fitted)",
+            f"  E_G   = {self.KAPPA:.2f} F_G^(2/3)  ({self.kappa_runs} runs; without any, 1.6 from hertz level 4 on 16 ranks)",
             f"  M     = {self.M_0 / 1e6:.0f} MB + {self.m_n:.0f} B x n / P + 8 E_G / P;"
             f"  rank 0 at most {self.r_0:.2f} x, the largest rank {self.r_max:.2f} x the median",
         ])

@@ -786,6 +786,7 @@ struct FactorFigures {
     /// "dense" or "sparse" where the interface system was factored.
     interface: Option<&'static str>,
     interface_flops: f64,
+    interface_entries: f64,
 }
 
 impl FactorFigures {
@@ -797,6 +798,7 @@ impl FactorFigures {
             ordering: factor.ordering,
             interface: step.interface_factor(),
             interface_flops: step.interface_flops(),
+            interface_entries: step.interface_entries(),
         }
     }
 
@@ -807,6 +809,7 @@ impl FactorFigures {
             ordering: Ordering::Amd,
             interface: None,
             interface_flops: 0.0,
+            interface_entries: 0.0,
         }
     }
 }
@@ -858,6 +861,7 @@ fn rank_stats(ctx: &Subdomain, sub: &SubProblem, f: &FactorFigures) -> RankStats
         schur_s: t(Phase::Schur),
         interface_factor: f.interface.map(str::to_string),
         interface_gflop: f.interface_flops / 1e9,
+        interface_factor_entries: f.interface_entries,
         sent_bytes_per_sweep: ctx.sent_per_sweep.get(),
         loop_s: t(Phase::Loop),
         one_solve_s: t(Phase::OneSolve),

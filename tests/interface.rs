@@ -111,6 +111,17 @@ fn compare(source: &[&str], np: usize, k: usize) {
     let total: f64 = per.iter().sum();
     assert!(total > 0.0, "{what}: {per:?}");
     assert!((common::num(&sb, "interface_gflop") - total).abs() <= 1e-9 * total);
+    // The factor holds at least the diagonal, at most the dense triangle.
+    for s in [&sa, &sb] {
+        let (e, n) = (
+            common::num(s, "interface_factor_entries"),
+            common::num(s, "interface_dofs"),
+        );
+        assert!(
+            e >= n && e <= n * (n + 1.0) / 2.0,
+            "{what}: {e} entries, {n} dofs"
+        );
+    }
     // Each sweep every rank sends at least its part of the sweep's sums (one
     // all-reduce of 14 or more values); on the rank0 path the others also send their
     // interface right-hand sides to the first.

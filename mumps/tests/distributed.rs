@@ -114,9 +114,7 @@ fn child() {
         .err()
         .expect("an error");
     assert!(err.infog1 < 0, "{err}");
-    assert!(err
-        .to_string()
-        .starts_with("MUMPS factorization failed"));
+    assert!(err.to_string().starts_with("MUMPS factorization failed"));
 }
 
 #[test]

@@ -391,6 +391,16 @@ impl InterfaceSystem {
         }
     }
 
+    /// Entries stored in its factor (the lower triangle, diagonal included).
+    pub fn factor_entries(&self) -> f64 {
+        let n = self.x.nrows() as f64;
+        match &self.factor {
+            None => 0.0,
+            Some(InterfaceFactor::Dense(_)) => n * (n + 1.0) / 2.0,
+            Some(InterfaceFactor::Sparse(chol)) => chol.factor_nnz() as f64,
+        }
+    }
+
     /// From the ranks' interface right-hand sides, concatenated in rank order, to their
     /// interface values, in the same layout.
     pub fn solve_packed(&mut self, z: &[f64], out: &mut Vec<f64>) {

@@ -84,6 +84,11 @@ impl MumpsInterface {
         self.factor.local_flops()
     }
 
+    /// Entries of the whole factor, over all ranks (INFOG(29)).
+    pub fn factor_entries(&self) -> f64 {
+        self.factor.factor_entries()
+    }
+
     /// Solves with the members' right-hand sides `z` (each aligned with its interface
     /// dofs); returns each member's interface values (collective, on leaders).
     fn solve(&mut self, leader: &Leader, z: Vec<Vec<f64>>) -> Result<Vec<Vec<f64>>> {
@@ -199,18 +204,21 @@ impl MumpsInterface {
 
 /// Builds the distributed interface factor (collective over subdomains): every
 /// subdomain hands its interface dofs and condensed block; the leaders factor. Returns
-/// the leader's state (`None` on members) and this rank's factorization flops.
+/// the leader's state (`None` on members), this rank's factorization flops and the
+/// whole factor's entries.
 pub fn build(
     mpi: &Mpi,
     n: usize,
     index: Vec<usize>,
     s_local: Mat<f64>,
     slot: &mut Option<MumpsInterface>,
-) -> Result<f64> {
+) -> Result<(f64, f64)> {
     let mut built: Option<Result<MumpsInterface>> = None;
     let flops = mpi.on_leader((index, s_local), |leader, parts| {
         let state = MumpsInterface::new(leader, n, parts);
-        let flops = state.as_ref().map_or(Err(()), |s| Ok(s.local_flops()));
+        let flops = state
+            .as_ref()
+            .map_or(Err(()), |s| Ok((s.local_flops(), s.factor_entries())));
         let message = state.as_ref().err().map(|e| e.to_string());
         built = Some(state);
         (flops.ok(), message)

@@ -110,8 +110,9 @@ pub struct CondensedStep<'a> {
     interface: Option<InterfaceSystem>,
     /// The interface system factored by MUMPS, on each rank's team leader.
     mumps: Option<MumpsInterface>,
-    /// "dense" or "sparse", and its factorization's flops, as first built.
-    interface_figures: (Option<&'static str>, f64),
+    /// "dense", "sparse" or "mumps", its factorization's flops (this rank's share with
+    /// MUMPS) and the whole factor's entries (on the first subdomain), as first built.
+    interface_figures: (Option<&'static str>, f64, f64),
     interface_counts: Vec<usize>,
     /// Scratch: the packed own forces of the sweep being solved.
     forces: Vec<f64>,
@@ -151,17 +152,22 @@ impl<'a> CondensedStep<'a> {
         let has_interface = setup.n_interface > 0;
         let mut mumps = None;
         let (interface, interface_figures) = if has_interface && setup.interface_mumps {
-            let flops = interface_mumps::build(
+            let (flops, entries) = interface_mumps::build(
                 mpi,
                 setup.n_interface,
                 sub.interface_global.clone(),
                 s_local,
                 &mut mumps,
             )?;
-            // A rank's MUMPS work is its leader subdomain's.
+            // A rank's MUMPS work is its leader subdomain's; the factor's size is
+            // reported once.
             (
                 None,
-                (Some("mumps"), if mumps.is_some() { flops } else { 0.0 }),
+                (
+                    Some("mumps"),
+                    if mumps.is_some() { flops } else { 0.0 },
+                    if mpi.rank == 0 { entries } else { 0.0 },
+                ),
             )
         } else {
             let interface = if has_interface {
@@ -176,6 +182,9 @@ impl<'a> CondensedStep<'a> {
                 interface
                     .as_ref()
                     .map_or(0.0, InterfaceSystem::factor_flops),
+                interface
+                    .as_ref()
+                    .map_or(0.0, InterfaceSystem::factor_entries),
             );
             (interface, figures)
         };
@@ -213,6 +222,11 @@ impl<'a> CondensedStep<'a> {
     /// That first factorization's floating-point operations (0 on the others).
     pub fn interface_flops(&self) -> f64 {
         self.interface_figures.1
+    }
+
+    /// Entries of the interface factor, on the first subdomain (0 on the others).
+    pub fn interface_entries(&self) -> f64 {
+        self.interface_figures.2
     }
 
     /// The displacement of every node of the subdomain, from the boundary values of the

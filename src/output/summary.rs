@@ -38,6 +38,9 @@ pub struct RankStats {
     pub interface_factor: Option<String>,
     /// Its factorization's floating-point operations, 1e9 (0 on the others).
     pub interface_gflop: f64,
+    /// Entries of the interface factor (all ranks' with MUMPS, its INFOG(29)), on the
+    /// first subdomain; 0 on the others.
+    pub interface_factor_entries: f64,
     /// Bytes the subdomain's rank handed MPI to send per sweep of the loop (the payloads
     /// of its reductions, gathers, scatters and all-to-alls; MUMPS's own messages not
     /// counted). The same on every subdomain of a rank.
@@ -177,6 +180,7 @@ impl Gathered {
             per_subdomain_min: Extremes::of(stats, f64::INFINITY, f64::min),
             interface_factor: stats.iter().find_map(|s| s.interface_factor.clone()),
             interface_gflop: stats.iter().map(|s| s.interface_gflop).sum(),
+            interface_factor_entries: stats.iter().map(|s| s.interface_factor_entries).sum(),
             facts,
         }
     }
@@ -214,6 +218,7 @@ struct Summary<'a> {
     per_subdomain_min: Extremes,
     interface_factor: Option<String>,
     interface_gflop: f64,
+    interface_factor_entries: f64,
 }
 
 /// The stopping test's figures at the last sweep (null without one): see [`Sweep`].
