@@ -59,7 +59,9 @@ def figures(s):
     peaks = s["peak_memory_bytes_per_rank"]
     return dict(
         n=s["dofs"], P=s["subdomains"], n_G=s["interface_dofs"], sweeps=s["iterations"],
-        contact=s["contact_nodes"], frictional=s["friction"] != "none",
+        contact=s["contact_nodes"],
+        # Contact dofs: both components with friction, the normal's without.
+        C=s["contact_nodes"] * (2 if s["friction"] != "none" else 1),
         F_max=max(q["factor_gflop"] for q in per) * 1e9,
         F_one=per[0]["factor_gflop"] * 1e9,
         factor_s=per[0]["factor_s"],
@@ -77,7 +79,9 @@ def figures(s):
 class Model:
     """Per rank of a run of n dofs on P ranks (one subdomain each), 2D:
       n_G   = a_G sqrt(n P)                the interface dofs
-      b     = a_b sqrt(n / P)              the largest subdomain's dense block
+      b     = a_b sqrt(n / P) + C / P      the largest subdomain's dense block: its
+                                           interface dofs and its share of the C
+                                           contact dofs (the partition spreads them)
       F_s   = a_f (n / P)^1.5              the largest subdomain's factor (flops; one
                                            rank's whole factor: a_1 n^1.5)
       F_G   = a_I n^1.5 P^beta             MUMPS's interface factorization (flops)
@@ -96,7 +100,9 @@ class Model:
         self.KAPPA = fit_scale([(r["F_G"] ** (2 / 3), r["E_G"]) for r in sized]) if sized else 1.6
         self.kappa_runs = len(sized)
         self.a_G = fit_scale([(math.sqrt(r["n"] * r["P"]), r["n_G"]) for r in fit])
-        self.a_b = fit_scale([(math.sqrt(r["n"] / r["P"]), r["b_max"]) for r in fit])
+        self.a_b = fit_scale(
+            [(math.sqrt(r["n"] / r["P"]), max(r["b_max"] - r["C"] / r["P"], 1.0)) for r in fit]
+        )
         self.a_f = fit_scale([((r["n"] / r["P"]) ** 1.5, r["F_max"]) for r in fit])
         mumps = [r for r in fit if r["mumps"]]
         sizes = {r["n"] for r in mumps}
@@ -121,12 +127,12 @@ class Model:
     def entries(self, F_G):
         return self.KAPPA * F_G ** (2 / 3)
 
-    def predict(self, n, P):
+    def predict(self, n, P, C):
         F_G = self.a_I * n**self.g_n * P**self.beta if P > 1 else 0.0
         E_G = self.entries(F_G)
         return dict(
             n_G=self.a_G * math.sqrt(n * P) if P > 1 else 0.0,
-            b=self.a_b * math.sqrt(n / P) if P > 1 else 0.0,
+            b=self.a_b * math.sqrt(n / P) + C / P if P > 1 else C,
             F_s=self.a_f * (n / P) ** 1.5,
             F_G=F_G, share=self.k_I * F_G / P, E_G=E_G,
             M=self.M_0 + self.m_n * n / P + 8 * E_G / P,
@@ -135,7 +141,7 @@ class Model:
     def describe(self):
         return "\n".join([
             f"  n_G   = {self.a_G:.3f} sqrt(n P)",
-            f"  b     = {self.a_b:.3f} sqrt(n / P)",
+            f"  b     = {self.a_b:.3f} sqrt(n / P) + C / P",
             f"  F_s   = {self.a_f:.1f} (n / P)^1.5  (one rank: {self.a_1:.1f} n^1.5)",
             f"  F_G   = {self.a_I:.4g} n^{self.g_n:.2f} P^{self.beta:.2f};  share = {self.k_I:.2f} F_G / P",
             f"  E_G   = {self.KAPPA:.2f} F_G^(2/3)  ({self.kappa_runs} runs; without any, 1.6 from hertz level 4 on 16 ranks)",
@@ -144,7 +150,7 @@ class Model:
         ])
 
 
-def times(pr, P, sweeps, contact_dofs, a):
+def times(pr, P, sweeps, a):
     """Seconds on the critical path: factorization, one sweep, the loop."""
     factor = pr["F_s"] / a.flops + pr["share"] / (a.mumps_efficiency * a.flops)
     # A sweep: the dense block of the largest subdomain read twice (forward and
@@ -165,6 +171,8 @@ def main():
     ap.add_argument("--min-ranks", type=int, default=16)
     ap.add_argument("--dofs", type=float, default=1e8)
     ap.add_argument("--ranks", type=int, default=512)
+    ap.add_argument("--contact-nodes", type=float, default=None,
+                    help="default: the study's largest run's, scaled like a boundary (sqrt of the dofs)")
     ap.add_argument("--sweeps", type=float, default=None,
                     help="default: those of the study's largest run (the count depends on the case, not on P)")
     ap.add_argument("--flops", type=float, default=None,
@@ -182,6 +190,9 @@ def main():
         a.flops = ones[-1]["F_one"] / ones[-1]["factor_s"] if ones else 10e9
     big = max(runs, key=lambda r: r["n"])
     sweeps = a.sweeps if a.sweeps is not None else big["sweeps"]
+    per_node = big["C"] / big["contact"]
+    contact = a.contact_nodes if a.contact_nodes is not None else big["contact"] * math.sqrt(a.dofs / big["n"])
+    C = contact * per_node
     print(f"fitted on {sum(r['P'] >= a.min_ranks for r in runs)} runs with {a.min_ranks} or more subdomains:")
     print(m.describe())
     print(f"node: {a.flops / 1e9:.1f} Gflop/s per core, {a.bandwidth / 1e9:.0f} GB/s, latency "
@@ -191,18 +202,19 @@ def main():
     print(f"{'dofs':>9} {'P':>4} {'n_G':>13} {'F_s max G':>13} {'F_G G':>13} {'share G':>11} {'median MB':>11}")
     ratio = lambda x, y: f"{x:.3g}/{y:.3g}"
     for r in runs:
-        pr = m.predict(r["n"], r["P"])
+        pr = m.predict(r["n"], r["P"], r["C"])
         print(f"{r['n']:>9} {r['P']:>4} {ratio(pr['n_G'], r['n_G']):>13} {ratio(pr['F_s'] / 1e9, r['F_max'] / 1e9):>13} "
               f"{ratio(pr['F_G'] / 1e9, r['F_G'] / 1e9):>13} {ratio(pr['share'] / 1e9, r['share_max'] / 1e9):>11} "
               f"{ratio(pr['M'] / 1e6, r['mem_med'] / 1e6):>11}")
     print()
     one = m.a_1 * a.dofs**1.5
-    print(f"prediction for {a.dofs:.3g} dofs, {sweeps:.0f} sweeps (one rank's factor: {one / 1e9:.3g} Gflop):")
+    print(f"prediction for {a.dofs:.3g} dofs, {contact:.0f} contact nodes, {sweeps:.0f} sweeps "
+          f"(one rank's factor: {one / 1e9:.3g} Gflop):")
     print(f"{'P':>5} {'n/P':>9} {'b':>6} {'n_G':>8} {'F_s G':>8} {'share G':>8} {'crit/one':>9} "
           f"{'median GiB':>10} {'rank0 GiB':>9} {'factor s':>9} {'sweep ms':>9} {'loop s':>7}")
     for P in sorted({64, 128, 256, a.ranks}):
-        pr = m.predict(a.dofs, P)
-        f, sw, loop = times(pr, P, sweeps, 0, a)
+        pr = m.predict(a.dofs, P, C)
+        f, sw, loop = times(pr, P, sweeps, a)
         print(f"{P:>5} {a.dofs / P:>9.3g} {pr['b']:>6.0f} {pr['n_G']:>8.0f} {pr['F_s'] / 1e9:>8.1f} "
               f"{pr['share'] / 1e9:>8.2f} {(pr['F_s'] + pr['share']) / one:>9.5f} "
               f"{pr['M'] / 2**30:>10.2f} {m.r_0 * pr['M'] / 2**30:>9.2f} {f:>9.1f} {sw * 1e3:>9.2f} {loop:>7.1f}")
