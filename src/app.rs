@@ -373,7 +373,7 @@ impl<'a> Subdomain<'a> {
 struct Setup {
     case: Case,
     r: f64,
-    /// E_eff / h (`Problem::mesh_stiffness`).
+    /// E_eff / h (`Lengths::mesh_stiffness`).
     mesh_stiffness: f64,
     /// Shift of the interface block of every local matrix (see `LocalFactor`).
     alpha: f64,
@@ -573,10 +573,7 @@ pub struct SplitOptions {
 /// `parts` subdomains, the same as a run on that many would, and writes one file per
 /// part (see `split_dir`). Serial: one process holds the whole mesh, once.
 pub fn split_case(opts: &SplitOptions, print: &Printer) -> Result<()> {
-    let case = match &opts.case_file {
-        Some(path) => case::read_case(path)?,
-        None => case::builtin_case(&opts.builtin, opts.level)?,
-    };
+    let case = case_file_or_builtin(opts.case_file.as_deref(), &opts.builtin, opts.level)?;
     let (mesh, mesh_name) = load_mesh(&case)?;
     let prob = problem::build(&case, mesh, &mesh_name)?;
     let triangles = prob.mesh.triangles.len();
@@ -634,15 +631,20 @@ fn check_subdomains(mesh: &str, triangles: usize, ranks: usize, per_rank: usize)
 /// Resolves the case: a file, or a built-in case at a refinement level; then applies the
 /// command-line overrides.
 pub fn load_case(opts: &Options) -> Result<Case> {
-    let mut case = match &opts.case_file {
-        Some(path) => case::read_case(path)?,
-        None => case::builtin_case(&opts.builtin, opts.level)?,
-    };
+    let mut case = case_file_or_builtin(opts.case_file.as_deref(), &opts.builtin, opts.level)?;
     case::override_solver(&mut case, opts.r, opts.tol, opts.max_iter, opts.coulomb)?;
     if let Some(acc) = opts.acceleration {
         case.solver.acceleration = acc;
     }
     Ok(case)
+}
+
+/// The case file, or without one the built-in case `builtin` at `level`.
+fn case_file_or_builtin(file: Option<&std::path::Path>, builtin: &str, level: u32) -> Result<Case> {
+    match file {
+        Some(path) => case::read_case(path),
+        None => case::builtin_case(builtin, level),
+    }
 }
 
 /// Reads or generates the mesh; returns it with the name used in messages.

@@ -45,12 +45,6 @@ impl Problem {
         self.lengths().default_r(case)
     }
 
-    /// E_eff / h: how stiff the body is, seen from the contact boundary, for modes at the
-    /// scale of the mesh (the stiffest).
-    pub fn mesh_stiffness(&self, case: &Case) -> f64 {
-        self.lengths().mesh_stiffness(case)
-    }
-
     /// The mesh's two lengths behind r: h, and L the smaller side of the bounding box.
     pub fn lengths(&self) -> Lengths {
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
@@ -87,7 +81,8 @@ impl Lengths {
         (self.mesh_stiffness(case) * self.compact_stiffness(case)).sqrt()
     }
 
-    /// See [`Problem::mesh_stiffness`].
+    /// E_eff / h: how stiff the body is, seen from the contact boundary, for modes at the
+    /// scale of the mesh (the stiffest).
     pub fn mesh_stiffness(&self, case: &Case) -> f64 {
         effective_modulus(case) / self.contact_h
     }

@@ -132,6 +132,12 @@ fn fingerprint(case: &Case) -> BTreeMap<String, String> {
     .collect()
 }
 
+/// The last component of `path` (empty if none), for the fingerprint and the manifest.
+fn file_name(path: &Path) -> String {
+    path.file_name()
+        .map_or_else(String::new, |f| f.to_string_lossy().into_owned())
+}
+
 fn json<T: Serialize + ?Sized>(v: &T) -> String {
     serde_json::to_string(v).unwrap_or_default()
 }
@@ -153,9 +159,7 @@ fn mesh_file(case: &Case) -> Result<Option<MeshFile>> {
         bytes += n as u64;
     }
     Ok(Some(MeshFile {
-        name: path
-            .file_name()
-            .map_or_else(String::new, |f| f.to_string_lossy().into_owned()),
+        name: file_name(path),
         bytes,
         sha256: hex(&hasher.finalize()),
     }))
