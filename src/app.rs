@@ -716,15 +716,17 @@ impl<'a> Monitor<'a> {
     }
 
     fn sweep(&mut self, s: &Sweep) {
+        // The normals follow their statuses at every sweep that moves one: a line for the
+        // first retune and for a return to the reference r; the count is in summary.json.
         if s.retunes != self.retunes {
-            self.print.line(if s.stiff + s.soft == 0 {
-                "  r back to the reference on every contact direction (the statuses kept moving); the dense factor blocks refactored".to_string()
-            } else {
-                format!(
-                    "  r retuned (statuses settled): raised on {} held contact directions, lowered on {} free ones; the dense factor blocks refactored",
+            if s.stiff + s.soft == 0 {
+                self.print.line("  r back to the reference on every contact direction (the statuses kept moving); the dense factor blocks refactored");
+            } else if self.retunes == 0 {
+                self.print.line(format!(
+                    "  r retuned per contact direction (raised on {} held, lowered on {} free), again whenever a status changes",
                     s.stiff, s.soft
-                )
-            });
+                ));
+            }
             self.retunes = s.retunes;
         }
         if s.iter == 1 || s.iter % self.every == 0 {

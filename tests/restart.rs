@@ -119,16 +119,16 @@ fn restart_equals_uninterrupted_run_two_ranks_of_two_subdomains() {
     check_restart(2, &["--subdomains-per-rank", "2"]);
 }
 
-/// Frictionless, every node at zero gap: r is retuned after sweep 2, before the
-/// checkpoint of sweep 4, so the restart must refactor with the retuned r to continue
-/// exactly.
+/// Frictionless, every node at zero gap: r is retuned after sweep 1, before the
+/// checkpoint of sweep 2, so the restart must refactor with the retuned r to continue
+/// exactly (the run converges at sweep 5).
 #[test]
 fn restart_after_a_retune_of_r_continues_exactly() {
     let tmp = tempfile::tempdir().unwrap();
     let case = common::builtin_with_friction("block", 1, "friction = \"none\"");
     let path = tmp.path().join("case.toml");
     std::fs::write(&path, case).unwrap();
-    check_restart_in(tmp.path(), 2, &[path.to_str().unwrap()], &[], (5, 4));
+    check_restart_in(tmp.path(), 2, &[path.to_str().unwrap()], &[], (4, 2));
     let s = common::read_summary(&tmp.path().join("stopped/summary.json"));
     assert!(s["r_retunes"].as_u64().unwrap() >= 1, "{s}");
 }
@@ -144,7 +144,8 @@ fn restart_after_r_was_lowered_for_a_slender_body_continues_exactly() {
     ]
     .iter()
     .collect();
-    check_restart_in(tmp.path(), 2, &[case.to_str().unwrap()], &[], (120, 50));
+    // 73 sweeps in all, 10 retunes (several before the checkpoint of sweep 40).
+    check_restart_in(tmp.path(), 2, &[case.to_str().unwrap()], &[], (50, 20));
     let s = common::read_summary(&tmp.path().join("straight/summary.json"));
     let (r, r_loop) = (common::num(&s, "r"), common::num(&s, "r_loop"));
     assert!(r_loop < 0.5 * r, "r {r}, r_loop {r_loop}");

@@ -151,3 +151,48 @@ fn slow_plain_alg2_with_a_poor_r() {
         "slow disc",
     );
 }
+
+/// The sweeps of a run's summary.
+fn sweeps(run: &Run) -> u64 {
+    run.expect_code(0);
+    run.summary()["iterations"].as_u64().unwrap()
+}
+
+/// A slender body lying down on its foundation finds its contact zone in about as many
+/// sweeps as a compact body of its size (the built-in block, 1701 nodes, against the
+/// 2 m cantilever, 1760). Before the normals followed their statuses at every sweep the
+/// cantilever took 312 sweeps frictionless and 230 with Coulomb friction, the block 28;
+/// measured now 27 and 75 against 30. Frictionless it must stay within twice the block's
+/// sweeps (issue 24's target); with Coulomb friction within three times, where it stands.
+#[test]
+fn a_slender_body_finds_its_contact_zone_in_few_sweeps() {
+    let block = sweeps(&run_builtin("block", 1, &[]));
+    let path = case("cantilever.toml");
+    let coulomb = sweeps(&run_args(&[&path]));
+    let text = std::fs::read_to_string(&path).unwrap();
+    let frictionless: String = text
+        .lines()
+        .filter(|l| !l.starts_with("coefficient"))
+        .map(|l| {
+            if l.starts_with("friction") {
+                "friction = \"none\"\n".to_string()
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect::<String>()
+        .replace(
+            "file = \"cantilever.msh\"",
+            &format!("file = {:?}", case("cantilever.msh")),
+        );
+    let none = sweeps(&run_case(&frictionless, &[]));
+    println!("block {block}, cantilever frictionless {none}, Coulomb {coulomb}");
+    assert!(
+        none <= 2 * block,
+        "frictionless: {none} sweeps against {block}"
+    );
+    assert!(
+        coulomb <= 3 * block,
+        "Coulomb: {coulomb} sweeps against {block}"
+    );
+}

@@ -109,29 +109,44 @@ impl Anderson {
         self.last = Some((f.to_vec(), g.to_vec()));
     }
 
-    /// Local parts of the Gram matrix DF'DF (upper triangle, row by row) and of DF' f,
-    /// where DF is the memory as it will be once (f, g) is pushed: computing them with
-    /// the evaluation lets one reduction per sweep serve both the statistics and the
-    /// mixing.
-    pub(super) fn local_sums_with_new(&self, f: &[f64], omega: &[f64]) -> Vec<f64> {
-        let mut diffs: Vec<&[f64]> = self.df.iter().map(Vec::as_slice).collect();
-        let newest: Vec<f64>;
-        if let Some((f0, _)) = &self.last {
-            newest = f.iter().zip(f0).map(|(a, b)| a - b).collect();
-            if diffs.len() == self.m {
-                diffs.remove(0);
+    /// Local parts of the Gram matrix DF'DF (upper triangle, row by row), of DF' f and of
+    /// the Gram matrix DX'DX of the state differences (DX = DG - DF), where DF, DG are the
+    /// memory as it will be once (f, g) is pushed: computing them with the evaluation lets
+    /// one reduction per sweep serve the statistics, the mixing and the contraction
+    /// estimate ([`span_secant`]).
+    pub(super) fn local_sums_with_new(&self, f: &[f64], g: &[f64], omega: &[f64]) -> Vec<f64> {
+        let mut df: Vec<&[f64]> = self.df.iter().map(Vec::as_slice).collect();
+        let mut dg: Vec<&[f64]> = self.dg.iter().map(Vec::as_slice).collect();
+        let (newest_f, newest_g): (Vec<f64>, Vec<f64>);
+        if let Some((f0, g0)) = &self.last {
+            newest_f = f.iter().zip(f0).map(|(a, b)| a - b).collect();
+            newest_g = g.iter().zip(g0).map(|(a, b)| a - b).collect();
+            if df.len() == self.m {
+                df.remove(0);
+                dg.remove(0);
             }
-            diffs.push(&newest);
+            df.push(&newest_f);
+            dg.push(&newest_g);
         }
-        let k = diffs.len();
-        let mut v = Vec::with_capacity(k * (k + 1) / 2 + k);
+        let dx: Vec<Vec<f64>> = df
+            .iter()
+            .zip(&dg)
+            .map(|(f, g)| g.iter().zip(*f).map(|(a, b)| a - b).collect())
+            .collect();
+        let k = df.len();
+        let mut v = Vec::with_capacity(k * (k + 2));
         for a in 0..k {
             for b in a..k {
-                v.push(dot(diffs[a], diffs[b], omega));
+                v.push(dot(df[a], df[b], omega));
             }
         }
+        for a in df.iter().take(k) {
+            v.push(dot(a, f, omega));
+        }
         for a in 0..k {
-            v.push(dot(diffs[a], f, omega));
+            for b in a..k {
+                v.push(dot(&dx[a], &dx[b], omega));
+            }
         }
         v
     }
@@ -221,6 +236,66 @@ fn solve_small_spd(mut a: Vec<Vec<f64>>, b: &mut [f64]) -> Option<Vec<f64>> {
     Some(b.to_vec())
 }
 
+/// The smallest secant ratio over the span of the memory, min over gamma of
+/// |DF gamma| / |DX gamma|, from the global sums of [`Anderson::local_sums_with_new`]
+/// (`None` without two differences or with dependent ones).
+///
+/// Why: on a piece of the sweep map where it is affine, G(x) = J x + c, DF = (J - I) DX,
+/// and the distance to the fixed point is |(I - J)^-1 f| <= |f| / sigma_min(I - J). A
+/// single secant gives |(J - I) d| / |d| for one step d, which can miss the slowest
+/// mode; the minimum over the memory's span is the smallest Ritz value of I - J on the
+/// steps taken (a Krylov space, where the slowest modes show first), never above the
+/// single secants'. Measured on a 2 m Coulomb beam at 6514 nodes: the single secants
+/// gave rho = 0.87 and a run at tol 1e-6 stopped with p_t 2.5e-6 off.
+pub(super) fn span_secant(sums: &[f64]) -> Option<f64> {
+    // k(k+1)/2 + k + k(k+1)/2 = k(k+2) numbers.
+    let k = ((sums.len() + 1) as f64).sqrt().round() as usize - 1;
+    if k < 2 || k * (k + 2) != sums.len() {
+        return None;
+    }
+    let tri = k * (k + 1) / 2;
+    let unpack = |part: &[f64]| {
+        let mut a = nalgebra::DMatrix::<f64>::zeros(k, k);
+        let mut idx = 0;
+        for i in 0..k {
+            for j in i..k {
+                a[(i, j)] = part[idx];
+                a[(j, i)] = part[idx];
+                idx += 1;
+            }
+        }
+        a
+    };
+    let (ff, xx) = (unpack(&sums[..tri]), unpack(&sums[tri + k..]));
+    // Scaled to a unit diagonal of DX'DX, then directions that DX does not resolve to
+    // 1e-10 of its largest are dropped: there the ratio is round-off over round-off.
+    let d: Vec<f64> = (0..k).map(|i| xx[(i, i)].sqrt()).collect();
+    if d.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+        return None;
+    }
+    let scale = |a: &nalgebra::DMatrix<f64>| {
+        nalgebra::DMatrix::from_fn(k, k, |i, j| a[(i, j)] / (d[i] * d[j]))
+    };
+    let (ff, xx) = (scale(&ff), scale(&xx));
+    let eig = xx.symmetric_eigen();
+    let top = eig.eigenvalues.max();
+    let keep: Vec<usize> = (0..k)
+        .filter(|&i| eig.eigenvalues[i] > 1e-10 * top)
+        .collect();
+    if keep.is_empty() {
+        return None;
+    }
+    // On the kept eigenvectors q_i of DX'DX (eigenvalues s_i): the ratio's square is the
+    // Rayleigh quotient of Q' DF'DF Q / s_i s_j scaled, whose smallest eigenvalue is
+    // min |DF g|^2 / |DX g|^2 over that part of the span.
+    let q = nalgebra::DMatrix::from_fn(k, keep.len(), |i, j| {
+        eig.eigenvectors[(i, keep[j])] / eig.eigenvalues[keep[j]].sqrt()
+    });
+    let reduced = q.transpose() * ff * &q;
+    let low = reduced.symmetric_eigen().eigenvalues.min();
+    low.is_finite().then(|| low.max(0.0).sqrt())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -261,7 +336,7 @@ mod tests {
         assert!(aa.propose(&x0, &g0, &[], f64::INFINITY).is_none());
         let (x1, g1) = (g0, [2.0, 4.0 + 1e-15]);
         let f1: Vec<f64> = g1.iter().zip(&x1).map(|(a, b)| a - b).collect();
-        let gram = aa.local_sums_with_new(&f1, &omega);
+        let gram = aa.local_sums_with_new(&f1, &g1, &omega);
         // Mixing would divide by |f1 - f0| ~ 1e-15.
         assert!(aa.propose(&x1, &g1, &gram, 1e-15).is_none());
         assert!(aa.df.is_empty() && aa.dg.is_empty());
@@ -269,7 +344,7 @@ mod tests {
         // A contracting step mixes as before.
         let (x2, g2) = (g1, [2.5, 4.5]);
         let f2: Vec<f64> = g2.iter().zip(&x2).map(|(a, b)| a - b).collect();
-        let gram = aa.local_sums_with_new(&f2, &omega);
+        let gram = aa.local_sums_with_new(&f2, &g2, &omega);
         assert!(aa.propose(&x2, &g2, &gram, 0.5).is_some());
     }
 }

@@ -24,36 +24,51 @@ impl Augmentation {
     /// tangential directions are held (see [`tuned`]); `r` is the reference r.
     pub fn for_statuses(kind: Retune, held: &[(bool, bool)], frictional: bool, r: f64) -> Self {
         let mut aug = Augmentation::uniform(held.len(), r);
-        if kind == Retune::ToStatus {
-            for (i, &h) in held.iter().enumerate() {
-                (aug.r_n[i], aug.r_t[i]) = tuned(h, frictional, r);
+        for (i, &h) in held.iter().enumerate() {
+            match kind {
+                Retune::ToStatus => (aug.r_n[i], aug.r_t[i]) = tuned(h, frictional, r),
+                Retune::Normals => {
+                    aug.r_n[i] = tuned(h, frictional, r).0;
+                    if frictional {
+                        aug.r_t[i] = r / TANGENT_FACTOR;
+                    }
+                }
+                Retune::ToReference => {}
             }
         }
         aug
     }
 }
 
-/// Sweeps without a status change that [`retuned`] waits for; one more with friction,
-/// whose stick/slip statuses follow the pressures and settle later (retuning one sweep
-/// earlier scrambled them on the built-in frictional cases).
+/// Sweeps without a status change that [`retuned`] waits for before it tunes the
+/// tangents; one more with friction, whose stick/slip statuses follow the pressures and
+/// settle later (retuning one sweep earlier scrambled them on the built-in frictional
+/// cases).
 pub const SETTLED_SWEEPS: usize = 1;
 /// Factors from the reference r for a held normal (raised) and a free one (lowered).
 /// 1000 x keeps the condition number of the contact block within three more decades;
 /// measured on frictionless full contact (block, levels 1-4): 10 x, 9-11 sweeps; 100 x,
-/// 7-8; 1000 x, 6.
+/// 7-8; 1000 x, 6. Held x 100 with the normals following their statuses every sweep:
+/// hertz 13-17 sweeps at levels 1-3 against 9-13, the slender cases no better.
 pub(super) const NORMAL_FACTOR: f64 = 1000.0;
 /// The same for the tangents. Friction statuses are fragile (a sticking node flips to
 /// slip when a large r amplifies the remaining tangential motion): over the built-in
-/// frictional cases at levels 1-3, 10 x gave 22-42 sweeps, 30 x 19-56, 1000 x 20-112.
+/// frictional cases at levels 1-3, 10 x gave 22-42 sweeps, 30 x 19-56, 1000 x 20-112;
+/// with the normals following their statuses, a sticking tangent x 100 or x 1000 took
+/// block levels 2-3 from 33-36 to 51-214 sweeps and the Coulomb cantilever of
+/// tests/data/tolerance from 73 to 322-505.
 const TANGENT_FACTOR: f64 = 10.0;
-/// Retunes allowed in one run, all kinds together: up to MAX_RETUNES - 1 to the statuses;
-/// after them, a further settled change of the statuses returns every direction to the
-/// reference r (the last one).
-pub const MAX_RETUNES: usize = 4;
+/// Retunes allowed in one run, all kinds together. The normals follow their statuses at
+/// every sweep that changes one, so a run that finds its contact zone node by node
+/// retunes as often (measured: at most 47 on the slender cases of
+/// docs/performance-history.md, 1-7 on the built-in and compact ones). A run that
+/// reaches the budget has statuses that cycle: every direction returns once to the
+/// reference r (the last retune), where ALG2 converges for any r.
+pub const MAX_RETUNES: usize = 100;
 
-/// The r of a node's normal and tangential directions once their statuses have settled:
-/// raised where held (pressed, sticking), lowered where free (open, slipping). Without
-/// friction the tangent is not part of the method and keeps r.
+/// The r of a node's normal and tangential directions for its statuses: raised where
+/// held (pressed, sticking), lowered where free (open, slipping). Without friction the
+/// tangent is not part of the method and keeps r.
 pub fn tuned((held_n, held_t): (bool, bool), frictional: bool, r: f64) -> (f64, f64) {
     let pick = |held: bool, factor: f64| if held { r * factor } else { r / factor };
     let t = if frictional {
@@ -69,6 +84,9 @@ pub fn tuned((held_n, held_t): (bool, bool), frictional: bool, r: f64) -> (f64, 
 pub enum Retune {
     /// Each direction to the r its status asks for ([`tuned`]).
     ToStatus,
+    /// Each normal to the r its status asks for, every tangent lowered (as if slipping)
+    /// while the contact zone is still moving.
+    Normals,
     /// Every direction back to the reference r.
     ToReference,
 }
@@ -82,65 +100,58 @@ pub enum Retune {
 /// direction (an open node, a slipping tangent) is pinned by the spring near its last
 /// value and moves by r c / (1 + r c) of the way: small r is best. One r for all
 /// balances the two and sweeps slowly (plain Hertz: 423 sweeps at level 3, Anderson
-/// 54). Once the statuses stop changing, the held and free sets are known and each
-/// direction gets its own r (ALG2 converges for any positive r per direction: it is the
-/// same method for rescaled constraints).
+/// 54).
 ///
-/// Undone: when more than half of the [`CYCLE_WINDOW`] sweeps since a retune changed a
-/// status, every direction returns to the reference r (within the budget).
+/// **Normals, at every sweep.** With held normals x 1000 and free ones / 1000, a sweep
+/// pins the held nodes on the foundation and lets the free ones follow the body: it is
+/// one step of a primal-dual active-set method, and the projection that follows moves
+/// every node whose pressure came out negative or that went through the foundation. So
+/// whenever some normal's r is not the one its status in the last image asks for, the
+/// normals are retuned, at once. Waiting for the statuses to settle first (what the loop
+/// did before) lets a body whose contact zone grows or shrinks node by node (a beam lying
+/// down on a foundation) crawl: each node that joins or leaves the zone did so at the
+/// reference r, a few sweeps each (measured: the 2 m clamped beam of
+/// docs/performance-history.md, 364 sweeps, 39 with eager normals). Meanwhile every
+/// tangent is lowered as if it slipped: the underside of a bending body stretches, and a
+/// tangent held at the reference r holds the bending back (the Coulomb cantilever of
+/// tests/data/tolerance at 12858 nodes: 203 sweeps with tangents at the reference r,
+/// 90 lowered by 10; lowered by 100 or 1000 it did not converge).
 ///
-/// When: the last [`SETTLED_SWEEPS`] sweeps, all with the current r, changed no status,
-/// and some direction's r differs from what its status asks for. At most
-/// [`MAX_RETUNES`] - 1 times, then once back to the reference r if the statuses move
-/// again, [`MAX_RETUNES`] in all: a retune costs one dense refactorization of the
-/// contact blocks.
+/// **Tangents, once settled.** When the last [`SETTLED_SWEEPS`] + 1 sweeps (all with the
+/// current r) changed no status and some tangent's r is not the one its stick or slip
+/// status asks for, every direction goes to its status ([`Retune::ToStatus`]). The
+/// stick/slip statuses are not retuned eagerly: with r x 10 and / 10 they cycle (block
+/// level 1 did not converge in 10000 sweeps; with a node's tangent kept at the reference
+/// r after its second flip, the slender Coulomb cases took 300-1000 sweeps).
+///
+/// **Budget.** [`MAX_RETUNES`] - 1 retunes of these kinds; after them, if some direction
+/// is still off the reference r, every direction returns to it (the last retune).
+/// Nothing above [`MAX_RETUNE_DOFS`] contact dofs.
 pub fn retuned(history: &[Sweep], frictional: bool, n_contact: usize) -> Option<Retune> {
     let last = history.last()?;
-    let settled = if frictional {
-        SETTLED_SWEEPS + 1
-    } else {
-        SETTLED_SWEEPS
-    };
-    // A retune whose statuses keep flipping: the node at the edge of the contact zone
-    // alternates between r x 1000 (held) and r / 1000 (free), a factor 1e6 that its
-    // projection overshoots, a cycle no settling ends (seen: one node flipping every
-    // sweep for 10000 sweeps on a beam). ALG2 with one r converges: back to it.
-    if last.stiff + last.soft > 0 && last.retunes < MAX_RETUNES && history.len() >= CYCLE_WINDOW {
-        let tail = &history[history.len() - CYCLE_WINDOW..];
-        if tail.iter().all(|s| s.retunes == last.retunes)
-            && 2 * tail.iter().filter(|s| s.changed > 0).count() > CYCLE_WINDOW
-        {
-            return Some(Retune::ToReference);
-        }
+    if 2 * n_contact > MAX_RETUNE_DOFS || last.retunes >= MAX_RETUNES {
+        return None;
     }
-    if history.len() < settled || last.mistuned == 0 {
+    let off_reference = last.stiff + last.soft > 0;
+    if last.retunes + 1 == MAX_RETUNES {
+        return off_reference.then_some(Retune::ToReference);
+    }
+    if last.mistuned_n > 0 {
+        return Some(Retune::Normals);
+    }
+    let settled = SETTLED_SWEEPS + usize::from(frictional);
+    if last.mistuned == 0 || history.len() < settled {
         return None;
     }
     let tail = &history[history.len() - settled..];
-    if !tail
-        .iter()
+    tail.iter()
         .all(|s| s.changed == 0 && s.retunes == last.retunes)
-    {
-        return None;
-    }
-    match last.retunes + 1 {
-        k if k < MAX_RETUNES && 2 * n_contact <= MAX_RETUNE_DOFS => Some(Retune::ToStatus),
-        MAX_RETUNES if last.stiff + last.soft > 0 => Some(Retune::ToReference),
-        _ => None,
-    }
+        .then_some(Retune::ToStatus)
 }
-
-/// Sweeps after a retune over which a majority of status changes undoes it (see
-/// [`retuned`]). Measured on clamped beams and the cantilever of tests/data/tolerance
-/// (sweeps, frictionless / Coulomb): without the rule 58/95, 173/258, 517/483 for the
-/// 0.4, 1 and 2 m beams and 478/643 for the cantilever; with 20 sweeps 58/91, 173/152,
-/// 380/401 and 350/440; with 10, 58/78, 157/144, 410/823, 403/1112; with 30, 58/95,
-/// 173/158, 517/278, 478/445. The compact and built-in cases never trigger it.
-const CYCLE_WINDOW: usize = 20;
 
 /// Contact dofs (two per contact node, over all ranks) above which r is not retuned. The
 /// first retune refactors the dense contact blocks, about c^3 / 3 flops for c contact
-/// dofs, which costs as much as 30-80 sweeps (measured on hertz, frictionless, one rank:
+/// dofs, which costs as much as 30-80 sweeps (measured: hertz, frictionless, one rank:
 /// 28, 38, 62, 78, 80 sweeps at c = 222, 440, 878, 1756, 3508; 0.5 s at c = 3508, 1.2 s
 /// on two ranks); the later ones move a few directions and update the factor in place
 /// (`LocalFactor::update_boundary`) for a fraction of that. Up to 2048 a retune takes at
@@ -166,25 +177,38 @@ mod tests {
             stiff: 0,
             soft: 0,
             mistuned,
+            mistuned_n: 0,
             uncertain: 0,
             retunes,
         }
     }
 
     #[test]
-    fn r_is_retuned_once_the_statuses_have_settled() {
+    fn normals_follow_their_statuses_at_once() {
+        let mut moving = sweep(3, 4, 0);
+        moving.mistuned_n = 2;
+        // Even while statuses change, with or without friction.
+        assert_eq!(retuned(&[moving], false, 5), Some(Retune::Normals));
+        assert_eq!(retuned(&[moving], true, 5), Some(Retune::Normals));
+        // Not above the dofs whose first retune costs more than it saves.
+        assert_eq!(retuned(&[moving], false, MAX_RETUNE_DOFS), None);
+    }
+
+    #[test]
+    fn tangents_are_tuned_once_the_statuses_have_settled() {
+        // Normals right, tangents not (mistuned counts both kinds).
         let (moving, still) = (sweep(2, 5, 0), sweep(0, 5, 0));
-        // Frictionless: one sweep without a change; with friction, two.
-        assert_eq!(retuned(&[moving, still], false, 5), Some(Retune::ToStatus));
         assert_eq!(retuned(&[moving, still], true, 5), None);
         assert_eq!(
             retuned(&[moving, still, still], true, 5),
             Some(Retune::ToStatus)
         );
-        assert_eq!(retuned(&[still, moving], false, 5), None);
-        // Nothing to change, or a contact block too large to refactor cheaply.
-        assert_eq!(retuned(&[moving, sweep(0, 0, 0)], false, 5), None);
-        assert_eq!(retuned(&[moving, still], false, MAX_RETUNE_DOFS), None);
+        assert_eq!(retuned(&[still, moving], true, 5), None);
+        // Nothing to change.
+        assert_eq!(
+            retuned(&[still, sweep(0, 0, 0), sweep(0, 0, 0)], true, 5),
+            None
+        );
         // The settled sweeps must all be with the current r.
         let after = sweep(0, 3, 1);
         assert_eq!(retuned(&[still, after], true, 5), None);
@@ -192,44 +216,27 @@ mod tests {
             retuned(&[still, after, after], true, 5),
             Some(Retune::ToStatus)
         );
-        // After the budget, once back to the reference r, then never again.
-        let mut spent = sweep(0, 3, MAX_RETUNES - 1);
+    }
+
+    #[test]
+    fn after_the_budget_every_direction_returns_once_to_the_reference() {
+        let mut spent = sweep(1, 3, MAX_RETUNES - 1);
+        spent.mistuned_n = 3;
         spent.stiff = 2;
         assert_eq!(
             retuned(&[spent, spent], false, 5),
             Some(Retune::ToReference)
         );
-        let reset = sweep(0, 3, MAX_RETUNES);
+        // Already at the reference r: nothing to undo.
+        spent.stiff = 0;
+        assert_eq!(retuned(&[spent, spent], false, 5), None);
+        let mut reset = sweep(1, 3, MAX_RETUNES);
+        reset.mistuned_n = 3;
         assert_eq!(retuned(&[reset, reset], false, 5), None);
     }
 
     #[test]
-    fn a_retune_whose_statuses_keep_flipping_is_undone() {
-        let mut flipping = sweep(1, 3, 1);
-        flipping.stiff = 4;
-        let mut quiet = flipping;
-        quiet.changed = 0;
-        // 11 of 20 sweeps since the retune changed a status: back to the reference r.
-        let mut h: Vec<Sweep> = (0..CYCLE_WINDOW)
-            .map(|i| if i % 2 == 0 { flipping } else { quiet })
-            .collect();
-        h[CYCLE_WINDOW - 1] = flipping;
-        assert_eq!(retuned(&h, false, 5), Some(Retune::ToReference));
-        // 10 of 20: not a majority (the last sweep changed nothing: the statuses settle).
-        h[CYCLE_WINDOW - 1] = quiet;
-        assert_eq!(retuned(&h, false, 5), Some(Retune::ToStatus));
-        // The window must lie after the retune.
-        let mut before = h.clone();
-        before[0].retunes = 0;
-        before[CYCLE_WINDOW - 1] = flipping;
-        assert_ne!(retuned(&before, false, 5), Some(Retune::ToReference));
-        // At the reference r there is nothing to undo.
-        let at_reference: Vec<Sweep> = (0..CYCLE_WINDOW).map(|_| sweep(1, 3, 1)).collect();
-        assert_eq!(retuned(&at_reference, false, 5), None);
-    }
-
-    #[test]
-    fn tuned_r_raises_held_directions_and_lowers_free_ones() {
+    fn statuses_ask_for_their_r() {
         let r = 10.0;
         assert_eq!(
             tuned((true, false), true, r),
@@ -241,5 +248,14 @@ mod tests {
         );
         // Without friction the tangent keeps the reference r.
         assert_eq!(tuned((true, false), false, r), (r * NORMAL_FACTOR, r));
+        // Normals alone: tangents lowered with friction, kept without.
+        let held = [(true, true), (false, true)];
+        let a = Augmentation::for_statuses(Retune::Normals, &held, true, r);
+        assert_eq!(a.r_n, vec![r * NORMAL_FACTOR, r / NORMAL_FACTOR]);
+        assert_eq!(a.r_t, vec![r / TANGENT_FACTOR; 2]);
+        let a = Augmentation::for_statuses(Retune::Normals, &held, false, r);
+        assert_eq!(a.r_t, vec![r; 2]);
+        let a = Augmentation::for_statuses(Retune::ToReference, &held, true, r);
+        assert_eq!(a, Augmentation::uniform(2, r));
     }
 }

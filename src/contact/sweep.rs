@@ -38,6 +38,8 @@ pub struct Sweep {
     pub soft: usize,
     /// Directions whose r differs from what their status in the image asks for.
     pub mistuned: usize,
+    /// Normal directions among them.
+    pub mistuned_n: usize,
     /// Contact nodes whose status could still flip: the state of a direction lies closer
     /// to its status boundary (the gap, the slip threshold) than the estimated error of
     /// the sweep before.
@@ -152,13 +154,14 @@ pub(super) struct SweepSums {
     pub(super) soft: f64,
     pub(super) mistuned: f64,
     pub(super) uncertain: f64,
+    pub(super) mistuned_n: f64,
 }
 
-/// The floor of each quantity's scale, as a fraction of the other quantities' sizes
-/// (converted to its units with the reference r where the units differ). It only acts
-/// where a quantity is (nearly) zero while the others are not: p_t where the traction
-/// vanishes by symmetry, p_n at a node that barely touches, u on a foundation the body
-/// touches from the start. There, relative accuracy of the quantity itself would ask for
+/// The floor of each quantity's scale, as a fraction of the other quantities' sizes of
+/// the same kind: a force's floor is the other force (p_t's is p_n, p_n's is p_t), the
+/// displacement's the forces converted with the reference r. It only acts where a
+/// quantity is (nearly) zero while the others are not: p_t where the traction vanishes
+/// by symmetry, u on a foundation the body touches from the start. There, relative accuracy of the quantity itself would ask for
 /// digits that round-off in the others does not leave; instead its error is then held
 /// to tol times a thousandth of theirs. A thousandth keeps the floor far below every
 /// quantity that matters (a p_t of 0.1 % of p_n is still measured against itself).
@@ -174,7 +177,7 @@ pub const ROUNDOFF: f64 = 16.0 * f64::EPSILON;
 
 impl SweepSums {
     /// The numbers [`SweepSums::pack`] puts in the all-reduce.
-    pub(super) const LEN: usize = 15;
+    pub(super) const LEN: usize = 16;
 
     pub(super) fn pack(&self) -> [f64; Self::LEN] {
         [
@@ -193,11 +196,12 @@ impl SweepSums {
             self.soft,
             self.mistuned,
             self.uncertain,
+            self.mistuned_n,
         ]
     }
 
     pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
-        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain] =
+        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain, mistuned_n] =
             v;
         SweepSums {
             force_change_n,
@@ -215,6 +219,7 @@ impl SweepSums {
             soft,
             mistuned,
             uncertain,
+            mistuned_n,
         }
     }
 
@@ -224,8 +229,8 @@ impl SweepSums {
     }
 
     /// The relative changes (p_n, p_t, u) of the sweep: each quantity's change over its
-    /// own size plus [`SCALE_FLOOR`] times the others' (forces and displacements
-    /// converted with the reference r `r`).
+    /// own size plus [`SCALE_FLOOR`] times the other force (p_n, p_t), or the forces
+    /// over the reference r `r` (u).
     pub(super) fn changes(&self, r: f64) -> [f64; 3] {
         let (pn, pt) = (self.force_n.sqrt(), self.force_t.sqrt());
         let u = self.displacement_n.sqrt() + self.displacement_t.sqrt();
@@ -239,13 +244,17 @@ impl SweepSums {
         };
         let noise = ROUNDOFF * (pn + pt + r_max * u);
         let measured = |change: f64, noise: f64| (change - noise).max(0.0);
+        // The forces' floors are forces: r u (a length times the augmentation) is no
+        // scale of p_n or p_t. Where r u is far above the contact forces (a body that
+        // moves a lot before it touches: the cantilever of tests/data/tolerance, r u =
+        // 5000 p_n), a floor of 1e-3 r u was 5 p_n, and p_t stopped 15 times tol off.
         let pressure = relative(
             measured(self.force_change_n.sqrt(), noise),
-            pn + SCALE_FLOOR * (pt + r * u),
+            pn + SCALE_FLOOR * pt,
         );
         let traction = relative(
             measured(self.force_change_t.sqrt(), noise),
-            pt + SCALE_FLOOR * (pn + r * u),
+            pt + SCALE_FLOOR * pn,
         );
         let displacement = relative(
             measured(
@@ -274,6 +283,7 @@ impl SweepSums {
             stiff: self.stiff as usize,
             soft: self.soft as usize,
             mistuned: self.mistuned as usize,
+            mistuned_n: self.mistuned_n as usize,
             uncertain: self.uncertain as usize,
             retunes,
         }
@@ -491,6 +501,9 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
                 if have != want {
                     s.mistuned += 1.0;
                 }
+            }
+            if aug.r_n[i] != want_n {
+                s.mistuned_n += 1.0;
             }
         }
         s

@@ -162,19 +162,113 @@ def beams(scale, out):
                 f.write(text)
 
 
+SLENDER_CASE = """# {what}
+# Made by make_cases.py --slender (a held-out check of the loop's sweep counts on
+# slender bodies: not used to choose any of its rules).
+title = "{title}"
+
+[mesh]
+file = "{mesh}"
+
+[material]
+young = {young}
+poisson = {poisson}
+hypothesis = "{hyp}"
+{dirichlet}
+{loads}
+[contact]
+group = "under"
+obstacle_point = [0.0, {gap:.6e}]
+obstacle_normal = [{nx:.12f}, {ny:.12f}]
+{friction}
+"""
+
+
+def strip_mesh(length, depth, lc, name):
+    """A rectangle with its groups: under, top, left, right."""
+    gmsh.model.add(name)
+    _, lines, surface = polygon([(0, 0), (length, 0), (length, depth), (0, depth)], lc)
+    gmsh.model.geo.synchronize()
+    for line, group in zip(lines, ["under", "right", "top", "left"]):
+        gmsh.model.addPhysicalGroup(1, [line], name=group)
+    gmsh.model.addPhysicalGroup(2, [surface], name="body")
+    gmsh.model.mesh.generate(2)
+
+
+def slender(scale, out):
+    """Slender bodies unlike the clamped beams the loop's rules were chosen on: other
+    supports (simply supported, held only by the contact), loads (traction, tip load),
+    units (SI, mm), materials and friction laws, an inclined foundation."""
+    cases = []
+    # Simply supported aluminium beam (plane strain), sagging under its own weight onto
+    # a foundation under its middle, 1/50 of the free mid-span deflection below; Coulomb.
+    L, t, E, nu, rho_g = 1.5, 0.03, 70e9, 0.33, 26500.0
+    Eeff = E / (1 - nu**2)
+    mid = 5 * rho_g * t * L**4 / (384 * Eeff * t**3 / 12)
+    cases.append(dict(name="bridge", L=L, t=t, lc=0.006, title="Simply supported beam",
+                      what="An aluminium beam on two supports sagging onto a foundation; Coulomb 0.3.",
+                      young=E, poisson=nu, hyp="plane_strain",
+                      dirichlet='[[dirichlet]]\ngroup = "left"\nux = 0.0\nuy = 0.0\n[[dirichlet]]\ngroup = "right"\nuy = 0.0\n',
+                      loads=f"[body_force]\nf = [0.0, {-rho_g}]\n", gap=-mid / 50, n=(0.0, 1.0),
+                      friction='friction = "coulomb"\ncoefficient = 0.3'))
+    # A thin polymer strip (mm, MPa) clamped at one end, pressed by a traction on its top
+    # onto a foundation inclined by 2 degrees; Tresca.
+    a = math.radians(2.0)
+    cases.append(dict(name="strip", L=400.0, t=8.0, lc=1.6, title="Pressed strip",
+                      what="A polymer strip (mm, MPa) clamped at one end, pressed onto an inclined foundation; Tresca.",
+                      young=2500.0, poisson=0.4, hyp="plane_stress",
+                      dirichlet='[[dirichlet]]\ngroup = "left"\nux = 0.0\nuy = 0.0\n',
+                      loads='[[traction]]\ngroup = "top"\nt = [0.0, -0.001]\n', gap=-0.5,
+                      n=(math.sin(a), math.cos(a)),
+                      friction='friction = "tresca"\nthreshold = 0.0002'))
+    # A steel cantilever (mm) bent down by a load on its free end face onto a foundation;
+    # Coulomb 0.2.
+    cases.append(dict(name="tip", L=800.0, t=20.0, lc=3.0, title="Tip-loaded cantilever",
+                      what="A steel cantilever (mm, N, MPa) bent by an end load onto a foundation; Coulomb 0.2.",
+                      young=210000.0, poisson=0.3, hyp="plane_stress",
+                      dirichlet='[[dirichlet]]\ngroup = "left"\nux = 0.0\nuy = 0.0\n',
+                      loads='[[traction]]\ngroup = "right"\nt = [0.0, -200.0]\n', gap=-2.0, n=(0.0, 1.0),
+                      friction='friction = "coulomb"\ncoefficient = 0.2'))
+    # A timber plank held only at one end face horizontally, lying on a foundation under its
+    # own weight (vertically the contact alone holds it); Coulomb 0.6 and frictionless.
+    for law, fr in [("coulomb", 'friction = "coulomb"\ncoefficient = 0.6'), ("none", 'friction = "none"')]:
+        cases.append(dict(name=f"plank_{law}", mesh="plank", L=3.0, t=0.1, lc=0.012, title="Plank",
+                          what="A timber plank resting on a foundation under its own weight, held horizontally at one end.",
+                          young=11e9, poisson=0.3, hyp="plane_strain",
+                          dirichlet='[[dirichlet]]\ngroup = "left"\nux = 0.0\n',
+                          loads="[body_force]\nf = [0.0, -5000.0]\n", gap=-1e-4, n=(0.0, 1.0),
+                          friction=fr))
+    done = set()
+    for c in cases:
+        mesh = c.get("mesh", c["name"]) + ".msh"
+        if mesh not in done:
+            strip_mesh(c["L"], c["t"], c["lc"] * scale, c["name"])
+            write(out, mesh)
+            gmsh.model.remove()
+            done.add(mesh)
+        text = SLENDER_CASE.format(what=c["what"], title=c["title"], mesh=mesh, young=c["young"],
+                                   poisson=c["poisson"], hyp=c["hyp"], dirichlet=c["dirichlet"],
+                                   loads=c["loads"], gap=c["gap"], nx=c["n"][0], ny=c["n"][1],
+                                   friction=c["friction"])
+        with open(os.path.join(out, c["name"] + ".toml"), "w") as f:
+            f.write(text)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--scale", type=float, default=1.0)
     ap.add_argument("--out", default=HERE)
     ap.add_argument("--beams", action="store_true",
                     help="write the clamped beams of the slender-body study instead")
+    ap.add_argument("--slender", action="store_true",
+                    help="write the held-out slender bodies instead")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
-    if args.beams:
+    if args.beams or args.slender:
         gmsh.initialize()
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("Mesh.Algorithm", 6)
-        beams(args.scale, args.out)
+        (beams if args.beams else slender)(args.scale, args.out)
         gmsh.finalize()
         return
     gmsh.initialize()
