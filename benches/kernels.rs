@@ -171,7 +171,7 @@ impl Fixture {
             contact: self.contact_dofs(),
             r: self.r,
         };
-        DirectStep::new(&system, &Timer::start()).expect("direct step")
+        DirectStep::new(&system, &Timer::start(), &|_| ()).expect("direct step")
     }
 
     /// The condensed contact response of the one-rank path: the condensed loads and the

@@ -36,7 +36,12 @@ struct Cli {
     /// Also write nodes.csv (x,y,ux,uy for every node).
     #[arg(long)]
     nodes_csv: bool,
-    /// Print nothing but errors.
+    /// Draw no pictures (contact.png, convergence.png); those of an earlier run in the
+    /// output directory are removed.
+    #[arg(long)]
+    no_plots: bool,
+    /// Print nothing but errors and warnings: no first line, phase lines, monitor lines
+    /// or final table.
     #[arg(long)]
     quiet: bool,
     /// Built-in case to run when no case file is given: hertz, block, block_flat.
@@ -253,6 +258,7 @@ fn run() -> i32 {
         level: cli.level,
         out: cli.out,
         nodes_csv: cli.nodes_csv,
+        plots: !cli.no_plots,
         quiet: cli.quiet,
         r: cli.r,
         tol: cli.tol,

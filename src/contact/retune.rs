@@ -168,6 +168,7 @@ mod tests {
             mistuned,
             uncertain: 0,
             retunes,
+            refused: 0,
         }
     }
 
