@@ -183,8 +183,8 @@ fn run_subdomain(ctx: &Subdomain, subs: Option<Vec<SubProblem>>) -> Result<RunRe
     ctx.phase_done(
         Phase::Scatter,
         match ctx.setup.split {
-            Some(_) => format!("{} subdomains read their parts", mpi.size),
-            None => format!("{} subdomains received their parts", mpi.size),
+            Some(_) => format!("{} part(s) read from the split", mpi.size),
+            None => format!("{} part(s) handed out", mpi.size),
         },
     );
 

@@ -586,17 +586,18 @@ fn log_panel(area: &Area, c: &ConvergenceSeries, curves: &[Curve]) -> Result<Fra
         let line = dashed(RETUNE_COLOUR, vec![(k - 0.5, y.0), (k - 0.5, y.1)]);
         chart.draw_series(line).map_err(failed)?;
     }
+    // Under the curves, whose points stay visible; the arms stand out.
+    let refused = c.refused.iter().filter_map(|&k| {
+        let error = c.error[c.sweeps.iter().position(|&s| s == k)?];
+        positive(error).then(|| Cross::new((k, error), 6, rgb(REFUSED_COLOUR).stroke_width(2)))
+    });
+    chart.draw_series(refused).map_err(failed)?;
     // The error last, over the changes it is made of.
     for curve in curves.iter().rev() {
         for run in curve.runs(positive) {
             draw_run(&mut chart, run, curve.colour, false)?;
         }
     }
-    let refused = c.refused.iter().filter_map(|&k| {
-        let error = c.error.get(k as usize - 1).copied()?;
-        positive(error).then(|| Cross::new((k, error), 6, rgb(REFUSED_COLOUR).stroke_width(2)))
-    });
-    chart.draw_series(refused).map_err(failed)?;
     let mut frame = frame_of(&chart, "convergence", true, x, y, curves);
     frame.series.extend([
         ("tol".to_string(), TOL_COLOUR),
@@ -966,19 +967,10 @@ mod tests {
                 "sweep {k}"
             );
         }
-        // The refusal at sweep 7: a cross on its error.
-        assert!(colour_near(
-            &img,
-            f.pixel(7.0, c.error[6]),
-            REFUSED_COLOUR,
-            2
-        ));
-        assert!(!colour_near(
-            &img,
-            f.pixel(8.0, c.error[7]),
-            REFUSED_COLOUR,
-            2
-        ));
+        // The refusal at sweep 7: a cross on its error (under its dot, the arms out).
+        let cross_near =
+            |k: usize| colour_near(&img, f.pixel(k as f64, c.error[k - 1]), REFUSED_COLOUR, 6);
+        assert!(cross_near(7) && !cross_near(8) && !cross_near(6));
         // The retune before sweep 12: a dashed line down the panel, before it only.
         let column = |x: f64| {
             (0..40)
