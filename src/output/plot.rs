@@ -534,8 +534,8 @@ fn linear_panel(area: &Area, axes: &Axes, curves: &[Curve]) -> Result<Frame, Str
         .configure_mesh()
         .x_desc(axes.x_desc)
         .y_desc(axes.y_desc)
-        .x_label_formatter(&|v| tick(*v))
-        .y_label_formatter(&|v| tick(*v))
+        .x_label_formatter(&|v| tick(*v, axes.x))
+        .y_label_formatter(&|v| tick(*v, axes.y))
         .label_style((FONT, 13))
         .axis_desc_style((FONT, 15))
         .light_line_style(WHITE)
@@ -568,7 +568,7 @@ fn log_panel(area: &Area, c: &ConvergenceSeries, curves: &[Curve]) -> Result<Fra
         .configure_mesh()
         .x_desc("sweep")
         .y_desc("relative change, estimated error")
-        .x_label_formatter(&|v| tick(*v))
+        .x_label_formatter(&|v| tick(*v, x))
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .label_style((FONT, 13))
         .axis_desc_style((FONT, 15))
@@ -711,15 +711,28 @@ fn decades(values: impl Iterator<Item = f64>) -> (f64, f64) {
     (10f64.powf(a), 10f64.powf(b))
 }
 
-/// A tick label: plain for moderate magnitudes, in exponent form for others.
-fn tick(v: f64) -> String {
-    let a = v.abs();
-    if a == 0.0 {
-        "0".into()
-    } else if (1e-2..1e5).contains(&a) {
-        let text = format!("{v:.3}");
-        let text = text.trim_end_matches('0').trim_end_matches('.');
-        text.to_string()
+/// The label of tick `v` on an axis over `range`: one format for the whole axis, plain
+/// with the decimals a tenth of the range needs where its values are of moderate size,
+/// in exponent form otherwise; a value within round-off of 0 is 0.
+fn tick(v: f64, range: (f64, f64)) -> String {
+    let width = (range.1 - range.0).abs();
+    let size = range.0.abs().max(range.1.abs());
+    if v.abs() <= 1e-9 * width {
+        return "0".into();
+    }
+    if (1e-3..1e6).contains(&size) && width > 0.0 {
+        // The decimals a tenth of the range needs, more if the tick needs them.
+        let mut decimals = (-(width / 10.0).log10()).ceil().clamp(0.0, 8.0) as usize;
+        while decimals < 8
+            && (format!("{v:.decimals$}").parse::<f64>().unwrap_or(v) - v).abs() > 1e-6 * width
+        {
+            decimals += 1;
+        }
+        let text = format!("{v:.decimals$}");
+        match text.contains('.') {
+            true => text.trim_end_matches('0').trim_end_matches('.').to_string(),
+            false => text,
+        }
     } else {
         format!("{v:.1e}")
     }
@@ -1042,11 +1055,18 @@ mod tests {
 
     #[test]
     fn tick_labels_are_short() {
-        assert_eq!(tick(0.0), "0");
-        assert_eq!(tick(2.5), "2.5");
-        assert_eq!(tick(7700.0), "7700");
-        assert_eq!(tick(-0.04), "-0.04");
-        assert_eq!(tick(0.0004), "4.0e-4");
-        assert_eq!(tick(2.0e5), "2.0e5");
+        let pressure = (-400.0, 8100.0);
+        assert_eq!(tick(0.0, pressure), "0");
+        assert_eq!(tick(7700.0, pressure), "7700");
+        let small = (-0.0005, 0.0105);
+        assert_eq!(tick(0.009, small), "0.009");
+        assert_eq!(tick(0.01, small), "0.01");
+        assert_eq!(tick(-0.04, (-0.05, 0.05)), "-0.04");
+        assert_eq!(tick(2.5, (0.0, 50.0)), "2.5");
+        assert_eq!(tick(0.0004, (0.0, 0.0005)), "4.0e-4");
+        assert_eq!(tick(2.0e6, (0.0, 2.1e6)), "2.0e6");
+        // Round-off about 0 on an axis of round-off.
+        assert_eq!(tick(-2.1e-25, (-1.1e-9, 1.1e-9)), "0");
+        assert_eq!(tick(5e-10, (-1.1e-9, 1.1e-9)), "5.0e-10");
     }
 }
