@@ -24,6 +24,10 @@
 //! * `node_kernels/n{641,2561}`: the node-wise steps 2 and 3 alone (projection,
 //!   shrinkage, multipliers, Coulomb threshold) on the contact node counts of block
 //!   levels 4 and 6.
+//! * `plots/contact/n{878,3505}`, `plots/convergence/sweeps{20,330}`: `contact.png`
+//!   and `convergence.png` drawn and encoded in memory (no file), for the contact nodes
+//!   of hertz levels 4 and 6 (a Hertz-like profile, with p_t) and for histories of 20
+//!   sweeps (hertz level 4) and 330 (block level 2 with `--coulomb outer`).
 //!
 //! A sweep is `contact_par::contact::solve` with a budget of one plain (unaccelerated)
 //! sweep, through the public `LinearStep` trait, so it is the loop body the program
@@ -171,7 +175,7 @@ impl Fixture {
             contact: self.contact_dofs(),
             r: self.r,
         };
-        DirectStep::new(&system, &Timer::start()).expect("direct step")
+        DirectStep::new(&system, &Timer::start(), &|_| ()).expect("direct step")
     }
 
     /// The condensed contact response of the one-rank path: the condensed loads and the
@@ -513,12 +517,67 @@ fn node_kernels(c: &mut Criterion) {
     g.finish();
 }
 
+fn plots(c: &mut Criterion) {
+    use contact_par::contact::Sweep;
+    use contact_par::output::plot::{contact_png, convergence_png, convergence_series, PairSeries};
+    set_threads();
+    let mut g = c.benchmark_group("plots");
+    for n in [878, 3505] {
+        let s: Vec<f64> = (0..n).map(|i| 50.0 * i as f64 / n as f64).collect();
+        let p_n: Vec<f64> = s
+            .iter()
+            .map(|x| 7700.0 * (1.0 - x * x / 11.0).max(0.0).sqrt())
+            .collect();
+        let pair = PairSeries {
+            name: "contact".into(),
+            p_t: Some(p_n.iter().map(|p| -0.3 * p).collect()),
+            u_n: s.iter().map(|x| 0.4 * (1.0 - (-x / 10.0).exp())).collect(),
+            gap: s.iter().map(|x| 50.0 - (2500.0 - x * x).sqrt()).collect(),
+            p_n,
+            s,
+        };
+        g.bench_function(format!("contact/n{n}"), |b| {
+            b.iter(|| contact_png(["what", "case"], "x", std::slice::from_ref(&pair)).unwrap())
+        });
+    }
+    for sweeps in [20, 330] {
+        let history: Vec<Sweep> = (1..=sweeps)
+            .map(|k| {
+                let e = 0.7f64.powi(k as i32 % 40);
+                Sweep {
+                    iter: k,
+                    pressure: e / 3.0,
+                    traction: e / 2.0,
+                    displacement: e / 1.5,
+                    contraction: 0.3,
+                    error: e,
+                    active: 100,
+                    slip: 20,
+                    changed: 0,
+                    stiff: 0,
+                    soft: 0,
+                    mistuned: 0,
+                    uncertain: 0,
+                    retunes: (k / 8).min(4),
+                    refused: k / 100,
+                }
+            })
+            .collect();
+        let series = convergence_series(&history, true, 1e-8);
+        g.bench_function(format!("convergence/sweeps{sweeps}"), |b| {
+            b.iter(|| convergence_png(["what", "case"], &series).unwrap())
+        });
+    }
+    g.finish();
+}
+
 criterion_group!(
     benches,
     element,
     assembly,
     factorization,
     sweeps,
-    node_kernels
+    node_kernels,
+    plots
 );
 criterion_main!(benches);

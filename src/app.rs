@@ -15,15 +15,18 @@ use crate::dd::local_factor::LocalFactor;
 use crate::dd::split::{split, SubProblem};
 use crate::dd::step::{CondensedStep, LocalSystem, StepSetup};
 use crate::error::{Error, Result};
+use crate::fem::AssemblyFigures;
 use crate::host;
 use crate::linear::Ordering;
 use crate::mesh::{builtin, gmsh, Mesh};
+use crate::output::plot::Foundation;
 use crate::output::{
-    self, blocks, Gathered, PieceRows, RankStats, RunFacts, SharedFile, SubdomainSolution,
+    self, blocks, Gathered, PieceRows, PlotFacts, RankStats, RunFacts, SharedFile,
+    SubdomainSolution, Written,
 };
 use crate::problem::{self, Problem};
 use crate::split_dir::{self, Facts, Split};
-use crate::timer::{Phase, Timer, Timings};
+use crate::timer::{self, Phase, Timer, Timings};
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -36,6 +39,8 @@ pub struct Options {
     pub level: u32,
     pub out: PathBuf,
     pub nodes_csv: bool,
+    /// Draw contact.png and convergence.png.
+    pub plots: bool,
     pub quiet: bool,
     pub r: Option<f64>,
     pub tol: Option<f64>,
@@ -136,9 +141,13 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     // that the cores of those on its node are its to use. `threads`: the rank's own,
     // not those of the pool the set-up borrows.
     let threads = rayon::current_num_threads();
-    let prepared = mpi
-        .is_root()
-        .then(|| host::on_idle_cores(mpi.node_ranks, || prepare(opts, mpi.size, threads, &timer)));
+    let prepared = mpi.is_root().then(|| {
+        let layout = Layout {
+            ranks: mpi.size,
+            threads,
+        };
+        host::on_idle_cores(mpi.node_ranks, || prepare(opts, layout, &timer, print))
+    });
     mpi.barrier_sleeping();
     let (setup, subs) = mpi.agree(prepared.transpose())?.unzip();
     let subs = subs.flatten();
@@ -171,7 +180,13 @@ fn run_subdomain(ctx: &Subdomain, subs: Option<Vec<SubProblem>>) -> Result<RunRe
         Some(split) => mpi.agree(split.read_part(mpi.rank)),
         None => mpi.agree(mpi.scatter_parts(subs)),
     })?;
-    print_header(ctx);
+    ctx.phase_done(
+        Phase::Scatter,
+        match ctx.setup.split {
+            Some(_) => format!("{} part(s) read from the split", mpi.size),
+            None => format!("{} part(s) handed out", mpi.size),
+        },
+    );
 
     // 4-7. Assemble and factor, condense, iterate, recover.
     let solved = match ctx.opts.linear {
@@ -190,14 +205,22 @@ fn run_subdomain(ctx: &Subdomain, subs: Option<Vec<SubProblem>>) -> Result<RunRe
 fn solve_condensed(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
     let (mpi, timer, setup) = (ctx.mpi, ctx.timer, ctx.setup.step());
     // 4. Assemble and factor this subdomain.
-    let local = mpi.agree(LocalSystem::new(&setup, sub, timer))?;
+    let assembled = |a| ctx.assembled(a);
+    let local = mpi.agree(LocalSystem::new(&setup, sub, timer, &assembled))?;
+    let f = &local.factor;
+    ctx.factored(f.factor_flops(), f.factor_nnz(), f.ordering);
     // 5. Condense onto the boundary; the interface system, summed and factored once.
     let condense = || CondensedStep::condense(mpi, setup, sub, local, timer);
     let mut step = timer.time(Phase::Condense, condense)?;
+    ctx.condensed(&step);
     // 6. Iterate.
     let outcome = iterate(ctx, sub, &mut step)?;
     // 7. Recover the interior from the boundary values of the last sweep.
     let u = timer.time(Phase::Recover, || step.recover(outcome.iterations, timer))?;
+    ctx.phase_done(
+        Phase::Recover,
+        format!("the displacement of {} nodes", ctx.setup.facts.nodes),
+    );
     let factors = FactorFigures::condensed(&step);
     Ok(Solved::new(ctx.setup, sub, outcome, u, factors))
 }
@@ -207,7 +230,9 @@ fn solve_condensed(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
 fn solve_full(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
     let (setup, timer) = (ctx.setup, ctx.timer);
     // 4. Assemble and factor the whole mesh.
-    let mut step = DirectStep::new(&setup.direct_system(sub), timer)?;
+    let assembled = |a| ctx.assembled(a);
+    let mut step = DirectStep::new(&setup.direct_system(sub), timer, &assembled)?;
+    ctx.factored(step.factor_flops(), step.factor_nnz(), Ordering::Amd);
     // 6. Iterate.
     let outcome = iterate(ctx, sub, &mut step)?;
     let sweeps = outcome.iterations.max(1) as f64;
@@ -226,7 +251,8 @@ fn solve_full(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
 /// and the monitor lines.
 fn iterate(ctx: &Subdomain, sub: &SubProblem, step: &mut impl LinearStep) -> Result<Outcome> {
     let (opts, mpi) = (ctx.opts, ctx.mpi);
-    let mut monitor = Monitor::new(ctx.print, opts.monitor_every);
+    let frictional = Problem::is_frictional(&ctx.setup.case);
+    let mut monitor = Monitor::new(ctx.print, opts.monitor_every, frictional);
     let sent_before = crate::dd::comm::bytes_sent();
     let outcome = {
         let _t = ctx.timer.phase(Phase::Loop);
@@ -243,6 +269,19 @@ fn iterate(ctx: &Subdomain, sub: &SubProblem, step: &mut impl LinearStep) -> Res
         contact::solve_with(step, mpi, &sub.contact, &params, &mut on_sweep, &mut ckpt)?
     };
     monitor.last(&outcome);
+    let sweeps = outcome.iterations;
+    let per_sweep = 1e3 * ctx.timer.seconds(Phase::Loop) / sweeps.max(1) as f64;
+    ctx.phase_done(
+        Phase::Loop,
+        format!(
+            "{sweeps} sweeps ({per_sweep:.3} ms each), {}",
+            if outcome.converged {
+                "converged"
+            } else {
+                "NOT converged"
+            }
+        ),
+    );
     let sent = crate::dd::comm::bytes_sent() - sent_before;
     ctx.sent_per_sweep
         .set(sent as f64 / outcome.iterations.max(1) as f64);
@@ -260,30 +299,90 @@ fn write(ctx: &Subdomain, sub: &SubProblem, solved: &Solved) -> Result<Timings> 
         let Some(mut all) = gathered else {
             return Ok(None);
         };
-        all.write_tables(&opts.out, &solved.outcome)?;
-        Ok(Some(all))
+        let tables = all.write_tables(&opts.out, &solved.outcome)?;
+        let plots = write_plots(ctx, &all, &solved.outcome);
+        let written = all.pieces + tables + plots;
+        Ok(Some((all, written)))
     });
     // Every subdomain takes part, also where the tables failed (see write_nodes_csv).
     let nodes = match opts.nodes_csv {
         true => write_nodes_csv(ctx, sub, &solved.u),
-        false => Ok(()),
+        false => Ok(Written::default()),
     };
-    let tables = nodes.and(tables);
+    let tables = nodes.and_then(|nodes| Ok(tables?.map(|(all, w)| (all, w + nodes))));
     drop(output);
     let timings = timer.finish();
     let summary = tables.and_then(|all| match all {
-        Some(all) => all.write_summary(&opts.out, run_facts(ctx), &solved.outcome, timings),
-        None => Ok(()),
+        Some((all, written)) => {
+            let facts = run_facts(ctx);
+            let summary = all.write_summary(&opts.out, facts, &solved.outcome, timings)?;
+            Ok(written + summary)
+        }
+        None => Ok(Written::default()),
     });
-    mpi.agree(summary)?;
+    let written = mpi.agree(summary)?;
+    let figure = format!(
+        "{} files, {:.1} MB in {}",
+        written.files,
+        written.bytes as f64 / 1e6,
+        opts.out.display()
+    );
+    ctx.print
+        .line(timer::phase_line(Phase::Output, timings.output, &figure));
     Ok(timings)
+}
+
+/// The pictures, on the first subdomain (`--no-plots`: none). They are a view of
+/// contact.csv and history.csv, already written: one that cannot be drawn or written is
+/// a warning, not a failure of the run. Pictures of an earlier run in the same directory
+/// that this run does not replace are removed, as they would not match its tables.
+fn write_plots(ctx: &Subdomain, all: &Gathered, o: &Outcome) -> Written {
+    let dir = &ctx.opts.out;
+    let results = match ctx.opts.plots {
+        true => all.write_plots(dir, &plot_facts(ctx), o).map(Some),
+        false => [None, None],
+    };
+    let mut written = Written::default();
+    for (name, result) in output::PLOT_FILES.iter().zip(results) {
+        match result {
+            Some(Ok(w)) => written = written + w,
+            Some(Err(e)) => {
+                eprintln!("contact-par: warning: {e}; the run goes on without it (its data are in contact.csv and history.csv)");
+                let _ = std::fs::remove_file(dir.join(name));
+            }
+            None => {
+                let _ = std::fs::remove_file(dir.join(name));
+            }
+        }
+    }
+    written
+}
+
+/// What the pictures say of the run beside the rows.
+fn plot_facts<'a>(ctx: &Subdomain<'a>) -> PlotFacts<'a> {
+    let case = &ctx.setup.case;
+    PlotFacts {
+        title: if case.title.is_empty() {
+            &case.origin
+        } else {
+            &case.title
+        },
+        pair: &case.contact.group,
+        foundation: Foundation {
+            point: case.contact.obstacle_point,
+            tangent: ctx.setup.facts.tangent,
+        },
+        friction: format!("friction {}", friction_name(&case.contact.friction)),
+        frictional: Problem::is_frictional(case),
+        tol: case.solver.tol,
+    }
 }
 
 /// `nodes.csv` from every rank (collective): the rows of the nodes each subdomain owns go
 /// to the rank whose block of global ids holds them (`output::blocks`), and each rank
 /// writes its block's text at its offset in one shared file, which the first renames
 /// into place once all have written. No rank holds more than its block.
-fn write_nodes_csv(ctx: &Subdomain, sub: &SubProblem, u: &[[f64; 2]]) -> Result<()> {
+fn write_nodes_csv(ctx: &Subdomain, sub: &SubProblem, u: &[[f64; 2]]) -> Result<Written> {
     let rows: Vec<(u64, [f64; 4])> = (0..sub.nodes.len())
         .filter(|&l| sub.owned[l])
         .map(|l| {
@@ -332,7 +431,11 @@ fn write_nodes_csv(ctx: &Subdomain, sub: &SubProblem, u: &[[f64; 2]]) -> Result<
         match me {
             0 => file.commit(),
             _ => Ok(()),
-        }
+        }?;
+        Ok(Written {
+            files: 1,
+            bytes: lengths.iter().sum(),
+        })
     })
 }
 
@@ -365,6 +468,66 @@ impl<'a> Subdomain<'a> {
             print,
             sent_per_sweep: std::cell::Cell::new(0.0),
         }
+    }
+
+    /// The line of `phase`, which has just ended, with `figure`: printed by the first
+    /// subdomain, whose timer the table at the end reads too.
+    fn phase_done(&self, phase: Phase, figure: impl AsRef<str>) {
+        let seconds = self.timer.seconds(phase);
+        self.print
+            .line(timer::phase_line(phase, seconds, figure.as_ref()));
+    }
+
+    fn assembled(&self, a: AssemblyFigures) {
+        let of = match self.mpi.size {
+            1 => String::new(),
+            n => format!(" (the first of {n} subdomains)"),
+        };
+        self.phase_done(
+            Phase::Assemble,
+            format!(
+                "{} equations, {} stored entries{of}",
+                a.equations, a.entries
+            ),
+        );
+    }
+
+    /// The factorization's line: the work and size of every subdomain's factor, summed
+    /// (collective).
+    fn factored(&self, flops: f64, entries: usize, ordering: Ordering) {
+        let mut sums = [flops, entries as f64];
+        self.mpi.sum_in_place(&mut sums);
+        self.phase_done(
+            Phase::Factor,
+            format!(
+                "{:.3} Gflop, {:.3e} factor entries in {} subdomain(s), {} ordering",
+                sums[0] / 1e9,
+                sums[1],
+                self.mpi.size,
+                ordering.name()
+            ),
+        );
+    }
+
+    /// The condensation's line: the interface system's size and its factor's work, over
+    /// all subdomains (collective).
+    fn condensed(&self, step: &CondensedStep) {
+        let mut sums = [step.interface_flops(), step.interface_entries()];
+        self.mpi.sum_in_place(&mut sums);
+        let facts = &self.setup.facts;
+        let figure = match step.interface_factor() {
+            Some(kind) => format!(
+                "{} interface dofs, {kind} interface factor: {:.3} Gflop, {:.3e} entries",
+                facts.n_interface,
+                sums[0] / 1e9,
+                sums[1]
+            ),
+            None => format!(
+                "{} contact dofs, one subdomain (no interface)",
+                facts.n_boundary
+            ),
+        };
+        self.phase_done(Phase::Condense, figure);
     }
 }
 
@@ -464,15 +627,30 @@ impl Setup {
     }
 }
 
-/// Phases 1 and 2 on the first rank: the set-up, and the subproblems unless each
-/// subdomain reads its own from a split directory. `threads`: of each rank (for the
-/// default number of subdomains per rank).
-fn prepare(
-    opts: &Options,
+/// The MPI ranks of the run and the threads of each.
+#[derive(Clone, Copy)]
+struct Layout {
     ranks: usize,
     threads: usize,
+}
+
+/// Phases 1 and 2 on the first rank: the set-up, and the subproblems unless each
+/// subdomain reads its own from a split directory. Prints the run's first line once the
+/// case is read and checked, and each phase's line.
+fn prepare(
+    opts: &Options,
+    layout: Layout,
     timer: &Timer,
+    print: &Printer,
 ) -> Result<(Setup, Option<Vec<SubProblem>>)> {
+    let Layout { ranks, threads } = layout;
+    let read_line = |figure: String| {
+        print.line(timer::phase_line(
+            Phase::Read,
+            timer.seconds(Phase::Read),
+            &figure,
+        ))
+    };
     if let Some(dir) = &opts.mesh_split {
         let (case, split) = timer.time(Phase::Read, || -> Result<_> {
             let case = load_case(opts)?;
@@ -481,22 +659,62 @@ fn prepare(
         })?;
         let per_rank = split_per_rank(opts, &split, ranks)?;
         let facts = split.facts.clone();
+        let parts = split.parts;
         let setup = Setup::new(opts, case, facts, Some(split), ranks, per_rank);
+        let f = &setup.facts;
+        let size = Size {
+            nodes: f.nodes,
+            elements: f.elements,
+            contact_nodes: f.contact_nodes,
+        };
+        print.line(header_line(&setup.case, &size, setup.r, layout, per_rank));
+        read_line(format!(
+            "the split {} of {parts} parts ({} nodes, {} triangles, {} contact nodes): {}",
+            dir.display(),
+            f.nodes,
+            f.elements,
+            f.contact_nodes,
+            f.partition
+        ));
         return Ok((setup, None));
     }
     // 1. Read and validate the case and the mesh.
     let (case, prob, mesh_name) = timer.time(Phase::Read, || read(opts))?;
-    // 2. Partition the mesh into subdomains and split the problem along the cut.
     let triangles = prob.mesh.triangles.len();
     let per_rank = match opts.subdomains_per_rank {
         Some(k) => k.max(1),
         None if opts.linear == LinearMode::Full => 1,
         None => host::subdomains_per_rank(threads, ranks, triangles),
     };
+    // Checked before the first line: bad input prints nothing but its error.
+    let nparts = check_subdomains(&mesh_name, triangles, ranks, per_rank)?;
+    let size = Size {
+        nodes: prob.mesh.num_nodes(),
+        elements: triangles,
+        contact_nodes: prob.contact_nodes.len(),
+    };
+    let r = case
+        .solver
+        .r
+        .unwrap_or_else(|| prob.lengths().default_r(&case));
+    print.line(header_line(&case, &size, r, layout, per_rank));
+    read_line(format!(
+        "{mesh_name}: {} nodes, {} triangles, {} contact nodes",
+        size.nodes, size.elements, size.contact_nodes
+    ));
+    // 2. Partition the mesh into subdomains and split the problem along the cut.
     let (facts, subs) = timer.time(Phase::Partition, || {
-        let nparts = check_subdomains(&mesh_name, triangles, ranks, per_rank)?;
         partition_problem(&case, &prob, &mesh_name, nparts)
     })?;
+    let figure = match nparts {
+        1 => "one subdomain, no partition".to_string(),
+        _ => facts.partition.clone(),
+    };
+    print.line(timer::phase_line(
+        Phase::Partition,
+        timer.seconds(Phase::Partition),
+        &figure,
+    ));
     let setup = Setup::new(opts, case, facts, None, ranks, per_rank);
     Ok((setup, Some(subs)))
 }
@@ -673,30 +891,32 @@ fn friction_name(f: &Friction) -> &'static str {
     }
 }
 
+/// The size of the problem, for the first line.
+struct Size {
+    nodes: usize,
+    elements: usize,
+    contact_nodes: usize,
+}
+
 /// The first line of the run: the case, its size, its parameters, the layout.
-fn print_header(ctx: &Subdomain) {
-    let (setup, case) = (ctx.setup, &ctx.setup.case);
-    ctx.print.line(format!(
+fn header_line(case: &Case, size: &Size, r: f64, layout: Layout, per_rank: usize) -> String {
+    format!(
         "contact-par: {} | {} nodes, {} triangles, {} contact nodes | friction {} | r = {:e}, tol = {:e} | {} rank(s) x {} thread(s){}",
         if case.title.is_empty() { &case.origin } else { &case.title },
-        setup.facts.nodes,
-        setup.facts.elements,
-        setup.facts.contact_nodes,
+        size.nodes,
+        size.elements,
+        size.contact_nodes,
         friction_name(&case.contact.friction),
-        setup.r,
+        r,
         case.solver.tol,
-        ctx.mpi.mpi_size,
-        rayon::current_num_threads(),
-        if setup.per_rank > 1 {
-            format!(" | {} subdomains per rank, one thread each", setup.per_rank)
+        layout.ranks,
+        layout.threads,
+        if per_rank > 1 {
+            format!(" | {per_rank} subdomains per rank, one thread each")
         } else {
             String::new()
         }
-    ));
-    if ctx.mpi.size > 1 {
-        ctx.print
-            .line(format!("partition: {}", setup.facts.partition));
-    }
+    )
 }
 
 /// The loop's lines: a sweep every `every`, and each retune of r.
@@ -704,14 +924,17 @@ struct Monitor<'a> {
     print: &'a Printer,
     every: usize,
     retunes: usize,
+    /// With friction: the lines show p_t's change and the stick and slip counts.
+    frictional: bool,
 }
 
 impl<'a> Monitor<'a> {
-    fn new(print: &'a Printer, every: usize) -> Self {
+    fn new(print: &'a Printer, every: usize, frictional: bool) -> Self {
         Monitor {
             print,
             every: every.max(1),
             retunes: 0,
+            frictional,
         }
     }
 
@@ -730,7 +953,7 @@ impl<'a> Monitor<'a> {
             self.retunes = s.retunes;
         }
         if s.iter == 1 || s.iter % self.every == 0 {
-            self.print.line(monitor_line(s));
+            self.print.line(monitor_line(s, self.frictional));
         }
     }
 
@@ -738,17 +961,30 @@ impl<'a> Monitor<'a> {
     fn last(&self, o: &Outcome) {
         if let Some(last) = o.history.last() {
             if last.iter % self.every != 0 {
-                self.print.line(monitor_line(last));
+                self.print.line(monitor_line(last, self.frictional));
             }
         }
     }
 }
 
-fn monitor_line(s: &Sweep) -> String {
-    format!(
-        "{:>7}  error {:.2e}  (p_n {:.1e}  p_t {:.1e}  u {:.1e}  rho {:.4})  active {:>6}  slip {:>6}",
-        s.iter, s.error, s.pressure, s.traction, s.displacement, s.contraction, s.active, s.slip
-    )
+/// A sweep's line: what the friction law has. Without friction there is no p_t, and no
+/// stick or slip: the active count only.
+fn monitor_line(s: &Sweep, frictional: bool) -> String {
+    let head = format!(
+        "{:>7}  error {:.2e}  (p_n {:.1e}",
+        s.iter, s.error, s.pressure
+    );
+    let (u, rho) = (s.displacement, s.contraction);
+    match frictional {
+        true => format!(
+            "{head}  p_t {:.1e}  u {u:.1e}  rho {rho:.4})  active {:>6}  stick {:>6}  slip {:>6}",
+            s.traction,
+            s.active,
+            s.active - s.slip,
+            s.slip
+        ),
+        false => format!("{head}  u {u:.1e}  rho {rho:.4})  active {:>6}", s.active),
+    }
 }
 
 /// A subdomain's solution and the figures of its factors.
@@ -831,17 +1067,21 @@ fn write_piece(ctx: &Subdomain, sub: &SubProblem, solved: &Solved) -> Result<Pie
     let written = ctx.timer.time(Phase::Piece, || -> Result<_> {
         host::keep_freed_blocks_for_reuse();
         output::create_output_dir(dir)?;
-        let vtu_files = solution.write_vtu(dir)?;
+        let vtu = solution.write_vtu(dir)?;
         let contact = solution.contact_rows();
-        Ok((contact, vtu_files, host::peak_memory_bytes()))
+        Ok((contact, vtu, host::peak_memory_bytes()))
     });
-    let (contact, vtu_files, peak_memory_bytes) = written?;
+    let (contact, vtu, peak_memory_bytes) = written?;
     let stats = RankStats {
-        vtu_files,
+        vtu_files: vtu.files,
         peak_memory_bytes,
         ..rank_stats(ctx, sub, &solved.factors)
     };
-    Ok(PieceRows { contact, stats })
+    Ok(PieceRows {
+        contact,
+        stats,
+        written: vtu,
+    })
 }
 
 /// The subdomain's figures for summary.json, its phases read from its timer.

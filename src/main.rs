@@ -18,11 +18,52 @@ use contact_par::linear::Ordering;
 use mpi::Threading;
 use std::path::PathBuf;
 
+/// `--help`'s worked example of each output and of what a run prints, from
+/// `contact-par --builtin hertz --level 1 --out ex1` (tests/cli.rs checks that every
+/// sample has the shape of what the program writes and prints).
+const OUTPUTS_HELP: &str = r#"Outputs, in --out DIR; a worked example: contact-par --builtin hertz --level 1 --out ex1
+
+contact.csv: one row per contact node, sorted by x then y; numbers round-trip exactly
+    x,y,u_n,u_t,p_n,p_t,gap
+    0,0,0.00000000000004155614514711459,0,7507.894399117149,0,0
+    0.2052403205637102,0.0004212376662626599,0.00042123766626035513,-0.003400414774238066,7739.09995879374,0,0.0004212376662626599
+history.csv: one row per sweep; retunes (of r) and refused_accelerations count up to it
+    iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,uncertain_nodes,stiff_directions,soft_directions,retunes,refused_accelerations
+    1,0.9999371161615976,0.9843475576058253,0,0.9999371161615976,0,10,0,10,111,0,0,0,0
+summary.json: the run's figures, among them
+    "converged": true, "iterations": 10, "active_nodes": 17, "stick_nodes": null,
+    "total_normal_force": 20178.666552102277, "r": 38623.28141784163, "r_retunes": 1,
+    "refused_accelerations": 0, "timings_s": {"factor": 0.025717563, "loop": 0.000719034},
+    "peak_memory_bytes": 32067584, "per_subdomain": [...]
+contact.png: 1200 x 900 pixels: p_n, p_t (with friction) and u_n with the initial gap
+    (dashed) against the position along the foundation, one colour per contact pair
+convergence.png: 1200 x 700 pixels: the estimated error and the relative changes of
+    p_n, p_t (with friction) and u per sweep on a log scale, tol (dashed), retunes of r
+    (dashed verticals), refused accelerations (crosses); --no-plots: no pictures
+solution.pvtu and solution_R_K.vtu: for ParaView (open the .pvtu)
+nodes.csv, with --nodes-csv: x,y,ux,uy per node
+
+Printed by rank 0 (--quiet: nothing but errors and warnings): the first line, a line per
+phase as it ends (its seconds as the closing table shows them, and what it did), a
+monitor line every --monitor-every sweeps, the outcome and the table:
+    contact-par: Hertz line contact: quarter cylinder on a rigid plane (symmetry at x = 0) | 4839 nodes, 9408 triangles, 111 contact nodes | friction none | r = 3.862328141784163e4, tol = 1e-8 | 1 rank(s) x 2 thread(s)
+    read      done in    0.002 s: built-in mesh (level 1): 4839 nodes, 9408 triangles, 111 contact nodes
+    factor    done in    0.026 s: 0.059 Gflop, 6.382e5 factor entries in 1 subdomain(s), amd ordering
+          1  error 1.00e0  (p_n 9.8e-1  u 1.0e0  rho 0.0000)  active     10
+         10  error 1.68e-9  (p_n 1.6e-9  u 3.4e-11  rho 0.0325)  active     17
+    loop      done in    0.001 s: 10 sweeps (0.072 ms each), converged
+    output    done in    0.014 s: 7 files, 1.3 MB in ex1
+    converged after 10 iterations: 17 active contact nodes, total normal force 20178.666552102277
+With friction (--builtin block --level 1) p_t and the stick and slip counts are shown:
+          1  error 9.99e-1  (p_n 1.0e0  p_t 9.9e-1  u 1.0e0  rho 0.0000)  active     81  stick     66  slip     15
+"#;
+
 #[derive(Parser, Debug)]
 #[command(
     name = "contact-par",
     version,
     about = "2D elastic contact (frictionless, Tresca, Coulomb) with a rigid foundation, Uzawa block relaxation, on one core or many MPI ranks",
+    after_long_help = OUTPUTS_HELP,
     args_conflicts_with_subcommands = true
 )]
 struct Cli {
@@ -36,7 +77,12 @@ struct Cli {
     /// Also write nodes.csv (x,y,ux,uy for every node).
     #[arg(long)]
     nodes_csv: bool,
-    /// Print nothing but errors.
+    /// Draw no pictures (contact.png, convergence.png); those of an earlier run in the
+    /// output directory are removed.
+    #[arg(long)]
+    no_plots: bool,
+    /// Print nothing but errors and warnings: no first line, phase lines, monitor lines
+    /// or final table.
     #[arg(long)]
     quiet: bool,
     /// Built-in case to run when no case file is given: hertz, block, block_flat.
@@ -253,6 +299,7 @@ fn run() -> i32 {
         level: cli.level,
         out: cli.out,
         nodes_csv: cli.nodes_csv,
+        plots: !cli.no_plots,
         quiet: cli.quiet,
         r: cli.r,
         tol: cli.tol,

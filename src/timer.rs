@@ -45,6 +45,50 @@ pub enum Phase {
 
 const PHASES: usize = Phase::Piece as usize + 1;
 
+/// The phases of the table, in the order they run.
+pub const TABLE: [Phase; 9] = [
+    Phase::Read,
+    Phase::Partition,
+    Phase::Scatter,
+    Phase::Assemble,
+    Phase::Factor,
+    Phase::Condense,
+    Phase::Loop,
+    Phase::Recover,
+    Phase::Output,
+];
+
+impl Phase {
+    /// The phase's name in the table and in its line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Read => "read",
+            Phase::Partition => "partition",
+            Phase::Scatter => "scatter",
+            Phase::Assemble => "assemble",
+            Phase::Factor => "factor",
+            Phase::Condense => "condense",
+            Phase::Loop => "loop",
+            Phase::Recover => "recover",
+            Phase::Output => "output",
+            Phase::Ordering => "ordering",
+            Phase::Schur => "schur",
+            Phase::OneSolve => "one solve",
+            Phase::Piece => "piece",
+        }
+    }
+}
+
+/// The line printed as `phase` ends: its name, its `seconds` as the table at the end
+/// shows them, and a figure of what it did.
+pub fn phase_line(phase: Phase, seconds: f64, figure: &str) -> String {
+    let line = format!("{:<9} done in {seconds:>8.3} s", phase.name());
+    match figure {
+        "" => line,
+        _ => format!("{line}: {figure}"),
+    }
+}
+
 /// Wall-clock seconds per phase since [`Timer::start`], shared by the threads that may
 /// time a phase (the first rank's set-up runs on borrowed threads).
 pub struct Timer {
@@ -154,18 +198,8 @@ impl Timings {
     /// the time per sweep of its `iterations`.
     pub fn table(&self, iterations: usize) -> Vec<String> {
         let mut lines = vec!["phase         seconds".to_string()];
-        for (name, v) in [
-            ("read", self.read),
-            ("partition", self.partition),
-            ("scatter", self.scatter),
-            ("assemble", self.assemble),
-            ("factor", self.factor),
-            ("condense", self.condense),
-            ("loop", self.uzawa),
-            ("recover", self.recover),
-            ("output", self.output),
-            ("total", self.total),
-        ] {
+        let phases = TABLE.iter().map(|&p| (p.name(), self.seconds(p)));
+        for (name, v) in phases.chain([("total", self.total)]) {
             let extra = if name == "loop" && iterations > 0 {
                 format!(
                     "   ({iterations} sweeps, {:.3} ms/sweep)",
@@ -177,6 +211,22 @@ impl Timings {
             lines.push(format!("{name:<10} {v:>10.3}{extra}"));
         }
         lines
+    }
+
+    /// The seconds of a phase of the table (0 for the figures timed inside one).
+    pub fn seconds(&self, phase: Phase) -> f64 {
+        match phase {
+            Phase::Read => self.read,
+            Phase::Partition => self.partition,
+            Phase::Scatter => self.scatter,
+            Phase::Assemble => self.assemble,
+            Phase::Factor => self.factor,
+            Phase::Condense => self.condense,
+            Phase::Loop => self.uzawa,
+            Phase::Recover => self.recover,
+            Phase::Output => self.output,
+            Phase::Ordering | Phase::Schur | Phase::OneSolve | Phase::Piece => 0.0,
+        }
     }
 }
 
@@ -202,5 +252,31 @@ mod tests {
         assert_eq!(table.len(), 11);
         assert!(table[7].starts_with("loop") && table[7].contains("4 sweeps"));
         assert_eq!(timer.fork().seconds(Phase::Loop), 0.0);
+    }
+
+    #[test]
+    fn a_phase_line_shows_the_seconds_as_the_table_does() {
+        let t = Timings {
+            read: 12.3456,
+            factor: 0.0004,
+            total: 20.0,
+            ..Timings::default()
+        };
+        let table = t.table(0);
+        for phase in TABLE {
+            let line = phase_line(phase, t.seconds(phase), "a figure");
+            let row = table
+                .iter()
+                .find(|r| r.split_whitespace().next() == Some(phase.name()));
+            let row = row.unwrap_or_else(|| panic!("no row for {}", phase.name()));
+            let shown = |s: &str| s.split_whitespace().nth(1).map(str::to_string);
+            let in_line = line.split_whitespace().nth(3).map(str::to_string);
+            assert_eq!(in_line, shown(row), "{line} / {row}");
+            assert!(line.ends_with(" s: a figure"), "{line}");
+        }
+        assert_eq!(
+            phase_line(Phase::Read, 12.3456, ""),
+            "read      done in   12.346 s"
+        );
     }
 }

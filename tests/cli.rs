@@ -263,3 +263,244 @@ fn nodes_csv_written_in_blocks_by_the_ranks_keeps_the_one_rank_layout() {
         assert!(left.is_empty(), "{out}: {left:?}");
     }
 }
+
+/// A line with every number replaced by N and runs of spaces by one: what stays the same
+/// from run to run.
+fn shape(line: &str) -> String {
+    line.split_whitespace()
+        .map(|w| {
+            let bare = w.trim_matches(|c: char| "(),:|".contains(c));
+            match bare.parse::<f64>() {
+                Ok(_) => w.replace(bare, "N"),
+                Err(_) => w.to_string(),
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Runs `args` (not quiet) in `dir` and returns stdout, checking the exit code.
+fn printed(dir: &std::path::Path, args: &[&str]) -> String {
+    let (code, stdout, stderr) = run_in(dir, args);
+    assert_eq!(code, 0, "{stdout}{stderr}");
+    stdout
+}
+
+#[test]
+fn help_shows_a_true_example_of_each_output() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let help = printed(dir.path(), &["--help"]);
+    let hertz = printed(
+        dir.path(),
+        &["--builtin", "hertz", "--level", "1", "--out", "ex1"],
+    );
+    let block = printed(
+        dir.path(),
+        &["--builtin", "block", "--level", "1", "--out", "ex2"],
+    );
+    let ex1 = dir.path().join("ex1");
+    let lines: Vec<&str> = help.lines().collect();
+    // The sample lines under a heading, indented by four spaces.
+    let under = |heading: &str| -> Vec<&str> {
+        let start = lines.iter().position(|l| l.starts_with(heading));
+        let start = start.unwrap_or_else(|| panic!("no {heading:?} in --help"));
+        lines[start + 1..]
+            .iter()
+            .take_while(|l| l.starts_with("    "))
+            .map(|l| l.trim())
+            .collect()
+    };
+    for (file, heading) in [
+        ("contact.csv", "contact.csv:"),
+        ("history.csv", "history.csv:"),
+    ] {
+        let real = std::fs::read_to_string(ex1.join(file)).unwrap();
+        let sample = under(heading);
+        assert_eq!(sample[0], real.lines().next().unwrap(), "{file}'s header");
+        let width = sample[0].split(',').count();
+        for row in &sample[1..] {
+            let fields: Vec<&str> = row.split(',').collect();
+            assert_eq!(fields.len(), width, "{file}: {row}");
+            assert!(fields.iter().all(|f| f.parse::<f64>().is_ok()), "{row}");
+        }
+        assert!(sample.len() >= 2, "{file}: no sample row");
+    }
+    let summary = read_summary(&ex1.join("summary.json"));
+    let sample = under("summary.json:").join(" ");
+    let keys: Vec<&str> = sample
+        .split('"')
+        .enumerate()
+        .filter(|(k, _)| k % 2 == 1)
+        .map(|(_, key)| key)
+        .collect();
+    assert!(keys.len() >= 8, "{keys:?}");
+    for key in keys {
+        let found = summary.get(key).is_some() || summary["timings_s"].get(key).is_some();
+        assert!(found, "--help names {key:?}, summary.json has no such key");
+    }
+    use contact_par::output::plot::{CONTACT_SIZE, CONVERGENCE_SIZE};
+    for (name, (w, h)) in [
+        ("contact.png", CONTACT_SIZE),
+        ("convergence.png", CONVERGENCE_SIZE),
+    ] {
+        assert!(
+            help.contains(&format!("{name}: {w} x {h} pixels")),
+            "{name}"
+        );
+        assert!(ex1.join(name).exists(), "{name}");
+    }
+    // Every printed sample has the shape of a line the runs printed.
+    let real: std::collections::HashSet<String> =
+        hertz.lines().chain(block.lines()).map(shape).collect();
+    let mut samples = under("monitor line every");
+    samples.extend(under("With friction"));
+    assert!(samples.len() >= 8, "{samples:?}");
+    for s in samples {
+        assert!(
+            real.contains(&shape(s)),
+            "--help shows {s:?}, the run printed no such line:\n{hertz}"
+        );
+    }
+}
+
+/// The phase lines of `stdout`, each phase once and in order, and the closing table's
+/// rows: the seconds of each phase line must be the table's.
+fn check_phase_lines(stdout: &str, phases: &[&str]) {
+    let done: Vec<(&str, &str)> = stdout
+        .lines()
+        .filter_map(|l| {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            (w.len() >= 5 && w[1] == "done" && w[2] == "in" && w[4].starts_with('s'))
+                .then(|| (w[0], w[3]))
+        })
+        .collect();
+    let names: Vec<&str> = done.iter().map(|d| d.0).collect();
+    assert_eq!(names, phases, "{stdout}");
+    let table = stdout
+        .lines()
+        .skip_while(|l| !l.starts_with("phase         seconds"))
+        .collect::<Vec<_>>();
+    for (name, seconds) in done {
+        let row = table
+            .iter()
+            .find(|l| l.split_whitespace().next() == Some(name));
+        let row = row.unwrap_or_else(|| panic!("no row {name} in the table:\n{stdout}"));
+        assert_eq!(
+            row.split_whitespace().nth(1),
+            Some(seconds),
+            "{name}: {row}"
+        );
+    }
+}
+
+#[test]
+fn each_phase_prints_one_line_as_it_ends_with_the_tables_seconds() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let all = [
+        "read",
+        "partition",
+        "scatter",
+        "assemble",
+        "factor",
+        "condense",
+        "loop",
+        "recover",
+        "output",
+    ];
+    let two = [
+        "--builtin",
+        "hertz",
+        "--level",
+        "1",
+        "--subdomains-per-rank",
+        "2",
+    ];
+    let stdout = printed(dir.path(), &[&two[..], &["--out", "a"]].concat());
+    check_phase_lines(&stdout, &all);
+    // The first line comes first; the partition's line names the parts.
+    assert!(stdout.starts_with("contact-par: "), "{stdout}");
+    assert!(stdout.contains("2 parts"), "{stdout}");
+    // --linear full has no condensation and no recovery.
+    let full = [
+        "--builtin",
+        "block",
+        "--level",
+        "0",
+        "--linear",
+        "full",
+        "--out",
+        "b",
+    ];
+    let full_phases = [
+        "read",
+        "partition",
+        "scatter",
+        "assemble",
+        "factor",
+        "loop",
+        "output",
+    ];
+    check_phase_lines(&printed(dir.path(), &full), &full_phases);
+    // --quiet: nothing.
+    let quiet = printed(dir.path(), &[&two[..], &["--out", "c", "--quiet"]].concat());
+    assert!(quiet.is_empty(), "{quiet}");
+    // Two ranks: the first prints, once.
+    let o = mpirun(2, dir.path())
+        .args(two)
+        .args(["--out", "d"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    check_phase_lines(&stdout, &all);
+    assert!(
+        stdout.contains("4 parts") && stdout.contains("2 rank(s)"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn monitor_lines_show_what_the_friction_law_has() {
+    let dir = tempfile::TempDir::new().unwrap();
+    for (law, case, frictional) in [
+        ("none", print_case("hertz", 0), false),
+        ("coulomb", print_case("block", 0), true),
+        (
+            "tresca",
+            builtin_with_friction("block", 0, "friction = \"tresca\"\nthreshold = 20.0"),
+            true,
+        ),
+    ] {
+        let file = format!("{law}.toml");
+        std::fs::write(dir.path().join(&file), case).unwrap();
+        let out = format!("out-{law}");
+        let args = [file.as_str(), "--out", &out, "--monitor-every", "1"];
+        let stdout = printed(dir.path(), &args);
+        let monitor: Vec<&str> = stdout.lines().filter(|l| l.contains("  error ")).collect();
+        let summary = read_summary(&dir.path().join(&out).join("summary.json"));
+        assert_eq!(
+            monitor.len() as f64,
+            num(&summary, "iterations"),
+            "{law}: {stdout}"
+        );
+        for line in monitor {
+            let words: Vec<&str> = line.split_whitespace().collect();
+            let count = |name: &str| {
+                let k = words.iter().position(|w| *w == name)?;
+                words[k + 1].parse::<usize>().ok()
+            };
+            assert!(count("active").is_some(), "{law}: {line}");
+            assert_eq!(line.contains("p_t "), frictional, "{law}: {line}");
+            if frictional {
+                let (stick, slip) = (count("stick").unwrap(), count("slip").unwrap());
+                assert_eq!(stick + slip, count("active").unwrap(), "{law}: {line}");
+            } else {
+                assert!(!line.contains("stick") && !line.contains("slip"), "{line}");
+            }
+        }
+    }
+}

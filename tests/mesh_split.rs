@@ -51,8 +51,15 @@ fn ok(o: &Output, what: &str) {
     );
 }
 
-/// The files a run writes for the whole mesh, which must match byte for byte.
-const FILES: [&str; 3] = ["contact.csv", "nodes.csv", "history.csv"];
+/// The files a run writes for the whole mesh, which must match byte for byte (the
+/// pictures too: they are drawn from the same rows).
+const FILES: [&str; 5] = [
+    "contact.csv",
+    "nodes.csv",
+    "history.csv",
+    "contact.png",
+    "convergence.png",
+];
 
 fn assert_same_files(a: &Path, b: &Path, what: &str) {
     for f in FILES {

@@ -298,6 +298,8 @@ fn split_piece_written_by_several_threads_is_complete() {
         names,
         [
             "contact.csv",
+            "contact.png",
+            "convergence.png",
             "history.csv",
             "solution.pvtu",
             "solution_0_0.vtu",

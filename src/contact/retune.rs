@@ -180,6 +180,7 @@ mod tests {
             mistuned_n: 0,
             uncertain: 0,
             retunes,
+            refused: 0,
         }
     }
 

@@ -46,6 +46,9 @@ pub struct Sweep {
     pub uncertain: usize,
     /// Retunes of r before this sweep.
     pub retunes: usize,
+    /// Accelerated points the safeguard refused so far, this sweep's included (a sweep
+    /// that evaluated a refused point counts it).
+    pub refused: usize,
 }
 
 /// The slip thresholds seen by one run of sweeps.
@@ -286,6 +289,7 @@ impl SweepSums {
             mistuned_n: self.mistuned_n as usize,
             uncertain: self.uncertain as usize,
             retunes,
+            refused: 0,
         }
     }
 }

@@ -531,9 +531,12 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         } else {
             f64::INFINITY
         };
-        let sweep = global
-            .sums
-            .sweep(self.history.len() + 1, self.retunes, r, contraction);
+        let sweep = Sweep {
+            refused: self.refused,
+            ..global
+                .sums
+                .sweep(self.history.len() + 1, self.retunes, r, contraction)
+        };
         // The next sweep's margin: this one's state error, |G(x) - x|_W / (1 - rho), made
         // a value per node (the W-norm's mean square over the contact length) and tripled
         // because one node may carry more than the mean.
@@ -588,6 +591,10 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             return Ok(next);
         }
         self.refused += 1;
+        // The refused point's sweep is already in the history: it counts there.
+        if let Some(last) = self.history.last_mut() {
+            last.refused = self.refused;
+        }
         aa.clear();
         self.plain_step(law, cur, x, Some(aa))
     }
@@ -985,6 +992,11 @@ mod tests {
         let kicked = many(ANDERSON, Some((3, 50.0)));
         assert!(kicked.refused >= 1, "the safeguard did not engage");
         assert!(kicked.converged);
+        // The history counts the refusal at the sweep that evaluated the kicked point.
+        let counts: Vec<usize> = kicked.history.iter().map(|s| s.refused).collect();
+        assert_eq!(&counts[..3], [0, 0, 1], "{counts:?}");
+        assert_eq!(counts.last(), Some(&kicked.refused));
+        assert!(counts.windows(2).all(|w| w[0] <= w[1]), "{counts:?}");
         let plain = many(PLAIN, None);
         let scale = plain.lambda.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for i in 0..plain.lambda.len() {

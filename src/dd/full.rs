@@ -5,7 +5,7 @@
 use crate::contact::operators::{add_contact_forces, contact_blocks, ContactDofs, NodalForces};
 use crate::contact::LinearStep;
 use crate::error::Result;
-use crate::fem::{assemble, DofMap, Material};
+use crate::fem::{assemble, AssemblyFigures, DofMap, Material};
 use crate::linear::SparseCholesky;
 use crate::timer::{Phase, Timer};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
@@ -47,8 +47,13 @@ pub struct DirectStep {
 impl DirectStep {
     /// Assembles A on the free dofs of `fixed` with the same r on every contact
     /// direction, lifts the prescribed values into the right-hand side and factors A
-    /// (AMD ordering), timed as [`Phase::Assemble`] and [`Phase::Factor`].
-    pub fn new(system: &DirectSystem, timer: &Timer) -> Result<Self> {
+    /// (AMD ordering), timed as [`Phase::Assemble`] and [`Phase::Factor`]; tells
+    /// `assembled_figures` the matrix's size as soon as it is assembled.
+    pub fn new(
+        system: &DirectSystem,
+        timer: &Timer,
+        assembled_figures: &dyn Fn(AssemblyFigures),
+    ) -> Result<Self> {
         let DirectSystem {
             contact, load, r, ..
         } = system;
@@ -79,6 +84,10 @@ impl DirectStep {
             }
             Ok((dofs, assembled.matrix, base))
         })?;
+        assembled_figures(AssemblyFigures {
+            equations: assembled.nrows(),
+            entries: assembled.compute_nnz(),
+        });
         let chol = timer.time(Phase::Factor, || {
             SparseCholesky::factor(assembled.as_ref(), SymmetricOrdering::Amd)
         })?;

@@ -12,7 +12,7 @@ use crate::dd::interface_mumps::{self, MumpsInterface};
 use crate::dd::local_factor::{InteriorForward, LocalFactor};
 use crate::dd::split::SubProblem;
 use crate::error::Result;
-use crate::fem::{assemble, DofMap, Material};
+use crate::fem::{assemble, AssemblyFigures, DofMap, Material};
 use crate::host;
 use crate::linear::{interior_groups, Ordering};
 use crate::timer::{Phase, Timer};
@@ -47,8 +47,14 @@ pub struct LocalSystem {
 
 impl LocalSystem {
     /// Assembles A_s = K_s + r N'WN (+ r T'WT) with the interface block shifted by alpha,
-    /// then factors it (timed as [`Phase::Assemble`] and [`Phase::Factor`]).
-    pub fn new(s: &StepSetup, sub: &SubProblem, timer: &Timer) -> Result<Self> {
+    /// then factors it (timed as [`Phase::Assemble`] and [`Phase::Factor`]); tells
+    /// `assembled_figures` the matrix's size as soon as it is assembled.
+    pub fn new(
+        s: &StepSetup,
+        sub: &SubProblem,
+        timer: &Timer,
+        assembled_figures: &dyn Fn(AssemblyFigures),
+    ) -> Result<Self> {
         let assembled = timer.time(Phase::Assemble, || {
             let dofs = DofMap::with_last(&sub.fixed, &sub.boundary_dofs);
             let rr = vec![s.r; sub.contact_nodes.len()];
@@ -71,15 +77,17 @@ impl LocalSystem {
                     .map(|&v| (v, [[s.alpha, 0.0], [0.0, s.alpha]])),
             );
             let assembled = assemble(&sub.nodes, &sub.triangles, s.material, &dofs, &blocks)?;
+            let figures = assembled.figures();
             let mut base = assembled.lifting;
             for (dof, eq) in dofs.eq.iter().enumerate() {
                 if let Some(i) = eq {
                     base[*i] += sub.load[dof];
                 }
             }
-            Ok((dofs, assembled.matrix, base))
+            Ok((dofs, assembled.matrix, base, figures))
         });
-        let (dofs, matrix, base) = assembled?;
+        let (dofs, matrix, base, figures) = assembled?;
+        assembled_figures(figures);
         let factor = timer.time(Phase::Factor, || {
             let a = matrix.as_ref();
             let groups = interior_groups(&dofs);

@@ -80,6 +80,23 @@ pub struct Assembled {
     pub lifting: Vec<f64>,
 }
 
+/// The size of an assembled matrix, for the assembly phase's line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AssemblyFigures {
+    pub equations: usize,
+    /// Entries stored (the lower triangle).
+    pub entries: usize,
+}
+
+impl Assembled {
+    pub fn figures(&self) -> AssemblyFigures {
+        AssemblyFigures {
+            equations: self.matrix.nrows(),
+            entries: self.matrix.compute_nnz(),
+        }
+    }
+}
+
 /// Assembles A = K + sum of `node_blocks` (2 x 2 blocks added at a node, e.g. the
 /// augmentation terms r w_i (m m' + t t') of the contact nodes).
 ///

@@ -5,7 +5,7 @@
 pub mod assembly;
 mod material;
 
-pub use assembly::{assemble, Assembled, DofMap};
+pub use assembly::{assemble, Assembled, AssemblyFigures, DofMap};
 pub use material::{Hypothesis, Material};
 
 use nalgebra::{Matrix3, SMatrix, Vector3};

@@ -7,6 +7,39 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{Error, Result};
 
+/// Files written and their bytes, for the write phase's line.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Written {
+    pub files: usize,
+    pub bytes: u64,
+}
+
+impl Written {
+    /// One file of `bytes`.
+    pub fn file(bytes: usize) -> Self {
+        Written {
+            files: 1,
+            bytes: bytes as u64,
+        }
+    }
+}
+
+impl std::ops::Add for Written {
+    type Output = Written;
+    fn add(self, o: Written) -> Written {
+        Written {
+            files: self.files + o.files,
+            bytes: self.bytes + o.bytes,
+        }
+    }
+}
+
+impl std::iter::Sum for Written {
+    fn sum<I: Iterator<Item = Written>>(iter: I) -> Written {
+        iter.fold(Written::default(), |a, b| a + b)
+    }
+}
+
 /// Two threads of one process may write files at the same time (the pid alone would let them
 /// share a temporary name), so each call also takes a number of its own.
 static NEXT_TEMP: AtomicU64 = AtomicU64::new(0);

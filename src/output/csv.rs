@@ -99,7 +99,7 @@ pub fn push_node_rows(out: &mut String, nodes: &[[f64; 2]], u: &[[f64; 2]]) {
 }
 
 /// The header of `history.csv`.
-pub const HISTORY_HEADER: &str = "iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,uncertain_nodes,stiff_directions,soft_directions";
+pub const HISTORY_HEADER: &str = "iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,uncertain_nodes,stiff_directions,soft_directions,retunes,refused_accelerations";
 
 /// `history.csv`: `HISTORY_HEADER`, one row per sweep in the given order (the other
 /// fields of [`Sweep`] are not written).
@@ -110,7 +110,7 @@ pub fn history_csv(rows: &[Sweep]) -> String {
     for r in rows {
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.iter,
             r.error,
             r.pressure,
@@ -122,7 +122,9 @@ pub fn history_csv(rows: &[Sweep]) -> String {
             r.changed,
             r.uncertain,
             r.stiff,
-            r.soft
+            r.soft,
+            r.retunes,
+            r.refused
         );
     }
     out
@@ -276,6 +278,7 @@ mod tests {
                 mistuned_n: 2,
                 uncertain: 3,
                 retunes: 0,
+                refused: 0,
             },
             Sweep {
                 iter: 2,
@@ -293,6 +296,7 @@ mod tests {
                 mistuned_n: 0,
                 uncertain: 0,
                 retunes: 1,
+                refused: 2,
             },
         ];
         let csv = history_csv(&rows);
@@ -300,11 +304,11 @@ mod tests {
         assert_eq!(lines.next(), Some(HISTORY_HEADER));
         assert_eq!(
             lines.next(),
-            Some(format!("1,0.5,0.25,{},0,0,10,0,4,3,0,0", 1e-300).as_str())
+            Some(format!("1,0.5,0.25,{},0,0,10,0,4,3,0,0,0,0", 1e-300).as_str())
         );
         assert_eq!(
             lines.next(),
-            Some("2,0.30000000000000004,0.1,0,2,0.5,12,3,0,0,12,5")
+            Some("2,0.30000000000000004,0.1,0,2,0.5,12,3,0,0,12,5,1,2")
         );
         assert_eq!(lines.next(), None);
         assert!(csv.ends_with('\n'));

@@ -1,5 +1,5 @@
-//! Output files: ParaView (`.vtu` pieces and a `.pvtu` index), CSV tables, and the atomic
-//! writer that puts any of them on disk.
+//! Output files: ParaView (`.vtu` pieces and a `.pvtu` index), CSV tables, the pictures
+//! (`plot`), and the atomic writer that puts any of them on disk.
 //!
 //! The formatters are pure functions from data to bytes: they know neither MPI nor physics,
 //! so each rank formats its own piece and the caller decides who writes what. Only
@@ -19,11 +19,12 @@ mod atomic;
 pub mod blocks;
 mod csv;
 mod piece;
+pub mod plot;
 mod summary;
 mod vtk;
 
-pub use atomic::{write_atomic, SharedFile};
+pub use atomic::{write_atomic, SharedFile, Written};
 pub use csv::{contact_csv, history_csv, nodes_csv, ContactRow};
 pub use piece::{create_output_dir, element_stresses, vtu_file_name, PieceRows, SubdomainSolution};
-pub use summary::{Gathered, RankStats, RunFacts};
+pub use summary::{Gathered, PlotFacts, RankStats, RunFacts, PLOT_FILES};
 pub use vtk::{file_ranges, pvtu_bytes, vtu_bytes, Piece, SubPiece, MAX_TRIANGLES_PER_FILE};

@@ -2,7 +2,7 @@
 //! typed rows it sends the first subdomain for the gathered files (`summary`).
 
 use super::summary::RankStats;
-use super::{file_ranges, vtu_bytes, write_atomic, ContactRow, Piece, SubPiece};
+use super::{file_ranges, vtu_bytes, write_atomic, ContactRow, Piece, SubPiece, Written};
 use crate::case::Case;
 use crate::contact::Outcome;
 use crate::dd::split::SubProblem;
@@ -18,6 +18,8 @@ use std::path::Path;
 pub struct PieceRows {
     pub contact: Vec<ContactRow>,
     pub stats: RankStats,
+    /// The subdomain's own files.
+    pub written: Written,
 }
 
 /// One subdomain's solution: what its outputs are made of.
@@ -65,8 +67,8 @@ pub fn element_stresses(case: &Case, mesh: &Mesh, u: &[[f64; 2]]) -> (Vec<[f64; 
 }
 
 impl SubdomainSolution<'_> {
-    /// Writes the subdomain's `.vtu` files into `dir`; returns how many.
-    pub fn write_vtu(&self, dir: &Path) -> Result<usize> {
+    /// Writes the subdomain's `.vtu` files into `dir`; returns how many, and their bytes.
+    pub fn write_vtu(&self, dir: &Path) -> Result<Written> {
         let (sub, o) = (self.sub, self.outcome);
         let mesh = Mesh {
             nodes: sub.nodes.clone(),
@@ -98,14 +100,17 @@ impl SubdomainSolution<'_> {
         let ranges = file_ranges(&piece)?;
         // The files are independent: a rank with several threads encodes and writes
         // several files at once (each file's encoding and fsync run on one thread).
-        ranges.par_iter().enumerate().try_for_each(|(k, range)| {
-            let part = SubPiece::new(&piece, range.clone());
-            write_atomic(
-                &dir.join(vtu_file_name(self.subdomain, k)),
-                &vtu_bytes(&part.piece())?,
-            )
-        })?;
-        Ok(ranges.len())
+        let written: Vec<Written> = ranges
+            .par_iter()
+            .enumerate()
+            .map(|(k, range)| {
+                let part = SubPiece::new(&piece, range.clone());
+                let bytes = vtu_bytes(&part.piece())?;
+                write_atomic(&dir.join(vtu_file_name(self.subdomain, k)), &bytes)?;
+                Ok(Written::file(bytes.len()))
+            })
+            .collect::<Result<_>>()?;
+        Ok(written.into_iter().sum())
     }
 
     /// The rows of the subdomain's own contact nodes.

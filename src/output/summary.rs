@@ -1,8 +1,10 @@
 //! The files the first subdomain writes for the whole run from every subdomain's rows:
-//! `contact.csv`, `nodes.csv`, `history.csv`, `solution.pvtu` and `summary.json`.
+//! `contact.csv`, `history.csv`, `solution.pvtu`, `contact.png`, `convergence.png` and
+//! `summary.json`.
 
 use super::piece::{vtu_file_name, PieceRows};
-use super::{contact_csv, history_csv, pvtu_bytes, write_atomic, ContactRow};
+use super::plot::{contact_png, convergence_png, convergence_series, pair_series, Foundation};
+use super::{contact_csv, history_csv, pvtu_bytes, write_atomic, ContactRow, Written};
 use crate::contact::{Outcome, Status};
 use crate::error::{Error, Result};
 use crate::timer::Timings;
@@ -84,7 +86,25 @@ pub struct RunFacts {
 pub struct Gathered {
     pub contact: Vec<ContactRow>,
     pub stats: Vec<RankStats>,
+    /// The subdomains' own files (their `.vtu` pieces).
+    pub pieces: Written,
 }
+
+/// What the pictures say of the run beside the rows.
+pub struct PlotFacts<'a> {
+    /// The case's title (or where it came from).
+    pub title: &'a str,
+    /// The contact pair's name: its boundary group.
+    pub pair: &'a str,
+    pub foundation: Foundation,
+    /// The friction law, as the first line names it ("friction none", ...).
+    pub friction: String,
+    pub frictional: bool,
+    pub tol: f64,
+}
+
+/// The names of the pictures, in the order [`Gathered::write_plots`] draws them.
+pub const PLOT_FILES: [&str; 2] = ["contact.png", "convergence.png"];
 
 impl Gathered {
     /// The subdomains' rows put together.
@@ -92,28 +112,73 @@ impl Gathered {
         let mut all = Gathered {
             contact: Vec::new(),
             stats: Vec::new(),
+            pieces: Written::default(),
         };
         for p in pieces {
             all.contact.extend(p.contact);
             all.stats.push(p.stats);
+            all.pieces = all.pieces + p.written;
         }
         all
     }
 
     /// Writes `contact.csv`, `history.csv` and `solution.pvtu` into `dir` (`nodes.csv` is
     /// written by all ranks: [`super::blocks`]).
-    pub fn write_tables(&mut self, dir: &Path, o: &Outcome) -> Result<()> {
-        write_atomic(
-            &dir.join("contact.csv"),
-            contact_csv(&self.contact).as_bytes(),
-        )?;
-        write_atomic(&dir.join("history.csv"), history_csv(&o.history).as_bytes())?;
+    pub fn write_tables(&mut self, dir: &Path, o: &Outcome) -> Result<Written> {
         let sources: Vec<String> = self
             .stats
             .iter()
             .flat_map(|st| (0..st.vtu_files).map(|k| vtu_file_name(st.subdomain, k)))
             .collect();
-        write_atomic(&dir.join("solution.pvtu"), &pvtu_bytes(&sources)?)
+        let files = [
+            ("contact.csv", contact_csv(&self.contact).into_bytes()),
+            ("history.csv", history_csv(&o.history).into_bytes()),
+            ("solution.pvtu", pvtu_bytes(&sources)?),
+        ];
+        let mut written = Written::default();
+        for (name, bytes) in files {
+            write_atomic(&dir.join(name), &bytes)?;
+            written = written + Written::file(bytes.len());
+        }
+        Ok(written)
+    }
+
+    /// Draws `contact.png` and `convergence.png` into `dir` from the contact rows and the
+    /// history of `o` (the data of contact.csv and history.csv); one result per picture,
+    /// in the order of [`PLOT_FILES`]: a picture that cannot be drawn or written is an
+    /// output error naming it, and does not keep the other from being written.
+    pub fn write_plots(&self, dir: &Path, facts: &PlotFacts, o: &Outcome) -> [Result<Written>; 2] {
+        let state = match o.converged {
+            true => format!("converged after {} sweeps", o.iterations),
+            false => format!("NOT converged after {} sweeps", o.iterations),
+        };
+        let contact = || {
+            let pair = pair_series(
+                facts.pair,
+                &self.contact,
+                &facts.foundation,
+                facts.frictional,
+            );
+            let what = format!("Contact along the foundation: {}, {state}", facts.friction);
+            let abscissa = facts.foundation.axis_label();
+            contact_png([&what, facts.title], abscissa, &[pair])
+        };
+        let convergence = || {
+            let series = convergence_series(&o.history, facts.frictional, facts.tol);
+            let what = format!("Convergence: {}, {state}", facts.friction);
+            convergence_png([&what, facts.title], &series)
+        };
+        let draw = |name: &str, png: std::result::Result<Vec<u8>, String>| {
+            let bytes = png.map_err(|e| Error::Output(format!("cannot draw {name}: {e}")))?;
+            write_atomic(&dir.join(name), &bytes)?;
+            Ok(Written::file(bytes.len()))
+        };
+        // Drawn and written at once: each is mostly its own encoding and fsync.
+        let (a, b) = rayon::join(
+            || draw(PLOT_FILES[0], contact()),
+            || draw(PLOT_FILES[1], convergence()),
+        );
+        [a, b]
     }
 
     /// Writes `summary.json` into `dir`: the `facts`, the outcome `o`, the totals of the
@@ -124,13 +189,14 @@ impl Gathered {
         facts: RunFacts,
         o: &Outcome,
         timings: Timings,
-    ) -> Result<()> {
+    ) -> Result<Written> {
         let summary = self.summary(facts, o, timings);
         // Through a `Value`, whose objects sort their keys: the file's order.
         let json = serde_json::to_value(&summary)
             .and_then(|v| serde_json::to_string_pretty(&v))
             .map_err(|e| Error::Output(format!("cannot format summary.json: {e}")))?;
-        write_atomic(&dir.join("summary.json"), json.as_bytes())
+        write_atomic(&dir.join("summary.json"), json.as_bytes())?;
+        Ok(Written::file(json.len()))
     }
 
     fn summary(&self, facts: RunFacts, o: &Outcome, timings: Timings) -> Summary<'_> {
