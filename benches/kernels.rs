@@ -557,6 +557,7 @@ fn plots(c: &mut Criterion) {
                     stiff: 0,
                     soft: 0,
                     mistuned: 0,
+                    mistuned_n: 0,
                     uncertain: 0,
                     retunes: (k / 8).min(4),
                     refused: k / 100,

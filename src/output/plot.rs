@@ -800,6 +800,7 @@ mod tests {
             stiff: 0,
             soft: 0,
             mistuned: 0,
+            mistuned_n: 0,
             uncertain: 0,
             retunes,
             refused,
