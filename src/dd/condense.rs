@@ -22,7 +22,6 @@
 use crate::dd::local_factor::LocalFactor;
 use crate::error::{Error, Result};
 use crate::linear::SparseCholesky;
-use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
 use faer::{Mat, Side};
 
@@ -196,7 +195,8 @@ pub struct InterfaceSystem {
 /// The factor of the interface system: dense, or sparse when the subdomains' pieces
 /// leave enough of it empty (see [`InterfaceSystem::new`]).
 enum InterfaceFactor {
-    Dense(faer::linalg::solvers::Llt<f64>),
+    /// The lower Cholesky factor, kept as a matrix so that retunes can update it in place.
+    Dense(Mat<f64>),
     Sparse(Box<SparseCholesky>),
 }
 
@@ -326,16 +326,28 @@ impl InterfaceFactor {
                 }
             }
         }
-        let llt = with_threads(threads, || {
-            faer::linalg::solvers::Llt::new(s.as_ref(), Side::Lower)
+        let l = with_threads(threads, || {
+            faer::linalg::solvers::Llt::new(s.as_ref(), Side::Lower).map(|llt| llt.L().to_owned())
         })
         .map_err(|_| singular())?;
-        Ok(InterfaceFactor::Dense(llt))
+        Ok(InterfaceFactor::Dense(l))
     }
 
-    fn solve_in_place(&mut self, x: faer::MatMut<'_, f64>) {
+    fn solve_in_place(&mut self, mut x: faer::MatMut<'_, f64>) {
         match self {
-            InterfaceFactor::Dense(llt) => llt.solve_in_place(x),
+            InterfaceFactor::Dense(l) => {
+                let par = faer::get_global_parallelism();
+                faer::linalg::triangular_solve::solve_lower_triangular_in_place(
+                    l.as_ref(),
+                    x.as_mut(),
+                    par,
+                );
+                faer::linalg::triangular_solve::solve_upper_triangular_in_place(
+                    l.transpose(),
+                    x,
+                    par,
+                );
+            }
             InterfaceFactor::Sparse(chol) => chol.solve_in_place(x),
         }
     }
@@ -373,6 +385,48 @@ impl InterfaceSystem {
             factor,
             index: pieces.into_iter().map(|(idx, _)| idx).collect(),
             x: Mat::zeros(n, 1),
+        })
+    }
+
+    /// Adds to the factored sum the rank-one terms of each piece: (global indices, the
+    /// columns w (column-major, one row per index), alpha), sum alpha_c w_c w_c', by
+    /// updates and downdates of the dense factor in place (p n^2 flops for p terms, where
+    /// factoring again costs n^3 / 3). False when the factor is sparse or an update loses
+    /// positive definiteness: the factor is then spoilt and must be built again.
+    pub fn update(&mut self, pieces: &[(Vec<usize>, Vec<f64>, Vec<f64>)]) -> bool {
+        let Some(InterfaceFactor::Dense(l)) = &mut self.factor else {
+            return false;
+        };
+        let n = l.nrows();
+        let p: usize = pieces.iter().map(|(_, _, a)| a.len()).sum();
+        if p == 0 {
+            return true;
+        }
+        let mut w = Mat::<f64>::zeros(n, p);
+        let mut alpha = faer::Col::<f64>::zeros(p);
+        let mut c0 = 0;
+        for (idx, cols, a) in pieces {
+            let g = idx.len();
+            for (c, &ac) in a.iter().enumerate() {
+                alpha[c0 + c] = ac;
+                for (k, &i) in idx.iter().enumerate() {
+                    w[(i, c0 + c)] = cols[k + g * c];
+                }
+            }
+            c0 += a.len();
+        }
+        if faer::linalg::cholesky::llt::update::rank_r_update_clobber(
+            l.as_mut(),
+            w.as_mut(),
+            alpha.as_diagonal_mut(),
+        )
+        .is_err()
+        {
+            return false;
+        }
+        (0..n).all(|j| {
+            let d = l[(j, j)];
+            d.is_finite() && d > 0.0
         })
     }
 

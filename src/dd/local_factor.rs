@@ -51,6 +51,10 @@ pub struct LocalFactor {
     s0: Option<Mat<f64>>,
     /// The update of the boundary block now in the factor, by position (i >= j).
     applied: BTreeMap<(usize, usize), f64>,
+    /// The interface Schur complement of the factor, kept once a low-rank update of the
+    /// contact block has changed it by its own low-rank term (see
+    /// [`LocalFactor::update_boundary`]), so that it is not formed again (g^3 / 3).
+    schur_g: Option<Mat<f64>>,
     rhs: Mat<f64>,
     /// The ordering used (what `Auto` resolved to).
     pub(crate) ordering: Ordering,
@@ -133,6 +137,7 @@ impl LocalFactor {
             alpha,
             s0: None,
             applied: BTreeMap::new(),
+            schur_g: None,
             rhs: Mat::zeros(n, 1),
             ordering,
         })
@@ -172,35 +177,72 @@ impl LocalFactor {
     /// place, about k b^2 flops ([`LOW_RANK_MAX_SHARE`]). Otherwise, and whenever an
     /// update would lose positive definiteness, the block is refactored from the
     /// assembled matrix, b^3 / 3 flops.
-    pub(crate) fn update_boundary(&mut self, delta: &[(usize, usize, f64)]) -> Result<()> {
+    ///
+    /// Returns how the interface Schur complement changed: by a low-rank term when the
+    /// update touched contact dofs only and was made in place (see [`schur_change`]),
+    /// else in full.
+    pub(crate) fn update_boundary(&mut self, delta: &[(usize, usize, f64)]) -> Result<SchurChange> {
         let target = lower_entries(delta);
         let change = entry_difference(&self.applied, &target);
         if change.is_empty() {
-            return Ok(());
+            return Ok(SchurChange::None);
         }
         let n = self.l_bb.nrows();
+        let (nc, ng) = (self.n_contact, self.n_interface());
         // Before the block first changes: S~ must be that of the assembled matrix, also
         // when the first update is made in place and a later one falls back to refactoring.
         let l_bb = &self.l_bb;
-        let s0 = self.s0.get_or_insert_with(|| lower_gram(l_bb.as_ref()));
-        if let Some(l) = low_rank_updated(&self.l_bb, &change) {
-            self.l_bb = l;
-        } else {
-            let mut s = s0.clone();
-            for (&(i, j), &v) in &target {
-                s[(i, j)] += v;
+        self.s0.get_or_insert_with(|| lower_gram(l_bb.as_ref()));
+        let terms = RankOneTerms::of(&change, n);
+        // The interface Schur complement's change, from the factor before the update.
+        let woodbury = match &terms {
+            Some(t) if ng > 0 && t.touched.iter().all(|&d| d < nc) => {
+                if self.schur_g.is_none() {
+                    self.schur_g = Some(self.formed_schur());
+                }
+                schur_change(&self.l_bb, nc, t)
             }
-            let llt = s.llt(Side::Lower).map_err(|_| {
-                Error::Numerical(
-                    "the boundary block refactored for a retuned r is not positive definite; set solver.r to keep r fixed".into(),
-                )
-            })?;
-            drop(s);
-            let l = llt.L();
-            self.l_bb = Mat::from_fn(n, n, |i, j| if i >= j { l[(i, j)] } else { 0.0 });
+            _ => None,
+        };
+        let in_place = terms
+            .as_ref()
+            .is_some_and(|t| low_rank_update(&mut self.l_bb, t));
+        if !in_place {
+            self.refactor_boundary(&target)?;
+            self.schur_g = None;
         }
         self.applied = target;
         self.chol.set_trailing_block(self.n_interior, &self.l_bb);
+        if ng == 0 {
+            return Ok(SchurChange::None);
+        }
+        match (woodbury, self.schur_g.as_mut()) {
+            (Some((w, alpha)), Some(s)) => {
+                add_rank_one_terms(s, &w, &alpha);
+                Ok(SchurChange::LowRank { w, alpha })
+            }
+            _ => {
+                self.schur_g = None;
+                Ok(SchurChange::Full)
+            }
+        }
+    }
+
+    /// L_BB of the assembled matrix plus `target`, factored from S~ (b^3 / 3 flops).
+    fn refactor_boundary(&mut self, target: &BTreeMap<(usize, usize), f64>) -> Result<()> {
+        let n = self.l_bb.nrows();
+        let mut s = self.s0.clone().expect("S~ kept before the first update");
+        for (&(i, j), &v) in target {
+            s[(i, j)] += v;
+        }
+        let llt = s.llt(Side::Lower).map_err(|_| {
+            Error::Numerical(
+                "the boundary block refactored for a retuned r is not positive definite; set solver.r to keep r fixed".into(),
+            )
+        })?;
+        drop(s);
+        let l = llt.L();
+        self.l_bb = Mat::from_fn(n, n, |i, j| if i >= j { l[(i, j)] } else { 0.0 });
         Ok(())
     }
 
@@ -212,6 +254,11 @@ impl LocalFactor {
     /// This subdomain's part of the interface system left once the contact dofs are
     /// eliminated, S_gg - S_gc S_cc^-1 S_cg = L_gg L_gg' - alpha I (dense, symmetric).
     pub fn interface_schur(&self) -> Mat<f64> {
+        self.schur_g.clone().unwrap_or_else(|| self.formed_schur())
+    }
+
+    /// [`LocalFactor::interface_schur`] formed from the factor, g^3 / 3 flops.
+    fn formed_schur(&self) -> Mat<f64> {
         let (nc, ng) = (self.n_contact, self.n_interface());
         unshifted_gram(self.l_bb.submatrix(nc, nc, ng, ng), 0, self.alpha)
     }
@@ -345,52 +392,138 @@ fn entry_difference(
     d
 }
 
-/// The factor of L L' + D, with D the symmetric matrix of `change` (lower triangle),
-/// by rank-one updates and downdates: D restricted to the dofs it touches is split into
-/// its eigenpairs (lambda, v), and L L' + sum lambda v v' is refactored in place from the
-/// first touched dof on (the columns before it do not change). `None` when D touches
-/// more than [`LOW_RANK_MAX_SHARE`] of the dofs or an update fails (the caller then
-/// refactors the whole block).
-fn low_rank_updated(l: &Mat<f64>, change: &BTreeMap<(usize, usize), f64>) -> Option<Mat<f64>> {
+/// How [`LocalFactor::update_boundary`] changed the interface Schur complement.
+pub enum SchurChange {
+    /// Not at all: no change of the block, or no interface.
+    None,
+    /// By the sum of alpha_i w_i w_i' over the columns w_i of `w` (g x p).
+    LowRank { w: Mat<f64>, alpha: Vec<f64> },
+    /// To be formed again ([`LocalFactor::interface_schur`] does).
+    Full,
+}
+
+/// A symmetric change D of the boundary block on the few dofs it touches, as rank-one
+/// terms: D = sum_c values[c] v_c v_c', v_c the columns of `vectors` on `touched`.
+struct RankOneTerms {
+    touched: Vec<usize>,
+    values: Vec<f64>,
+    vectors: nalgebra::DMatrix<f64>,
+}
+
+impl RankOneTerms {
+    /// The terms of `change` (lower triangle) on a block of order n; `None` when it
+    /// touches more than [`LOW_RANK_MAX_SHARE`] of the dofs (refactoring is cheaper).
+    fn of(change: &BTreeMap<(usize, usize), f64>, n: usize) -> Option<Self> {
+        let mut touched: Vec<usize> = change.keys().flat_map(|&(i, j)| [i, j]).collect();
+        touched.sort_unstable();
+        touched.dedup();
+        let k = touched.len();
+        if k as f64 > LOW_RANK_MAX_SHARE * n as f64 {
+            return None;
+        }
+        let at = |dof: usize| touched.binary_search(&dof).expect("a touched dof");
+        let mut d = nalgebra::DMatrix::<f64>::zeros(k, k);
+        for (&(i, j), &v) in change {
+            let (a, b) = (at(i), at(j));
+            d[(a, b)] = v;
+            d[(b, a)] = v;
+        }
+        let eig = nalgebra::SymmetricEigen::new(d);
+        Some(RankOneTerms {
+            touched,
+            values: eig.eigenvalues.iter().copied().collect(),
+            vectors: eig.eigenvectors,
+        })
+    }
+}
+
+/// Updates the factor `l` of L L' to that of L L' + D, D given by its rank-one `terms`,
+/// in place from the first touched dof on (the columns before it do not change; no copy
+/// of the block, which at b = 1300 took most of a retune's time). False when an update
+/// fails: `l` is then spoilt, and the caller refactors the whole block.
+fn low_rank_update(l: &mut Mat<f64>, terms: &RankOneTerms) -> bool {
     let n = l.nrows();
-    let mut touched: Vec<usize> = change.keys().flat_map(|&(i, j)| [i, j]).collect();
-    touched.sort_unstable();
-    touched.dedup();
-    let k = touched.len();
-    if k as f64 > LOW_RANK_MAX_SHARE * n as f64 {
-        return None;
-    }
-    let at = |dof: usize| touched.binary_search(&dof).expect("a touched dof");
-    let mut d = nalgebra::DMatrix::<f64>::zeros(k, k);
-    for (&(i, j), &v) in change {
-        let (a, b) = (at(i), at(j));
-        d[(a, b)] = v;
-        d[(b, a)] = v;
-    }
-    let eig = nalgebra::SymmetricEigen::new(d);
-    let first = touched[0];
+    let k = terms.touched.len();
+    let first = terms.touched[0];
     let m = n - first;
     let mut w = Mat::<f64>::zeros(m, k);
-    for (a, &dof) in touched.iter().enumerate() {
+    for (a, &dof) in terms.touched.iter().enumerate() {
         for c in 0..k {
-            w[(dof - first, c)] = eig.eigenvectors[(a, c)];
+            w[(dof - first, c)] = terms.vectors[(a, c)];
         }
     }
-    let mut alpha = faer::Col::<f64>::from_fn(k, |c| eig.eigenvalues[c]);
-    let mut updated = l.clone();
-    faer::linalg::cholesky::llt::update::rank_r_update_clobber(
-        updated.as_mut().submatrix_mut(first, first, m, m),
+    let mut alpha = faer::Col::<f64>::from_fn(k, |c| terms.values[c]);
+    if faer::linalg::cholesky::llt::update::rank_r_update_clobber(
+        l.as_mut().submatrix_mut(first, first, m, m),
         w.as_mut(),
         alpha.as_diagonal_mut(),
     )
-    .ok()?;
+    .is_err()
+    {
+        return false;
+    }
     // A downdate that nearly cancels a diagonal may leave a non-finite or zero pivot
     // without reporting it: refactor instead.
-    let sound = (first..n).all(|j| {
-        let d = updated[(j, j)];
+    (first..n).all(|j| {
+        let d = l[(j, j)];
         d.is_finite() && d > 0.0
+    })
+}
+
+/// The change of the interface Schur complement when the contact block S_cc of the
+/// boundary matrix S = [S_cc S_cg; S_gc S_gg] (factored as `l`, contact dofs first)
+/// changes by D = U Lambda U' (`terms`, all on contact dofs): by Woodbury's identity,
+///
+///     S_g(new) - S_g = Y M Y',   Y = L_gc Z,  Z = L_cc^-1 U,  M = (Lambda^-1 + Z'Z)^-1,
+///
+/// since S_gc S_cc^-1 = L_gc L_cc^-1 and U' S_cc^-1 U = Z'Z. Returned as rank-one terms
+/// (w, alpha) with M = Q diag(alpha) Q', w = Y Q: p (c^2 + c g + g^2) flops for p terms,
+/// where forming S_g again costs g^3 / 3. `None` when M is not finite (a downdate that
+/// cancels a pivot: the update in place fails as well).
+fn schur_change(l: &Mat<f64>, nc: usize, terms: &RankOneTerms) -> Option<(Mat<f64>, Vec<f64>)> {
+    let ng = l.nrows() - nc;
+    let keep: Vec<usize> = (0..terms.values.len())
+        .filter(|&c| terms.values[c] != 0.0)
+        .collect();
+    let p = keep.len();
+    let mut z = Mat::<f64>::zeros(nc, p);
+    for (j, &c) in keep.iter().enumerate() {
+        for (a, &dof) in terms.touched.iter().enumerate() {
+            z[(dof, j)] = terms.vectors[(a, c)];
+        }
+    }
+    let par = faer::get_global_parallelism();
+    solve_lower_triangular_in_place(l.submatrix(0, 0, nc, nc), z.as_mut(), par);
+    let y = l.submatrix(nc, 0, ng, nc) * &z;
+    let ztz = z.transpose() * &z;
+    // M = (Lambda^-1 + Z'Z)^-1 = (I + Lambda Z'Z)^-1 Lambda: no division by a small value.
+    let lambda: Vec<f64> = keep.iter().map(|&c| terms.values[c]).collect();
+    let a = nalgebra::DMatrix::from_fn(p, p, |i, j| {
+        f64::from(u8::from(i == j)) + lambda[i] * ztz[(i, j)]
     });
-    sound.then_some(updated)
+    let m = a.lu().solve(&nalgebra::DMatrix::from_diagonal(
+        &nalgebra::DVector::from_vec(lambda),
+    ))?;
+    let m = (&m + m.transpose()) * 0.5;
+    if m.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let eig = m.symmetric_eigen();
+    let q = Mat::<f64>::from_fn(p, p, |i, j| eig.eigenvectors[(i, j)]);
+    Some((y * q, eig.eigenvalues.iter().copied().collect()))
+}
+
+/// s += sum_c alpha_c w_c w_c' (s symmetric, both triangles).
+fn add_rank_one_terms(s: &mut Mat<f64>, w: &Mat<f64>, alpha: &[f64]) {
+    let scaled = Mat::<f64>::from_fn(w.nrows(), w.ncols(), |i, c| w[(i, c)] * alpha[c]);
+    faer::linalg::matmul::matmul(
+        s.as_mut(),
+        faer::Accum::Add,
+        &scaled,
+        w.transpose(),
+        1.0,
+        faer::get_global_parallelism(),
+    );
 }
 
 /// The lower triangle of L L' for a lower triangular L (the upper one is left zero): a
@@ -603,7 +736,12 @@ mod tests {
         let big = 1000.0 * a[(20, 20)];
         let raise = BTreeMap::from([((20, 20), big), ((21, 20), 0.3 * big), ((21, 21), big)]);
         let a1 = with_change(&a, &raise);
-        let l1 = low_rank_updated(&l, &raise).expect("4 of 80 dofs: updated in place");
+        let updated = |l: &Mat<f64>, change: &BTreeMap<(usize, usize), f64>| {
+            let mut l = l.clone();
+            let t = RankOneTerms::of(change, n)?;
+            low_rank_update(&mut l, &t).then_some(l)
+        };
+        let l1 = updated(&l, &raise).expect("4 of 80 dofs: updated in place");
         assert!((&l1 * l1.transpose() - &a1).norm_max() < 1e-12 * a1.norm_max());
         let lower = BTreeMap::from([
             ((20, 20), -0.999 * big),
@@ -611,16 +749,48 @@ mod tests {
             ((21, 21), -0.999 * big),
         ]);
         let a2 = with_change(&a1, &lower);
-        let l2 = low_rank_updated(&l1, &lower).expect("updated in place");
+        let l2 = updated(&l1, &lower).expect("updated in place");
         // Cancellation costs digits relative to the removed spring, no more.
         assert!((&l2 * l2.transpose() - &a2).norm_max() < 1e-12 * big);
         // The columns before the first changed dof are untouched, bit for bit.
         assert_eq!(l2.submatrix(0, 0, n, 20), l.submatrix(0, 0, n, 20));
         // Too many dofs, or a change that makes the matrix indefinite: refactor instead.
         let wide: BTreeMap<(usize, usize), f64> = (0..6).map(|i| ((i, i), 1.0)).collect();
-        assert!(low_rank_updated(&l, &wide).is_none());
+        assert!(RankOneTerms::of(&wide, n).is_none());
         let indefinite = BTreeMap::from([((30, 30), -2.0 * a[(30, 30)])]);
-        assert!(low_rank_updated(&l, &indefinite).is_none());
+        assert!(updated(&l, &indefinite).is_none());
+    }
+
+    /// The interface Schur complement S_gg - S_gc S_cc^-1 S_cg of a dense SPD matrix with
+    /// its first `nc` dofs the contact ones.
+    fn dense_schur(a: &Mat<f64>, nc: usize) -> Mat<f64> {
+        let ng = a.nrows() - nc;
+        let cc = a.submatrix(0, 0, nc, nc).to_owned();
+        let cg = a.submatrix(0, nc, nc, ng).to_owned();
+        let x = cc.llt(Side::Lower).unwrap().solve(&cg);
+        a.submatrix(nc, nc, ng, ng).to_owned() - cg.transpose() * x
+    }
+
+    #[test]
+    fn woodbury_gives_the_interface_schur_complement_of_the_changed_block() {
+        let (n, nc) = (60, 24);
+        let (a, l) = spd(n);
+        let big = 1000.0 * a[(5, 5)];
+        // A raised node (a rank-one 2 x 2 spring), a nearly removed one, a diagonal one.
+        for change in [
+            BTreeMap::from([((5, 5), big), ((6, 5), 0.5 * big), ((6, 6), 0.25 * big)]),
+            // Lowered by half the smallest eigenvalue (spd adds n I): still positive.
+            BTreeMap::from([((12, 12), -0.5 * n as f64)]),
+            BTreeMap::from([((0, 0), 3.0), ((23, 23), 7.0), ((23, 0), 1.0)]),
+        ] {
+            let terms = RankOneTerms::of(&change, n).unwrap();
+            let (w, alpha) = schur_change(&l, nc, &terms).expect("finite");
+            let mut s = dense_schur(&a, nc);
+            add_rank_one_terms(&mut s, &w, &alpha);
+            let expected = dense_schur(&with_change(&a, &change), nc);
+            let err = (&s - &expected).norm_max();
+            assert!(err < 1e-10 * expected.norm_max(), "{change:?}: {err:e}");
+        }
     }
 
     #[test]
@@ -685,5 +855,52 @@ mod tests {
         assert!((&x - &x_ref).norm_max() < 1e-9 * x_ref.norm_max());
         // A first update in place (2 of the boundary dofs), then one that refactors.
         stepped_and_direct(&[(7, 7, 5e4), (8, 8, 5e4)], &all);
+    }
+
+    /// With interface dofs behind the contact ones: an update in place changes the kept
+    /// interface Schur complement by its low-rank term, which equals the complement
+    /// formed from the updated factor; a refactoring forms it again.
+    #[test]
+    fn interface_schur_follows_the_updates_of_the_contact_block() {
+        let mesh = builtin::block(2.0, 1.0, 40, 10);
+        let material = Material::for_tests();
+        let n = mesh.num_nodes();
+        let mut fixed = vec![None; 2 * n];
+        for node in mesh.group_nodes("bottom").unwrap() {
+            fixed[2 * node] = Some(0.0);
+            fixed[2 * node + 1] = Some(0.0);
+        }
+        let top: Vec<usize> = mesh.group_nodes("top").unwrap();
+        let last: Vec<usize> = top.iter().flat_map(|&v| [2 * v, 2 * v + 1]).collect();
+        let (nb, nc) = (last.len(), last.len() / 2);
+        let dofs = DofMap::with_last(&fixed, &last);
+        let a = assemble(&mesh.nodes, &mesh.triangles, &material, &dofs, &[]).unwrap();
+        let groups = interior_groups(&dofs);
+        let mut lf = LocalFactor::new(a.matrix.as_ref(), nb, nc, 0.0, &groups).unwrap();
+        let all: Vec<(usize, usize, f64)> = (0..nc).map(|k| (k, k, 5e4)).collect();
+        let mut some = all.clone();
+        some[7].2 = 5e-2;
+        some[8].2 = 5e-2;
+        let mut more = some.clone();
+        more[30].2 = 5e-2;
+        assert!(matches!(
+            lf.update_boundary(&all).unwrap(),
+            SchurChange::Full
+        ));
+        for (step, delta) in [&some, &more, &all].into_iter().enumerate() {
+            let change = lf.update_boundary(delta).unwrap();
+            assert!(matches!(change, SchurChange::LowRank { .. }), "step {step}");
+            let (kept, formed) = (lf.interface_schur(), lf.formed_schur());
+            let err = (&kept - &formed).norm_max();
+            assert!(err < 1e-10 * formed.norm_max(), "step {step}: {err:e}");
+        }
+        // An interface dof touched: formed again.
+        let mut wide = all.clone();
+        wide.push((nc + 3, nc + 3, 1.0));
+        assert!(matches!(
+            lf.update_boundary(&wide).unwrap(),
+            SchurChange::Full
+        ));
+        assert!(lf.schur_g.is_none());
     }
 }
