@@ -695,13 +695,15 @@ const PARALLEL_RECORDS: usize = 1 << 14;
 
 /// Parses `n` records of `per` blank-separated ASCII tokens from the reader's position on
 /// all the threads of the pool, each record by `parse`; moves the reader past them.
-/// `None` if the tokens run out or a record does not parse: the caller then reads the
-/// same bytes one token at a time, which finds the fault and names its line exactly as
-/// it always has, so this path needs no messages of its own.
+/// Reads a record as one line, as Gmsh writes them. `None` if the lines run out, a line
+/// does not hold `per` tokens or a record does not parse: the caller then reads the same
+/// bytes one token at a time, which accepts any layout, finds the fault and names its
+/// line exactly as it always has, so this path needs no messages of its own.
 ///
-/// Why: the numbers' text is most of a large mesh file, and its parse most of the read;
-/// a serial scan over the blanks (several times faster than parsing) finds where every
-/// thread's share of whole records starts.
+/// Why: the numbers' text is most of a large mesh file, and its parse most of the read.
+/// A search for the newlines (memchr, many bytes per step) finds where every thread's
+/// share of whole records starts; a scan over the blanks, byte by byte, cost more than
+/// a second thread saved.
 fn ascii_records<T: Send>(
     r: &mut Reader,
     n: usize,
@@ -710,42 +712,43 @@ fn ascii_records<T: Send>(
 ) -> Option<Vec<T>> {
     use rayon::prelude::*;
     let bytes = r.bytes;
+    r.skip_space();
+    let first = r.pos;
     let pieces = (4 * rayon::current_num_threads()).min(n).max(1);
     let per_piece = n.div_ceil(pieces);
-    // Where each piece's first record starts, and where the last one ends.
-    let mut starts = Vec::with_capacity(pieces + 1);
-    let mut pos = r.pos;
-    for record in 0..n {
-        if record % per_piece == 0 {
-            starts.push(pos);
+    // Where each piece's first line starts, and where the last line ends.
+    let mut starts = vec![first];
+    let mut lines = 0;
+    let mut end = None;
+    for nl in memchr::memchr_iter(b'\n', &bytes[first..]) {
+        lines += 1;
+        if lines == n {
+            end = Some(first + nl);
+            break;
         }
-        for _ in 0..per {
-            while bytes.get(pos).is_some_and(|&c| is_space(c)) {
-                pos += 1;
-            }
-            let token = pos;
-            while bytes.get(pos).is_some_and(|&c| !is_space(c)) {
-                pos += 1;
-            }
-            if pos == token {
-                return None;
-            }
+        if lines % per_piece == 0 {
+            starts.push(first + nl + 1);
         }
     }
-    starts.push(pos);
+    starts.push(end?);
     let chunks: Vec<Option<Vec<T>>> = starts
         .par_windows(2)
-        .enumerate()
-        .map(|(k, w)| {
-            let records = per_piece.min(n - k * per_piece);
-            let mut tokens = bytes[w[0]..w[1]]
-                .split(|&c| is_space(c))
-                .filter(|t| !t.is_empty());
-            let mut record: Vec<&[u8]> = Vec::with_capacity(per);
-            let mut out = Vec::with_capacity(records);
-            for _ in 0..records {
+        .map(|w| {
+            let mut out = Vec::with_capacity(per_piece);
+            let mut record: Vec<&[u8]> = Vec::with_capacity(per + 1);
+            // A piece but the last ends with its last line's newline.
+            let piece = &bytes[w[0]..w[1]];
+            let piece = piece.strip_suffix(b"\n").unwrap_or(piece);
+            for line in piece.split(|&c| c == b'\n') {
                 record.clear();
-                record.extend(tokens.by_ref().take(per));
+                record.extend(
+                    line.split(|&c| is_space(c))
+                        .filter(|t| !t.is_empty())
+                        .take(per + 1),
+                );
+                if record.len() != per {
+                    return None;
+                }
                 out.push(parse(&record)?);
             }
             Some(out)
@@ -755,13 +758,28 @@ fn ascii_records<T: Send>(
     for chunk in chunks {
         all.extend(chunk?);
     }
-    r.pos = pos;
+    (all.len() == n).then_some(())?;
+    r.pos = starts[starts.len() - 1];
     Some(all)
 }
 
 /// A whole ASCII token as a number, as [`Reader::text`] reads it.
 fn ascii_number<T: FromStr>(token: &[u8]) -> Option<T> {
     std::str::from_utf8(token).ok()?.parse().ok()
+}
+
+/// A whole ASCII token as a `u64`, as `ascii_number::<u64>` reads it: plain digits
+/// directly (tags are most of a mesh file's tokens, and UTF-8 validation plus the
+/// generic parse were a tenth of its read), anything else the generic way.
+fn ascii_u64(token: &[u8]) -> Option<u64> {
+    if token.is_empty() || token.len() > 19 || !token.iter().all(u8::is_ascii_digit) {
+        return ascii_number(token);
+    }
+    Some(
+        token
+            .iter()
+            .fold(0u64, |v, &d| v * 10 + u64::from(d - b'0')),
+    )
 }
 
 /// Where the `i`-th blank-separated token from `from` starts (for messages).
@@ -782,7 +800,7 @@ fn token_start(bytes: &[u8], from: usize, i: usize) -> usize {
 /// An ASCII MSH 4.1 node block's tags, then coordinates (plus `extra` parametric ones),
 /// on all threads ([`ascii_records`]); `None` for the record-by-record reading to judge.
 fn ascii_nodes(r: &mut Reader, count: usize, extra: usize) -> Option<Vec<(u64, [f64; 3])>> {
-    let tags = ascii_records(r, count, 1, |t| ascii_number::<u64>(t[0]))?;
+    let tags = ascii_records(r, count, 1, |t| ascii_u64(t[0]))?;
     let points = ascii_records(r, count, 3 + extra, |t| {
         let xyz = [0, 1, 2].map(|c| ascii_number::<f64>(t[c]));
         let xyz = [xyz[0]?, xyz[1]?, xyz[2]?];
@@ -799,8 +817,8 @@ fn ascii_nodes(r: &mut Reader, count: usize, extra: usize) -> Option<Vec<(u64, [
 /// indices, on all threads ([`ascii_records`]).
 fn ascii_triangles(r: &mut Reader, b: &Builder, count: usize) -> Option<Vec<[usize; 3]>> {
     ascii_records(r, count, 4, |t| {
-        ascii_number::<u64>(t[0])?;
-        let node = |k: usize| b.node_index.get(ascii_number::<u64>(t[k])?);
+        ascii_u64(t[0])?;
+        let node = |k: usize| b.node_index.get(ascii_u64(t[k])?);
         Some([node(1)?, node(2)?, node(3)?])
     })
 }
@@ -1343,6 +1361,45 @@ mod tests {
             }
         }
         t + "$EndElements\n"
+    }
+
+    /// The parallel path reads records laid out one per line, and leaves any other
+    /// layout to the record-by-record reading (`None`).
+    #[test]
+    fn parallel_records_are_lines() {
+        let pair = |t: &[&[u8]]| Some((ascii_u64(t[0])?, ascii_u64(t[1])?));
+        let text = b"  1 2\n3  4\r\n5 6\n7 8\n9 10\n$EndX\n";
+        let mut r = Reader::new(text, "t");
+        let got = ascii_records(&mut r, 5, 2, pair);
+        assert_eq!(got, Some(vec![(1, 2), (3, 4), (5, 6), (7, 8), (9, 10)]));
+        assert_eq!(&text[r.pos..r.pos + 6], b"\n$EndX");
+        for bad in [
+            &b"1 2 3\n4\n5 6\n7 8\n9 10\n"[..],
+            b"1 2\n\n3 4\n5 6\n7 8\n",
+            b"1 2\n3 4\n5 6",
+        ] {
+            assert_eq!(ascii_records(&mut Reader::new(bad, "t"), 5, 2, pair), None);
+        }
+    }
+
+    #[test]
+    fn plain_digits_read_as_the_generic_parse_reads_them() {
+        for t in [
+            "0",
+            "7",
+            "007",
+            "+5",
+            "-1",
+            "",
+            "1a",
+            "1.0",
+            "9999999999999999999",
+            "18446744073709551615",
+            "18446744073709551616",
+            "123456789012345678901",
+        ] {
+            assert_eq!(ascii_u64(t.as_bytes()), t.parse::<u64>().ok(), "{t:?}");
+        }
     }
 
     #[test]
