@@ -1,5 +1,5 @@
 """Unstructured Gmsh meshes of the two built-in problems at any size, for measuring the
-program on meshes it was not tuned to (docs/performance.md, "Unstructured meshes").
+program on meshes it was not tuned to (docs/performance.md, "Unstructured meshes and the order of the file").
 
     pip install gmsh
     python3 run-scripts/make_meshes.py --case hertz --nodes 1100000 --out DIR
