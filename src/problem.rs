@@ -8,7 +8,7 @@ use crate::error::{input, Error, Result};
 use crate::fem::assembly::{add_body_force, add_edge_traction, edge_length};
 use crate::fem::Hypothesis;
 use crate::mesh::validate::{self, Free, Holds};
-use crate::mesh::Mesh;
+use crate::mesh::{renumber, Mesh};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
@@ -29,6 +29,9 @@ pub struct Problem {
     pub tangent: [f64; 2],
     /// Mean length of the contact edges.
     pub contact_h: f64,
+    /// The mesh file's index of each node (the row of `nodes.csv`): the nodes are
+    /// numbered along a Hilbert curve once the problem is built ([`renumber`]).
+    pub file_node: Vec<usize>,
 }
 
 impl Problem {
@@ -194,13 +197,17 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         ));
     }
     let mut weight: HashMap<usize, f64> = HashMap::new();
-    let mut total_len = 0.0;
+    let mut lengths = Vec::with_capacity(lines.len());
     for &[a, b] in lines {
         let len = edge_length(&mesh.nodes, a, b);
-        total_len += len;
+        lengths.push(len);
         *weight.entry(a).or_insert(0.0) += 0.5 * len;
         *weight.entry(b).or_insert(0.0) += 0.5 * len;
     }
+    // Summed in a fixed order, so that r does not depend on the order of the file's
+    // edges by a rounding (the loop's retunes can turn that into a sweep more or less).
+    lengths.sort_unstable_by(f64::total_cmp);
+    let total_len: f64 = lengths.iter().sum();
     let mut contact_nodes: Vec<usize> = weight.keys().copied().collect();
     contact_nodes.sort_unstable();
     let m = c.obstacle_normal;
@@ -229,7 +236,8 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
 
     check_held(case, &mesh, &fixed, &contact_nodes)?;
 
-    Ok(Problem {
+    let n = mesh.num_nodes();
+    let prob = Problem {
         mesh,
         fixed,
         load,
@@ -238,7 +246,48 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         normal: m,
         tangent: [m[1], -m[0]],
         contact_h,
-    })
+        file_node: (0..n).collect(),
+    };
+    Ok(in_locality_order(prob))
+}
+
+/// `v` (two values per node) in the node order `old_of` (new -> old).
+fn per_dof<T: Copy>(old_of: &[usize], v: &[T]) -> Vec<T> {
+    old_of
+        .iter()
+        .flat_map(|&o| [v[2 * o], v[2 * o + 1]])
+        .collect()
+}
+
+/// `prob` with its nodes and triangles numbered along a Hilbert curve
+/// ([`renumber::by_hilbert_curve`]), whatever the order of the mesh file: the same
+/// problem, its set-up walking memory in order. Done after every check, so that
+/// messages name nodes and triangles in the file's numbering.
+fn in_locality_order(prob: Problem) -> Problem {
+    let (mesh, old_of) = renumber::by_hilbert_curve(prob.mesh);
+    let new_of = renumber::inverse(&old_of);
+    let (fixed, load) = (per_dof(&old_of, &prob.fixed), per_dof(&old_of, &prob.load));
+    // Contact nodes stay in increasing order, now the new one.
+    let mut by_new: Vec<(usize, usize)> = (prob.contact_nodes.iter())
+        .enumerate()
+        .map(|(k, &c)| (new_of[c], k))
+        .collect();
+    by_new.sort_unstable();
+    let take = |v: &[f64]| by_new.iter().map(|&(_, k)| v[k]).collect();
+    let c = &prob.contact;
+    Problem {
+        contact: ContactNodes {
+            w: take(&c.w),
+            g: take(&c.g),
+            s: take(&c.s),
+        },
+        contact_nodes: by_new.iter().map(|&(v, _)| v).collect(),
+        file_node: old_of.iter().map(|&o| prob.file_node[o]).collect(),
+        mesh,
+        fixed,
+        load,
+        ..prob
+    }
 }
 
 /// How a direction reads in a fix: the displacement component that holds it.

@@ -151,3 +151,175 @@ fn gmsh_formats_give_identical_results() {
     assert_eq!(s["iterations"], sb["iterations"]);
     assert_eq!(s["stick_nodes"], sb["stick_nodes"]);
 }
+
+/// A copy of an MSH 4.1 ASCII file with its node tags permuted and the nodes and
+/// elements of every block listed in another order: the same mesh as a mesher with
+/// another numbering would write it. `seed` drives a small LCG, so the copy is fixed.
+fn shuffled_msh41(text: &str, seed: u64) -> String {
+    let mut state = seed;
+    let mut next = move |n: usize| {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 33) % n as u64) as usize
+    };
+    let mut shuffle = |v: &mut Vec<usize>| {
+        for i in (1..v.len()).rev() {
+            v.swap(i, next(i + 1));
+        }
+    };
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out: Vec<String> = Vec::new();
+    let mut new_tag = std::collections::HashMap::new();
+    let mut i = 0;
+    while i < lines.len() {
+        out.push(lines[i].to_string());
+        i += 1;
+        let section = lines[i - 1];
+        if section != "$Nodes" && section != "$Elements" {
+            continue;
+        }
+        let head: Vec<usize> = lines[i]
+            .split_whitespace()
+            .map(|w| w.parse().unwrap())
+            .collect();
+        out.push(lines[i].to_string());
+        i += 1;
+        let mut tags: Vec<usize> = (1..=head[1]).collect();
+        if section == "$Nodes" {
+            shuffle(&mut tags);
+        }
+        let mut k = 0;
+        for _ in 0..head[0] {
+            out.push(lines[i].to_string());
+            let count: usize = lines[i].split_whitespace().nth(3).unwrap().parse().unwrap();
+            i += 1;
+            let mut order: Vec<usize> = (0..count).collect();
+            shuffle(&mut order);
+            if section == "$Nodes" {
+                for j in 0..count {
+                    new_tag.insert(lines[i + j].trim().to_string(), tags[k + j]);
+                }
+                k += count;
+                out.extend(
+                    order
+                        .iter()
+                        .map(|&j| new_tag[lines[i + j].trim()].to_string()),
+                );
+                out.extend(order.iter().map(|&j| lines[i + count + j].to_string()));
+                i += 2 * count;
+            } else {
+                out.extend(order.iter().map(|&j| {
+                    let mut w = lines[i + j].split_whitespace();
+                    let tag = w.next().unwrap().to_string();
+                    let nodes = w.map(|t| new_tag[t].to_string());
+                    std::iter::once(tag)
+                        .chain(nodes)
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                }));
+                i += count;
+            }
+        }
+    }
+    out.join("\n") + "\n"
+}
+
+/// The (x, y) of every node of an MSH 4.1 ASCII file, in the file's order.
+fn file_nodes_msh41(text: &str) -> Vec<[f64; 2]> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut i = lines.iter().position(|&l| l == "$Nodes").unwrap() + 1;
+    let blocks: usize = lines[i].split_whitespace().next().unwrap().parse().unwrap();
+    i += 1;
+    let mut xy = Vec::new();
+    for _ in 0..blocks {
+        let count: usize = lines[i].split_whitespace().nth(3).unwrap().parse().unwrap();
+        i += 1 + count;
+        for l in &lines[i..i + count] {
+            let v: Vec<f64> = l
+                .split_whitespace()
+                .take(2)
+                .map(|x| x.parse().unwrap())
+                .collect();
+            xy.push([v[0], v[1]]);
+        }
+        i += count;
+    }
+    xy
+}
+
+/// The nodes.csv rows (x, y, ux, uy) sorted by position.
+fn node_rows_by_position(out: &std::path::Path) -> Vec<[f64; 4]> {
+    let text = std::fs::read_to_string(out.join("nodes.csv")).unwrap();
+    let mut rows: Vec<[f64; 4]> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            [v[0], v[1], v[2], v[3]]
+        })
+        .collect();
+    rows.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    rows
+}
+
+/// The order in which the file lists nodes and elements changes nothing: the program
+/// numbers the mesh along a Hilbert curve after reading it, so both files give the same
+/// computation, bit for bit. Each nodes.csv row is the node of that row of its file.
+#[test]
+fn the_order_of_the_file_changes_nothing() {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/tolerance");
+    let text = std::fs::read_to_string(data.join("wedge.msh")).unwrap();
+    let case = std::fs::read_to_string(data.join("wedge.toml")).unwrap();
+    let run = |msh: &str, np: usize| {
+        let dir = tempfile::TempDir::new().unwrap();
+        std::fs::write(dir.path().join("wedge.msh"), msh).unwrap();
+        std::fs::write(dir.path().join("case.toml"), &case).unwrap();
+        let o = mpirun(np, dir.path())
+            .args([
+                "case.toml",
+                "--nodes-csv",
+                "--out",
+                "out",
+                "--quiet",
+                "--threads",
+                "1",
+            ])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s = read_summary(&dir.path().join("out/summary.json"));
+        let nodes_text = std::fs::read_to_string(dir.path().join("out/nodes.csv")).unwrap();
+        (dir, s, nodes_text)
+    };
+    let shuffled = shuffled_msh41(&text, 7);
+    assert_ne!(shuffled, text);
+    let (a, sa, nodes_a) = run(&text, 2);
+    let (b, sb, nodes_b) = run(&shuffled, 2);
+    assert_eq!(sa["iterations"], sb["iterations"]);
+    assert_eq!(sa["stick_nodes"], sb["stick_nodes"]);
+    // The same numbering after the renumbering, so the same computation: contact.csv
+    // is the same file byte for byte.
+    let contact = |d: &tempfile::TempDir| std::fs::read(d.path().join("out/contact.csv")).unwrap();
+    assert!(contact(&a) == contact(&b), "contact.csv differs");
+    // nodes.csv follows each file's own order: the rows differ, the nodes do not.
+    assert_ne!(nodes_a, nodes_b);
+    // Row k of nodes.csv is the k-th node the file lists.
+    for (msh, nodes) in [(&text, &nodes_a), (&shuffled, &nodes_b)] {
+        let rows: Vec<[f64; 2]> = nodes
+            .lines()
+            .skip(1)
+            .map(|l| {
+                let v: Vec<f64> = l.split(',').take(2).map(|x| x.parse().unwrap()).collect();
+                [v[0], v[1]]
+            })
+            .collect();
+        assert_eq!(rows, file_nodes_msh41(msh));
+    }
+    let (ra, rb) = (
+        node_rows_by_position(&a.path().join("out")),
+        node_rows_by_position(&b.path().join("out")),
+    );
+    assert_eq!(ra.len(), rb.len());
+    assert_eq!(ra, rb);
+}

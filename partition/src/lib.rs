@@ -350,8 +350,14 @@ pub fn partition_mesh(
 ) -> Result<Partition, PartitionError> {
     check_nparts(nparts, triangles.len())?;
     validate_triangles(num_nodes, triangles)?;
+    if nparts == 1 {
+        // One part needs no dual graph: every triangle and node is part 0's.
+        let mesh = Connectivity::without_graph(num_nodes, triangles)?;
+        let element_part = vec![0; triangles.len()];
+        return build_partition(num_nodes, triangles, contact_nodes, 1, element_part, &mesh);
+    }
     let mesh = Connectivity::new(num_nodes, triangles)?;
-    let mut element_part = partition_graph(&mesh.graph, nparts, METIS_MAX_VERTICES)?;
+    let mut element_part = partition_graph(mesh.graph()?, nparts, METIS_MAX_VERTICES)?;
     fill_empty_parts(&mut element_part, nparts);
     build_partition(
         num_nodes,
@@ -586,14 +592,26 @@ fn fill_empty_parts(element_part: &mut [u32], nparts: usize) {
 /// triangles around each node and the dual graph built from them.
 struct Connectivity {
     stars: Stars,
-    graph: Graph,
+    /// `None` for one part (see [`quality`]).
+    graph: Option<Graph>,
 }
 
 impl Connectivity {
     fn new(num_nodes: usize, triangles: &[[usize; 3]]) -> Result<Self, PartitionError> {
         let stars = Stars::new(num_nodes, triangles)?;
-        let graph = dual_from_stars(triangles, &stars)?;
+        let graph = Some(dual_from_stars(triangles, &stars)?);
         Ok(Connectivity { stars, graph })
+    }
+
+    fn without_graph(num_nodes: usize, triangles: &[[usize; 3]]) -> Result<Self, PartitionError> {
+        let stars = Stars::new(num_nodes, triangles)?;
+        Ok(Connectivity { stars, graph: None })
+    }
+
+    fn graph(&self) -> Result<&Graph, PartitionError> {
+        self.graph
+            .as_ref()
+            .ok_or_else(|| PartitionError::Metis("internal: no dual graph".into()))
     }
 }
 
@@ -605,7 +623,7 @@ fn build_partition(
     element_part: Vec<u32>,
     mesh: &Connectivity,
 ) -> Result<Partition, PartitionError> {
-    let (graph, stars) = (&mesh.graph, &mesh.stars);
+    let stars = &mesh.stars;
     debug_assert_eq!(triangles.len(), element_part.len());
     let mut contact: Vec<usize> = contact_nodes.to_vec();
     contact.sort_unstable();
@@ -678,7 +696,14 @@ fn build_partition(
         }
     }
 
-    let quality = quality(nparts, &element_part, &parts, interface_nodes, graph);
+    let quality = quality(
+        nparts,
+        &element_part,
+        &parts,
+        interface_nodes,
+        mesh.graph.as_ref(),
+        triangles,
+    );
     Ok(Partition {
         nparts,
         element_part,
@@ -688,14 +713,20 @@ fn build_partition(
     })
 }
 
+/// Without a dual graph (one part), the pieces are the triangles joined through shared
+/// nodes ([`node_pieces`]) and the cut is empty.
 fn quality(
     nparts: usize,
     element_part: &[u32],
     parts: &[Part],
     interface_nodes: usize,
-    graph: &Graph,
+    graph: Option<&Graph>,
+    triangles: &[[usize; 3]],
 ) -> Quality {
-    let (pieces, edge_cut) = pieces_and_cut(graph, nparts, |e| element_part[e]);
+    let (pieces, edge_cut) = match graph {
+        Some(graph) => pieces_and_cut(graph, nparts, |e| element_part[e]),
+        None => (vec![node_pieces(triangles)], 0),
+    };
     let sizes = parts.iter().map(|p| p.elements.len());
     let max_part_elements = sizes.clone().max().unwrap_or(0);
     let mean = element_part.len() as f64 / nparts as f64;
@@ -715,6 +746,33 @@ fn quality(
         neighbours: parts.iter().map(|p| p.neighbours.len()).collect(),
         disconnected_parts: pieces.iter().filter(|&&c| c > 1).count(),
     }
+}
+
+/// The number of pieces of a mesh whose triangles are joined through shared nodes
+/// (union-find over the nodes). It counts two bodies touching at a single vertex as one
+/// piece, which the dual graph counts as two: the price of not building the graph for a
+/// one-part run, where the figure is only reported.
+fn node_pieces(triangles: &[[usize; 3]]) -> usize {
+    fn root(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    let n = triangles.iter().flatten().max().map_or(0, |&m| m + 1);
+    let mut parent: Vec<usize> = (0..n).collect();
+    let mut used = vec![false; n];
+    for t in triangles {
+        for k in 0..3 {
+            used[t[k]] = true;
+            let (a, b) = (root(&mut parent, t[k]), root(&mut parent, t[(k + 1) % 3]));
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    (0..n).filter(|&v| used[v] && parent[v] == v).count()
 }
 
 /// Fill-reducing nested-dissection ordering of a symmetric graph (METIS_NodeND).

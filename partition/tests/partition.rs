@@ -431,3 +431,21 @@ fn metis_on_several_threads_at_once_gives_the_results_of_one_at_a_time() {
         assert_eq!(p, parts);
     }
 }
+
+/// One part builds no dual graph, and gives the partition the graph would have given:
+/// the same parts, ownership and quality (pieces joined through nodes, which for these
+/// meshes are the edge-connected ones).
+#[test]
+fn one_part_is_the_whole_mesh_without_a_dual_graph() {
+    for (n, tris, contact) in [rectangle(30, 20), irregular(), two_bodies(40, 30)] {
+        let one = partition_mesh(n, &tris, &contact, 1).unwrap();
+        let given =
+            partition::partition_from_element_parts(n, &tris, &contact, 1, vec![0; tris.len()])
+                .unwrap();
+        assert_eq!(one, given);
+    }
+    let (n, tris, contact) = two_bodies(40, 30);
+    let one = partition_mesh(n, &tris, &contact, 1).unwrap();
+    assert_eq!(one.quality.disconnected_parts, 1, "{}", one.quality);
+    assert_eq!(one.quality.edge_cut, 0);
+}

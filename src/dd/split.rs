@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, Serialize, Deserialize, Default)]
 pub struct SubProblem {
     pub rank: usize,
-    /// Global id of each local node (increasing).
+    /// The mesh file's index of each local node: its row in `nodes.csv`.
     pub global_nodes: Vec<usize>,
     pub nodes: Vec<[f64; 2]>,
     /// Triangles in local node numbering.
@@ -151,7 +151,7 @@ pub fn split(
         let mine = &contact_by_rank[r];
         let sub = SubProblem {
             rank: r,
-            global_nodes: p.nodes.clone(),
+            global_nodes: p.nodes.iter().map(|&g| prob.file_node[g]).collect(),
             nodes: p.nodes.iter().map(|&g| prob.mesh.nodes[g]).collect(),
             triangles,
             owned,

@@ -40,7 +40,13 @@ pub fn read_msh(path: &Path) -> Result<Mesh> {
 /// groups named after their 1D and 0D physical groups (the tag when a group has no name),
 /// once per group they belong to; without any physical group, triangles are still kept.
 pub fn parse_msh(bytes: &[u8], name: &str) -> Result<Mesh> {
+    parse_msh_with(bytes, name, PARALLEL_RECORDS)
+}
+
+/// [`parse_msh`], ASCII blocks of at least `parallel_from` records on all threads.
+fn parse_msh_with(bytes: &[u8], name: &str, parallel_from: usize) -> Result<Mesh> {
     let mut reader = Reader::new(bytes, name);
+    reader.parallel_from = parallel_from;
     let version = read_mesh_format(&mut reader)?;
     let mut builder = Builder::default();
     while reader.next_section()? {
@@ -72,6 +78,8 @@ struct Reader<'a> {
     binary: Option<Binary>,
     section: String,
     section_at: usize,
+    /// ASCII blocks of at least this many records are parsed on all threads.
+    parallel_from: usize,
 }
 
 fn is_space(c: u8) -> bool {
@@ -114,6 +122,7 @@ impl<'a> Reader<'a> {
             binary: None,
             section: String::new(),
             section_at: 0,
+            parallel_from: PARALLEL_RECORDS,
         }
     }
 
@@ -648,6 +657,22 @@ fn read_node_block_v41(r: &mut Reader, b: &mut Builder) -> Result<usize> {
             )
         }
     };
+    if r.binary.is_none() && count >= r.parallel_from {
+        let start = r.pos;
+        if let Some(nodes) = ascii_nodes(r, count, extra) {
+            for (i, (tag, xyz)) in nodes.into_iter().enumerate() {
+                if !b.node_index.insert(tag, b.nodes.len()) {
+                    let at = token_start(r.bytes, start, i);
+                    return r.fail(at, format!("node {tag} is defined twice; {REEXPORT}"));
+                }
+                b.nodes.push(xyz);
+                b.node_tags.push(tag);
+            }
+            return Ok(count);
+        }
+        // Something is off: the record-by-record reading below finds it and says where.
+        r.pos = start;
+    }
     let size_t = r.binary.map_or(8, |b| b.size_t);
     let mut tags = Vec::with_capacity(r.capacity(count, 2, size_t));
     for _ in 0..count {
@@ -662,6 +687,140 @@ fn read_node_block_v41(r: &mut Reader, b: &mut Builder) -> Result<usize> {
         b.add_node(r, at, tag, xyz)?;
     }
     Ok(count)
+}
+
+/// Blocks of at least this many records (ASCII) are parsed on all the threads of the
+/// pool ([`ascii_records`]); smaller ones are not worth the hand-over.
+const PARALLEL_RECORDS: usize = 1 << 14;
+
+/// Parses `n` records of `per` blank-separated ASCII tokens from the reader's position on
+/// all the threads of the pool, each record by `parse`; moves the reader past them.
+/// Reads a record as one line, as Gmsh writes them. `None` if the lines run out, a line
+/// does not hold `per` tokens or a record does not parse: the caller then reads the same
+/// bytes one token at a time, which accepts any layout, finds the fault and names its
+/// line exactly as it always has, so this path needs no messages of its own.
+///
+/// Why: the numbers' text is most of a large mesh file, and its parse most of the read.
+/// A search for the newlines (memchr, many bytes per step) finds where every thread's
+/// share of whole records starts; a scan over the blanks, byte by byte, cost more than
+/// a second thread saved.
+fn ascii_records<T: Send>(
+    r: &mut Reader,
+    n: usize,
+    per: usize,
+    parse: impl Fn(&[&[u8]]) -> Option<T> + Sync,
+) -> Option<Vec<T>> {
+    use rayon::prelude::*;
+    let bytes = r.bytes;
+    r.skip_space();
+    let first = r.pos;
+    let pieces = (4 * rayon::current_num_threads()).min(n).max(1);
+    let per_piece = n.div_ceil(pieces);
+    // Where each piece's first line starts, and where the last line ends.
+    let mut starts = vec![first];
+    let mut lines = 0;
+    let mut end = None;
+    for nl in memchr::memchr_iter(b'\n', &bytes[first..]) {
+        lines += 1;
+        if lines == n {
+            end = Some(first + nl);
+            break;
+        }
+        if lines % per_piece == 0 {
+            starts.push(first + nl + 1);
+        }
+    }
+    starts.push(end?);
+    let chunks: Vec<Option<Vec<T>>> = starts
+        .par_windows(2)
+        .map(|w| {
+            let mut out = Vec::with_capacity(per_piece);
+            let mut record: Vec<&[u8]> = Vec::with_capacity(per + 1);
+            // A piece but the last ends with its last line's newline.
+            let piece = &bytes[w[0]..w[1]];
+            let piece = piece.strip_suffix(b"\n").unwrap_or(piece);
+            for line in piece.split(|&c| c == b'\n') {
+                record.clear();
+                record.extend(
+                    line.split(|&c| is_space(c))
+                        .filter(|t| !t.is_empty())
+                        .take(per + 1),
+                );
+                if record.len() != per {
+                    return None;
+                }
+                out.push(parse(&record)?);
+            }
+            Some(out)
+        })
+        .collect();
+    let mut all = Vec::with_capacity(n);
+    for chunk in chunks {
+        all.extend(chunk?);
+    }
+    (all.len() == n).then_some(())?;
+    r.pos = starts[starts.len() - 1];
+    Some(all)
+}
+
+/// A whole ASCII token as a number, as [`Reader::text`] reads it.
+fn ascii_number<T: FromStr>(token: &[u8]) -> Option<T> {
+    std::str::from_utf8(token).ok()?.parse().ok()
+}
+
+/// A whole ASCII token as a `u64`, as `ascii_number::<u64>` reads it: plain digits
+/// directly (tags are most of a mesh file's tokens, and UTF-8 validation plus the
+/// generic parse were a tenth of its read), anything else the generic way.
+fn ascii_u64(token: &[u8]) -> Option<u64> {
+    if token.is_empty() || token.len() > 19 || !token.iter().all(u8::is_ascii_digit) {
+        return ascii_number(token);
+    }
+    Some(
+        token
+            .iter()
+            .fold(0u64, |v, &d| v * 10 + u64::from(d - b'0')),
+    )
+}
+
+/// Where the `i`-th blank-separated token from `from` starts (for messages).
+fn token_start(bytes: &[u8], from: usize, i: usize) -> usize {
+    let mut tokens = 0;
+    let mut in_token = false;
+    for (k, &c) in bytes.iter().enumerate().skip(from) {
+        match (is_space(c), in_token) {
+            (false, false) if tokens == i => return k,
+            (false, false) => (tokens, in_token) = (tokens + 1, true),
+            (true, true) => in_token = false,
+            _ => {}
+        }
+    }
+    from
+}
+
+/// An ASCII MSH 4.1 node block's tags, then coordinates (plus `extra` parametric ones),
+/// on all threads ([`ascii_records`]); `None` for the record-by-record reading to judge.
+fn ascii_nodes(r: &mut Reader, count: usize, extra: usize) -> Option<Vec<(u64, [f64; 3])>> {
+    let tags = ascii_records(r, count, 1, |t| ascii_u64(t[0]))?;
+    let points = ascii_records(r, count, 3 + extra, |t| {
+        let xyz = [0, 1, 2].map(|c| ascii_number::<f64>(t[c]));
+        let xyz = [xyz[0]?, xyz[1]?, xyz[2]?];
+        // A non-finite coordinate gets its message from the careful reading.
+        for v in &t[3..] {
+            ascii_number::<f64>(v)?;
+        }
+        xyz.iter().all(|v| v.is_finite()).then_some(xyz)
+    })?;
+    Some(tags.into_iter().zip(points).collect())
+}
+
+/// An ASCII MSH 4.1 block of triangles (tag and three node tags per record), as node
+/// indices, on all threads ([`ascii_records`]).
+fn ascii_triangles(r: &mut Reader, b: &Builder, count: usize) -> Option<Vec<[usize; 3]>> {
+    ascii_records(r, count, 4, |t| {
+        ascii_u64(t[0])?;
+        let node = |k: usize| b.node_index.get(ascii_u64(t[k])?);
+        Some([node(1)?, node(2)?, node(3)?])
+    })
 }
 
 /// `$Nodes` (MSH 2.2): a text count, then `tag x y z` records.
@@ -730,6 +889,14 @@ fn read_element_block_v41(r: &mut Reader, b: &mut Builder) -> Result<usize> {
     let count = r.count("the number of elements in a block")?;
     let kind = element_kind(element_type).or_else(|msg| r.fail(type_at, msg))?;
     let physicals = b.entity_physicals(r, at, dim, entity)?;
+    if r.binary.is_none() && kind == Kind::Triangle && count >= r.parallel_from {
+        let start = r.pos;
+        if let Some(triangles) = ascii_triangles(r, b, count) {
+            b.triangles.extend(triangles);
+            return Ok(count);
+        }
+        r.pos = start;
+    }
     for _ in 0..count {
         let element = r.size_t("an element tag")?;
         let mut nodes = [0; 3];
@@ -1157,6 +1324,138 @@ fn named<T>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An ASCII MSH 4.1 grid of (n + 1)^2 nodes and 2 n^2 triangles, its node tags
+    /// scrambled, with a line group: large enough to be read in parallel.
+    fn big_ascii(n: usize) -> String {
+        let nodes = (n + 1) * (n + 1);
+        let tag = |i: usize| (i * 7919) % nodes + 1;
+        let mut t = String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n");
+        t += "$PhysicalNames\n1\n1 1 \"bottom\"\n$EndPhysicalNames\n";
+        t += "$Entities\n0 1 1 0\n1 0 0 0 1 0 0 1 1 0\n1 0 0 0 1 1 0 0 0\n$EndEntities\n";
+        t += &format!("$Nodes\n1 {nodes} 1 {nodes}\n2 1 0 {nodes}\n");
+        for i in 0..nodes {
+            t += &format!("{}\n", tag(i));
+        }
+        for i in 0..nodes {
+            let (x, y) = (i % (n + 1), i / (n + 1));
+            t += &format!("{} {} 0\n", x as f64 / 3.0, y as f64 * 0.25);
+        }
+        let id = |x: usize, y: usize| tag(y * (n + 1) + x);
+        t += &format!(
+            "$EndNodes\n$Elements\n2 {} 1 {}\n",
+            2 * n * n + n,
+            2 * n * n + n
+        );
+        t += &format!("1 1 1 {n}\n");
+        for x in 0..n {
+            t += &format!("{} {} {}\n", x + 1, id(x, 0), id(x + 1, 0));
+        }
+        t += &format!("2 1 2 {}\n", 2 * n * n);
+        let mut e = n;
+        for y in 0..n {
+            for x in 0..n {
+                let (a, b, c, d) = (id(x, y), id(x + 1, y), id(x + 1, y + 1), id(x, y + 1));
+                t += &format!("{} {a} {b} {c}\n{} {a}   {c} {d}\n", e + 1, e + 2);
+                e += 2;
+            }
+        }
+        t + "$EndElements\n"
+    }
+
+    /// The parallel path reads records laid out one per line, and leaves any other
+    /// layout to the record-by-record reading (`None`).
+    #[test]
+    fn parallel_records_are_lines() {
+        let pair = |t: &[&[u8]]| Some((ascii_u64(t[0])?, ascii_u64(t[1])?));
+        let text = b"  1 2\n3  4\r\n5 6\n7 8\n9 10\n$EndX\n";
+        let mut r = Reader::new(text, "t");
+        let got = ascii_records(&mut r, 5, 2, pair);
+        assert_eq!(got, Some(vec![(1, 2), (3, 4), (5, 6), (7, 8), (9, 10)]));
+        assert_eq!(&text[r.pos..r.pos + 6], b"\n$EndX");
+        for bad in [
+            &b"1 2 3\n4\n5 6\n7 8\n9 10\n"[..],
+            b"1 2\n\n3 4\n5 6\n7 8\n",
+            b"1 2\n3 4\n5 6",
+        ] {
+            assert_eq!(ascii_records(&mut Reader::new(bad, "t"), 5, 2, pair), None);
+        }
+    }
+
+    #[test]
+    fn plain_digits_read_as_the_generic_parse_reads_them() {
+        for t in [
+            "0",
+            "7",
+            "007",
+            "+5",
+            "-1",
+            "",
+            "1a",
+            "1.0",
+            "9999999999999999999",
+            "18446744073709551615",
+            "18446744073709551616",
+            "123456789012345678901",
+        ] {
+            assert_eq!(ascii_u64(t.as_bytes()), t.parse::<u64>().ok(), "{t:?}");
+        }
+    }
+
+    #[test]
+    fn large_ascii_blocks_read_in_parallel_as_record_by_record() {
+        let text = big_ascii(120);
+        let parallel = parse_msh_with(text.as_bytes(), "big.msh", 1000).unwrap();
+        let serial = parse_msh_with(text.as_bytes(), "big.msh", usize::MAX).unwrap();
+        assert_eq!(parallel.triangles.len(), 2 * 120 * 120);
+        assert_eq!(parallel, serial);
+        assert_eq!(parse_msh(text.as_bytes(), "big.msh").unwrap(), serial);
+    }
+
+    /// Each fault in a block read in parallel gets the message the careful reading gives.
+    #[test]
+    fn faults_in_large_ascii_blocks_get_the_usual_message() {
+        let text = big_ascii(40);
+        let nodes_at = text.find("$Nodes").unwrap();
+        let elements_at = text.find("$Elements").unwrap();
+        let faults = [
+            // A bad coordinate, a non-finite one, a tag defined twice.
+            text.replacen("0.3333333333333333 0 0", "0.33x 0 0", 1),
+            text.replacen("0.3333333333333333 0 0", "inf 0 0", 1),
+            format!(
+                "{}{}",
+                &text[..nodes_at],
+                text[nodes_at..].replacen("\n8\n", "\n1\n", 1)
+            ),
+            // A triangle on an undefined node, a bad element tag, a truncated block.
+            format!(
+                "{}{}",
+                &text[..elements_at],
+                text[elements_at..].replacen(" 5 ", " 999999 ", 1)
+            ),
+            format!(
+                "{}{}",
+                &text[..elements_at],
+                text[elements_at..].replacen("\n100 ", "\n1-0 ", 1)
+            ),
+            text[..text.len() - 200].to_string(),
+        ];
+        let words = [
+            "bad number '0.33x'",
+            "x = inf",
+            "node 1 is defined twice",
+            "node 999999",
+            "bad number '1-0'",
+            "truncated",
+        ];
+        for (k, bad) in faults.iter().enumerate() {
+            assert_ne!(bad, &text, "fault {k} not applied");
+            let parallel = parse_msh_with(bad.as_bytes(), "big.msh", 100).unwrap_err();
+            let serial = parse_msh_with(bad.as_bytes(), "big.msh", usize::MAX).unwrap_err();
+            assert_eq!(parallel.to_string(), serial.to_string(), "fault {k}");
+            assert!(serial.to_string().contains(words[k]), "{serial}");
+        }
+    }
 
     macro_rules! fixture {
         ($file:literal) => {

@@ -2,6 +2,7 @@
 
 pub mod builtin;
 pub mod gmsh;
+pub mod renumber;
 pub mod validate;
 
 use std::collections::BTreeMap;
