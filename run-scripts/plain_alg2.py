@@ -1,0 +1,293 @@
+"""A plain Python implementation of the method contact-par runs, for side-by-side timings
+and an independent check of its answer (issue 27's "plain Python/CHOLMOD" comparison).
+
+    apt-get install libsuitesparse-dev        # Debian 12: SuiteSparse 5
+    python3 -m venv venv && venv/bin/pip install 'numpy<2' 'scipy<1.14' gmsh 'cython<3' setuptools wheel
+    venv/bin/pip install --no-build-isolation scikit-sparse==0.4.12   # the last for SuiteSparse 5
+    venv/bin/python run-scripts/plain_alg2.py CASE.toml --out DIR [--tol 1e-8] [--acceleration none]
+
+What it does, as a user would write it with NumPy and CHOLMOD: read the Gmsh mesh (gmsh's
+Python API), assemble the P1 stiffness (vectorised), eliminate the prescribed dofs,
+factor A = K + r N'WN + r T'WT once (CHOLMOD through scikit-sparse, AMD ordering; SciPy's
+SuperLU when scikit-sparse is missing), then run ALG2 in its state form with one full
+sparse forward and backward solve per sweep, accelerated by Anderson mixing (memory 10,
+with the same residual safeguard) unless `--acceleration none`. r is contact-par's
+automatic r (E_eff / sqrt(h L)); the loop stops when the relative changes of p_n, p_t and
+the contact displacement over one sweep are all below tol. No retune of r per direction,
+no subdomains, no contraction estimate: the textbook loop.
+
+It reads the case files contact-par reads, for the subset it needs: [mesh] file, one
+[material], [[dirichlet]], [[traction]], [body_force], [contact] with a straight
+foundation and friction none, tresca or coulomb (inner). It writes DIR/contact.csv in
+contact-par's columns (x,y,u_n,u_t,p_n,p_t,gap, sorted by x then y) and DIR/plain.json
+(sweeps, converged, seconds per phase).
+"""
+
+import argparse
+import json
+import math
+import os
+import time
+import tomllib
+
+import numpy as np
+import scipy.sparse as sp
+
+
+def read_mesh(path):
+    import gmsh
+
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.open(path)
+    tags, xyz, _ = gmsh.model.mesh.getNodes()
+    index = {int(t): k for k, t in enumerate(tags)}
+    nodes = xyz.reshape(-1, 3)[:, :2].copy()
+    tri = []
+    types, _, enodes = gmsh.model.mesh.getElements(2)
+    for t, en in zip(types, enodes):
+        if t == 2:
+            tri.append(np.array([index[int(v)] for v in en]).reshape(-1, 3))
+    tri = np.vstack(tri)
+    groups = {}
+    for dim, ptag in gmsh.model.getPhysicalGroups():
+        name = gmsh.model.getPhysicalName(dim, ptag)
+        if dim == 1:
+            segs = []
+            for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, ptag):
+                types, _, enodes = gmsh.model.mesh.getElements(1, ent)
+                for t, en in zip(types, enodes):
+                    if t == 1:
+                        segs.append(np.array([index[int(v)] for v in en]).reshape(-1, 2))
+            groups[name] = ("lines", np.vstack(segs))
+        elif dim == 0:
+            pts = []
+            for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, ptag):
+                nt, _, _ = gmsh.model.mesh.getNodes(0, ent, includeBoundary=True)
+                pts.extend(index[int(v)] for v in nt)
+            groups[name] = ("points", np.array(pts))
+    gmsh.finalize()
+    # Counter-clockwise triangles.
+    p = nodes[tri]
+    det = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 2, 0] - p[:, 0, 0]) * (
+        p[:, 1, 1] - p[:, 0, 1]
+    )
+    flip = det < 0
+    tri[flip] = tri[flip][:, [0, 2, 1]]
+    return nodes, tri, groups
+
+
+def group_nodes(groups, name):
+    kind, data = groups[name]
+    return np.unique(data.ravel())
+
+
+def stiffness(nodes, tri, young, poisson, hypothesis):
+    if hypothesis == "plane_stress":
+        c = young / (1 - poisson**2)
+        d = c * np.array([[1, poisson, 0], [poisson, 1, 0], [0, 0, (1 - poisson) / 2]])
+    else:
+        c = young / ((1 + poisson) * (1 - 2 * poisson))
+        d = c * np.array([[1 - poisson, poisson, 0], [poisson, 1 - poisson, 0], [0, 0, (1 - 2 * poisson) / 2]])
+    p = nodes[tri]
+    x, y = p[:, :, 0], p[:, :, 1]
+    b = np.stack([y[:, 1] - y[:, 2], y[:, 2] - y[:, 0], y[:, 0] - y[:, 1]], axis=1)
+    cc = np.stack([x[:, 2] - x[:, 1], x[:, 0] - x[:, 2], x[:, 1] - x[:, 0]], axis=1)
+    area = 0.5 * (b[:, 0] * cc[:, 1] - b[:, 1] * cc[:, 0])
+    bm = np.zeros((len(tri), 3, 6))
+    bm[:, 0, 0::2] = b
+    bm[:, 1, 1::2] = cc
+    bm[:, 2, 0::2] = cc
+    bm[:, 2, 1::2] = b
+    bm /= (2 * area)[:, None, None]
+    ke = np.einsum("eki,kl,elj->eij", bm, d, bm) * area[:, None, None]
+    dofs = np.stack([2 * tri[:, 0], 2 * tri[:, 0] + 1, 2 * tri[:, 1], 2 * tri[:, 1] + 1, 2 * tri[:, 2], 2 * tri[:, 2] + 1], axis=1)
+    rows = np.repeat(dofs, 6, axis=1).ravel()
+    cols = np.tile(dofs, (1, 6)).ravel()
+    n = 2 * len(nodes)
+    return sp.csc_matrix((ke.ravel(), (rows, cols)), shape=(n, n)), area
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("case")
+    ap.add_argument("--out", default="plain-out")
+    ap.add_argument("--tol", type=float, default=None)
+    ap.add_argument("--max-iter", type=int, default=100000)
+    ap.add_argument("--acceleration", choices=["anderson", "none"], default="anderson")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    times = {}
+    case = tomllib.load(open(args.case, "rb"))
+    here = os.path.dirname(os.path.abspath(args.case))
+    nodes, tri, groups = read_mesh(os.path.join(here, case["mesh"]["file"]))
+    times["read"] = time.perf_counter() - t0
+
+    t = time.perf_counter()
+    mat = case["material"]
+    hyp = mat.get("hypothesis", "plane_strain")
+    k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
+    n = 2 * len(nodes)
+    f = np.zeros(n)
+    bf = case.get("body_force", {}).get("f", [0.0, 0.0])
+    for c in range(2):
+        np.add.at(f, 2 * tri.ravel() + c, np.repeat(area / 3 * bf[c], 3))
+    for tr in case.get("traction", []):
+        segs = groups[tr["group"]][1]
+        length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
+        for c in range(2):
+            np.add.at(f, 2 * segs.ravel() + c, np.repeat(length / 2 * tr["t"][c], 2))
+    fixed = np.full(n, np.nan)
+    for d in case.get("dirichlet", []):
+        v = group_nodes(groups, d["group"])
+        if "ux" in d:
+            fixed[2 * v] = d["ux"]
+        if "uy" in d:
+            fixed[2 * v + 1] = d["uy"]
+    con = case["contact"]
+    segs = groups[con["group"]][1]
+    cn = np.unique(segs.ravel())
+    where = {v: i for i, v in enumerate(cn)}
+    length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
+    w = np.zeros(len(cn))
+    np.add.at(w, [where[v] for v in segs[:, 0]], length / 2)
+    np.add.at(w, [where[v] for v in segs[:, 1]], length / 2)
+    p0 = np.array(con["obstacle_point"])
+    m = np.array(con["obstacle_normal"])
+    tv = np.array([m[1], -m[0]])
+    g = (nodes[cn] - p0) @ m
+    law = con.get("friction", "none")
+    frictional = law != "none"
+    # contact-par's automatic r: E_eff / sqrt(h L).
+    e_eff = mat["young"] / (1 - mat["poisson"] ** 2) if hyp == "plane_strain" else mat["young"]
+    h = length.mean()
+    span = nodes.max(axis=0) - nodes.min(axis=0)
+    r = case.get("solver", {}).get("r", e_eff / math.sqrt(h * span.min()))
+    tol = args.tol if args.tol is not None else case.get("solver", {}).get("tol", 1e-8)
+    # N, T: contact nodes x dofs.
+    rows = np.repeat(np.arange(len(cn)), 2)
+    colsn = np.stack([2 * cn, 2 * cn + 1], axis=1).ravel()
+    nmat = sp.csr_matrix((np.tile(-m, len(cn)), (rows, colsn)), shape=(len(cn), n))
+    tmat = sp.csr_matrix((np.tile(tv, len(cn)), (rows, colsn)), shape=(len(cn), n))
+    wd = sp.diags(w)
+    a = k + r * (nmat.T @ wd @ nmat)
+    if frictional:
+        a = a + r * (tmat.T @ wd @ tmat)
+    free = np.isnan(fixed)
+    ub = np.where(free, 0.0, fixed)
+    rhs0 = f - k @ ub
+    af = sp.csc_matrix(a[free][:, free])
+    nf, tf = nmat[:, free], tmat[:, free]
+    nb, tb = nmat @ ub, tmat @ ub
+    times["assemble"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    try:
+        from sksparse.cholmod import cholesky
+
+        solve = cholesky(af, ordering_method="amd")
+        solver = "cholmod"
+    except ImportError:
+        from scipy.sparse.linalg import splu
+
+        lu = splu(af)
+        solve = lu.solve
+        solver = "superlu"
+    times["factor"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    nc = len(cn)
+    thresh = con.get("threshold", 0.0)
+    coef = con.get("coefficient", 0.0)
+
+    def derived(x):
+        s = x[:nc]
+        p = np.minimum(g, s)
+        lam = r * (s - p)
+        if frictional:
+            z = x[nc:]
+            sf = np.full(nc, thresh) if law == "tresca" else coef * np.maximum(lam, 0.0)
+            q = np.sign(z) * np.maximum(np.abs(z) - sf / r, 0.0)
+            mu = r * (z - q)
+        else:
+            q = mu = np.zeros(nc)
+        return p, lam, q, mu
+
+    def sweep(x):
+        p, lam, q, mu = derived(x)
+        b = rhs0[free] + nf.T @ (w * (r * p - lam))
+        if frictional:
+            b = b + tf.T @ (w * (r * q - mu))
+        u = solve(b)
+        un = nf @ u + nb
+        ut = tf @ u + tb
+        gx = un + lam / r
+        if frictional:
+            gx = np.concatenate([gx, ut + mu / r])
+        return gx, (un, ut, u)
+
+    def wnorm(v):
+        ww = np.concatenate([w, w]) if len(v) == 2 * nc else w
+        return math.sqrt(np.sum(ww * v * v))
+
+    x = np.minimum(g, 0.0)
+    if frictional:
+        x = np.concatenate([x, np.zeros(nc)])
+    memory = 10 if args.acceleration == "anderson" else 0
+    dfs, dgs, last = [], [], None
+    gx, out = sweep(x)
+    sweeps, converged = 1, False
+    while sweeps < args.max_iter:
+        fx = gx - x
+        _, lam0, _, mu0 = derived(x)
+        _, lam1, _, mu1 = derived(gx)
+        un, ut, _ = out
+        size_u = wnorm(un) + wnorm(ut)
+        dp = wnorm(lam1 - lam0) / max(wnorm(lam1), 1e-300)
+        dt = wnorm(mu1 - mu0) / max(wnorm(mu1), 1e-300) if frictional and wnorm(mu1) > 0 else 0.0
+        du = wnorm(fx) / max(size_u, 1e-300)
+        if max(dp, dt, du) <= tol:
+            converged = True
+            break
+        y = gx
+        if memory:
+            if last is not None:
+                dfs.append(fx - last[0])
+                dgs.append(gx - last[1])
+                if len(dfs) > memory:
+                    dfs.pop(0)
+                    dgs.pop(0)
+            last = (fx, gx)
+            if dfs:
+                dfm, dgm = np.array(dfs).T, np.array(dgs).T
+                gamma, *_ = np.linalg.lstsq(dfm, fx, rcond=1e-10)
+                y = gx - dgm @ gamma
+        gy, outy = sweep(y)
+        sweeps += 1
+        if memory and y is not gx and np.linalg.norm(gy - y) > np.linalg.norm(fx):
+            # Safeguard: the plain step from the last accepted point.
+            dfs, dgs, last = [], [], None
+            y = gx
+            gy, outy = sweep(y)
+            sweeps += 1
+        x, gx, out = y, gy, outy
+    times["loop"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    un, ut, u = out
+    _, lam, _, mu = derived(gx)
+    os.makedirs(args.out, exist_ok=True)
+    order = np.lexsort((nodes[cn, 1], nodes[cn, 0]))
+    with open(os.path.join(args.out, "contact.csv"), "w") as fh:
+        fh.write("x,y,u_n,u_t,p_n,p_t,gap\n")
+        for i in order:
+            fh.write(",".join(repr(float(v)) for v in [nodes[cn[i], 0], nodes[cn[i], 1], un[i], ut[i], lam[i], -mu[i], g[i]]) + "\n")
+    times["output"] = time.perf_counter() - t
+    times["total"] = time.perf_counter() - t0
+    json.dump({"sweeps": sweeps, "converged": converged, "solver": solver, "r": r,
+               "nodes": len(nodes), "timings_s": times}, open(os.path.join(args.out, "plain.json"), "w"), indent=1)
+    print(json.dumps({"sweeps": sweeps, "converged": converged, "solver": solver, "timings_s": times}))
+
+
+if __name__ == "__main__":
+    main()
