@@ -178,12 +178,9 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         }
     }
 
-    let mut load = vec![0.0; 2 * n];
     for t in &case.traction {
-        let lines = line_group(case, &mesh, "traction", &t.group)?;
-        add_edge_traction(&mesh.nodes, lines, t.t, &mut load);
+        line_group(case, &mesh, "traction", &t.group)?;
     }
-    add_body_force(&mesh.nodes, &mesh.triangles, case.body_force, &mut load);
 
     let c = &case.contact;
     let lines = line_group(case, &mesh, "contact", &c.group)?;
@@ -240,7 +237,7 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
     let prob = Problem {
         mesh,
         fixed,
-        load,
+        load: Vec::new(),
         contact_nodes,
         contact,
         normal: m,
@@ -248,7 +245,23 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         contact_h,
         file_node: (0..n).collect(),
     };
-    Ok(in_locality_order(prob))
+    let mut prob = in_locality_order(prob);
+    // Summed in the new numbering's triangle order: a node's share of the body force
+    // comes from several triangles, and summed in the file's order the load (and the
+    // answer, by a rounding) would depend on the order the mesher wrote them in.
+    let mut load = vec![0.0; 2 * n];
+    for t in &case.traction {
+        let lines = line_group(case, &prob.mesh, "traction", &t.group)?;
+        add_edge_traction(&prob.mesh.nodes, lines, t.t, &mut load);
+    }
+    add_body_force(
+        &prob.mesh.nodes,
+        &prob.mesh.triangles,
+        case.body_force,
+        &mut load,
+    );
+    prob.load = load;
+    Ok(prob)
 }
 
 /// `v` (two values per node) in the node order `old_of` (new -> old).
@@ -266,7 +279,7 @@ fn per_dof<T: Copy>(old_of: &[usize], v: &[T]) -> Vec<T> {
 fn in_locality_order(prob: Problem) -> Problem {
     let (mesh, old_of) = renumber::by_hilbert_curve(prob.mesh);
     let new_of = renumber::inverse(&old_of);
-    let (fixed, load) = (per_dof(&old_of, &prob.fixed), per_dof(&old_of, &prob.load));
+    let fixed = per_dof(&old_of, &prob.fixed);
     // Contact nodes stay in increasing order, now the new one.
     let mut by_new: Vec<(usize, usize)> = (prob.contact_nodes.iter())
         .enumerate()
@@ -285,7 +298,6 @@ fn in_locality_order(prob: Problem) -> Problem {
         file_node: old_of.iter().map(|&o| prob.file_node[o]).collect(),
         mesh,
         fixed,
-        load,
         ..prob
     }
 }

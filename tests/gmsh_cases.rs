@@ -323,3 +323,48 @@ fn the_order_of_the_file_changes_nothing() {
     assert_eq!(ra.len(), rb.len());
     assert_eq!(ra, rb);
 }
+
+/// The fill-reducing ordering changes the factor, not the answer: the unstructured
+/// quarter disc with Coulomb friction under each ordering (the default is the
+/// geometric nested dissection), on one subdomain and on two.
+#[test]
+fn every_ordering_gives_the_same_answer() {
+    let case = quarter_disc_case("friction = \"coulomb\"\ncoefficient = 0.3");
+    for subdomains in ["1", "2"] {
+        let runs: Vec<(String, Run)> = ["auto", "gnd", "amd", "nd"]
+            .iter()
+            .map(|o| {
+                let run = run_case(
+                    &case,
+                    &["--ordering", o, "--subdomains-per-rank", subdomains],
+                );
+                run.expect_code(0);
+                (o.to_string(), run)
+            })
+            .collect();
+        let used: Vec<String> = runs
+            .iter()
+            .map(|(_, r)| {
+                r.summary()["per_subdomain"][0]["ordering"]
+                    .as_str()
+                    .unwrap()
+                    .to_string()
+            })
+            .collect();
+        assert_eq!(
+            used,
+            ["gnd", "gnd", "amd", "nd"],
+            "{subdomains} subdomain(s)"
+        );
+        let reference = runs[2].1.contact();
+        for (name, run) in &runs {
+            check_kkt(&run.contact(), Law::Coulomb(0.3), 1e-8, name);
+            assert_same_columns(
+                &reference,
+                &run.contact(),
+                1e-8,
+                &format!("--ordering {name} against amd on {subdomains} subdomain(s)"),
+            );
+        }
+    }
+}

@@ -86,22 +86,28 @@ impl LocalFactor {
         groups: &[usize],
         ordering: Ordering,
     ) -> Result<Self> {
-        let ordered = Self::order(a, n_b, groups, ordering)?;
+        let ordered = Self::order(a, n_b, groups, &[], ordering)?;
         Self::with_order(a, n_contact, alpha, ordered)
     }
 
     /// The fill-reducing ordering of the interior of `a` (the first `a.nrows() - n_b`
     /// equations, grouped by node as [`LocalFactor::with_ordering`] says) with the
     /// boundary last: the part of the factorization a caller may want to time apart.
+    /// `positions[node]` places the nodes `groups` names, for the geometric ordering
+    /// (empty: none).
     pub fn order(
         a: SparseColMatRef<'_, usize, f64>,
         n_b: usize,
         groups: &[usize],
+        positions: &[[f64; 2]],
         ordering: Ordering,
     ) -> Result<Ordered> {
         let n_interior = a.nrows() - n_b;
-        let ordering = ordering.resolve(n_interior);
-        let (fwd, inv) = ordering.boundary_last(a, n_interior, groups)?;
+        let placed = groups[..n_interior]
+            .iter()
+            .all(|&node| node < positions.len());
+        let ordering = ordering.resolve(n_interior, placed);
+        let (fwd, inv) = ordering.boundary_last(a, n_interior, groups, positions)?;
         Ok(Ordered {
             fwd,
             inv,

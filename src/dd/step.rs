@@ -93,7 +93,7 @@ impl LocalSystem {
             let groups = interior_groups(&dofs);
             let n_b = sub.boundary_dofs.len();
             let ordered = timer.time(Phase::Ordering, || {
-                LocalFactor::order(a, n_b, &groups, s.ordering)
+                LocalFactor::order(a, n_b, &groups, &sub.nodes, s.ordering)
             })?;
             LocalFactor::with_order(a, sub.n_contact_dofs, s.alpha, ordered)
         })?;

@@ -1,41 +1,44 @@
 //! Fill-reducing orderings of a subdomain's interior, computed on its node graph:
-//! approximate minimum degree (faer) or METIS nested dissection (`partition`).
+//! geometric nested dissection (`dissection.rs`), approximate minimum degree (faer) or
+//! METIS nested dissection (`partition`).
 
 use crate::error::{Error, Result};
 use crate::fem::DofMap;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::SparseColMatRef;
 
+use super::dissection::geometric_nested_dissection;
+
 /// Fill-reducing ordering of a subdomain's interior.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Ordering {
-    /// Nested dissection from [`ND_MIN_INTERIOR_DOFS`] interior dofs on, minimum degree
-    /// below: the default.
+    /// Geometric nested dissection wherever the nodes' positions are known (every run),
+    /// else the rule of the time before it: METIS nested dissection from
+    /// [`ND_MIN_INTERIOR_DOFS`] interior dofs, minimum degree below. The default.
     ///
     /// On a 2D mesh of n nodes, nested dissection orders for O(n log n) fill and
     /// O(n^1.5) flops, the optimum (George): separators of O(sqrt n) nodes split the
     /// mesh recursively, and only the separators fill. Minimum degree is greedy and
-    /// local; its factor is larger by a factor that grows with n (measured: x1.24 at
-    /// 411k nodes, x1.6 at 1.2M), and its flops more. But METIS_NodeND costs several
-    /// times AMD (1.7 s against 0.25 s at 411k nodes, 7.4 s against 3.1 s at 1.2M),
-    /// so the smaller factor pays only on large subdomains. Factor phase, one thread
-    /// per rank (ordering included): block level 5 on one rank (411k nodes, 0.82M
-    /// interior dofs) 3.5 s AMD against 4.8 s ND; hertz level 5 on two ranks (600k
-    /// nodes, 1.2M dofs per rank) 12.9 s AMD against 9.2 s ND; block level 6 on two
-    /// ranks (820k nodes) 16.7 s against 12.1 s; hertz 5 on one rank (1.2M nodes)
-    /// 32.4 s against 18.2 s. The crossover lies between 0.82M and 1.2M interior dofs:
-    /// the threshold is 1M. Everything smaller (levels 4 and below, any rank count)
-    /// stays on AMD, whose ordering is never more than a fraction of a second there.
+    /// local; its factor is larger by a factor that grows with n, and with the
+    /// boundary dofs held last its work doubles (an unstructured 101k-node block on one
+    /// subdomain: 15.1 Gflop against 6.8 for METIS's nested dissection). METIS_NodeND
+    /// costs several times minimum degree's ordering (0.69 s against 0.10 s there, 4.1
+    /// s against 1.1 s for the geometric one on 520k-node subdomains), so it paid only
+    /// on the largest subdomains. The geometric dissection orders as fast as minimum
+    /// degree and fills within 0-15% of METIS (docs/performance.md, "Orderings").
     #[default]
     Auto,
-    /// Approximate minimum degree (faer): cheapest to compute, the best total below
-    /// about 1M interior dofs.
+    /// Approximate minimum degree (faer).
     Amd,
-    /// METIS nested dissection on the node graph: less fill, for very large subdomains.
+    /// METIS nested dissection on the node graph: the least fill, the slowest ordering.
     NestedDissection,
+    /// Nested dissection from the nodes' positions ([`geometric_nested_dissection`]):
+    /// straight cuts with the smallest separators, in a few linear passes per level.
+    Geometric,
 }
 
-/// Interior dofs from which [`Ordering::Auto`] chooses nested dissection (see there).
+/// Interior dofs from which [`Ordering::Auto`] chooses METIS's nested dissection when
+/// the nodes' positions are not known (see there).
 pub const ND_MIN_INTERIOR_DOFS: usize = 1_000_000;
 
 impl Ordering {
@@ -45,12 +48,16 @@ impl Ordering {
             Self::Auto => "auto",
             Self::Amd => "amd",
             Self::NestedDissection => "nd",
+            Self::Geometric => "gnd",
         }
     }
 
-    /// The ordering actually used on a subdomain of `n_interior` interior dofs.
-    pub(crate) fn resolve(self, n_interior: usize) -> Self {
+    /// The ordering actually used on a subdomain of `n_interior` interior dofs, its
+    /// nodes' positions known (`placed`) or not.
+    pub(crate) fn resolve(self, n_interior: usize, placed: bool) -> Self {
         match self {
+            Self::Auto if placed => Self::Geometric,
+            Self::Geometric if !placed => Self::Auto.resolve(n_interior, false),
             Self::Auto if n_interior >= ND_MIN_INTERIOR_DOFS => Self::NestedDissection,
             Self::Auto => Self::Amd,
             other => other,
@@ -60,15 +67,25 @@ impl Ordering {
     /// The permutation of the `n` equations of the LOWER triangle `a` (`perm[new] = old`)
     /// and its inverse that orders the first `n_interior` equations, the interior, by
     /// this ordering on their node graph (`groups`: see [`NodeGraph::new`]) and keeps
-    /// the boundary equations last, in place. AMD is also the fallback should METIS fail.
+    /// the boundary equations last, in place. `positions[node]` places the nodes of
+    /// `groups` for [`Ordering::Geometric`] (a resolved ordering: see
+    /// [`Ordering::resolve`]). AMD is also the fallback should METIS fail.
     pub(crate) fn boundary_last(
         self,
         a: SparseColMatRef<'_, usize, f64>,
         n_interior: usize,
         groups: &[usize],
+        positions: &[[f64; 2]],
     ) -> Result<(Vec<usize>, Vec<usize>)> {
         let mut graph = NodeGraph::new(a, n_interior, groups);
+        let ng = graph.first_eq.len() - 1;
         let node_perm = match self {
+            Ordering::Geometric => {
+                let xy: Vec<[f64; 2]> = (0..ng)
+                    .map(|g| positions[groups[graph.first_eq[g]]])
+                    .collect();
+                geometric_nested_dissection(&graph.xadj, &graph.adjncy, &xy)
+            }
             Ordering::NestedDissection => {
                 match partition::nested_dissection(&graph.xadj, &graph.adjncy) {
                     Ok(p) => p,
@@ -217,16 +234,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn auto_ordering_is_nested_dissection_on_large_subdomains_only() {
+    fn auto_ordering_is_geometric_where_the_nodes_are_placed() {
         assert_eq!(Ordering::default(), Ordering::Auto);
-        assert_eq!(Ordering::Auto.resolve(1000), Ordering::Amd);
+        assert_eq!(Ordering::Auto.resolve(1000, true), Ordering::Geometric);
+        assert_eq!(Ordering::Auto.resolve(1000, false), Ordering::Amd);
         assert_eq!(
-            Ordering::Auto.resolve(ND_MIN_INTERIOR_DOFS),
+            Ordering::Auto.resolve(ND_MIN_INTERIOR_DOFS, false),
             Ordering::NestedDissection
         );
-        assert_eq!(Ordering::Amd.resolve(usize::MAX), Ordering::Amd);
+        assert_eq!(Ordering::Geometric.resolve(1000, false), Ordering::Amd);
+        assert_eq!(Ordering::Amd.resolve(usize::MAX, true), Ordering::Amd);
         assert_eq!(
-            Ordering::NestedDissection.resolve(0),
+            Ordering::NestedDissection.resolve(0, true),
             Ordering::NestedDissection
         );
     }

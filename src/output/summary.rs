@@ -31,7 +31,7 @@ pub struct RankStats {
     pub factor_s: f64,
     /// Part of factor_s spent in the fill-reducing ordering.
     pub ordering_s: f64,
-    /// The ordering used: amd or nd (or the full path's amd).
+    /// The ordering used: gnd, amd or nd (or the full path's amd).
     pub ordering: String,
     /// Forming S_s = L_BB L_BB' and the condensed right-hand side.
     pub schur_s: f64,
