@@ -202,7 +202,14 @@ pub fn solve_with(
     } else {
         (params.r, None)
     };
-    let mut run = Run::new(Sweeper::new(step, nodes, r), comm, params, monitor, ckpt);
+    // Not known (a caller without a mesh): no floor under the held directions' r.
+    let mesh_stiffness = if params.mesh_stiffness > 0.0 {
+        params.mesh_stiffness
+    } else {
+        0.0
+    };
+    let sweeper = Sweeper::new(step, nodes, r, mesh_stiffness);
+    let mut run = Run::new(sweeper, comm, params, monitor, ckpt);
     if r != params.r {
         run.applied.push(Augmentation::uniform(n, r));
     }
@@ -533,9 +540,12 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         };
         let sweep = Sweep {
             refused: self.refused,
-            ..global
-                .sums
-                .sweep(self.history.len() + 1, self.retunes, r, contraction)
+            ..global.sums.sweep(
+                self.history.len() + 1,
+                self.retunes,
+                (r, self.sweeper.mesh_stiffness),
+                contraction,
+            )
         };
         // The next sweep's margin: this one's state error, |G(x) - x|_W / (1 - rho), made
         // a value per node (the W-norm's mean square over the contact length) and tripled
@@ -613,7 +623,13 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         };
         let n = last.p.len();
         let held: Vec<(bool, bool)> = (0..n).map(|i| last.held(i, frictional)).collect();
-        let aug = Augmentation::for_statuses(kind, &held, frictional, self.sweeper.r_ref);
+        let aug = Augmentation::for_statuses(
+            kind,
+            &held,
+            frictional,
+            self.sweeper.r_ref,
+            self.sweeper.mesh_stiffness,
+        );
         if !self.sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
             self.can_retune = false;
             return Ok(false);
