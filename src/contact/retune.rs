@@ -72,9 +72,9 @@ const TANGENT_FACTOR: f64 = 10.0;
 /// each of its modes by 1 / (1 + r c), c the mode's compliance; the stiffest, mesh-scale
 /// modes have c of order h / E_eff, so a held direction needs r of order E_eff / h,
 /// whatever the reference r. The factors above give far more on compact bodies (the
-/// automatic r is E_eff / sqrt(h L): held normals 80-200 E_eff / h, sticking tangents
-/// 0.8-2.5 on the built-in cases), but not once the smooth-mode probe has lowered the
-/// reference r for a slender body's open nodes: a plank lying flat under its own weight
+/// automatic r is E_eff / sqrt(h L): held normals 40-220 E_eff / h, sticking tangents
+/// 0.8-2.2 on the built-in cases at levels 1-4), but not once the smooth-mode probe has
+/// lowered the reference r for a slender body's open nodes: a plank lying flat under its own weight
 /// (r lowered 2300-fold) had its sticking tangents at 0.0015 E_eff / h, contracting by
 /// 0.998 per sweep: 290 sweeps (Coulomb 0.6; frictionless, held normals at 0.15 E_eff / h,
 /// 68). With these floors 36 and 20.
