@@ -14,6 +14,21 @@ pub fn state(value: f64, multiplier: f64, r: f64) -> f64 {
     value + multiplier / r
 }
 
+/// How far along the step from the normal states `x` to `y` (a fraction in (0, 1]) the
+/// first node crosses its gap g, the boundary between open (s < g) and pressed (s > g):
+/// the end of the piece on which the sweep map is the affine map seen at `x`. 1 when no
+/// node crosses.
+pub fn first_crossing(x: &[f64], y: &[f64], g: &[f64]) -> f64 {
+    let mut t = 1.0f64;
+    for ((&x, &y), &g) in x.iter().zip(y).zip(g) {
+        let (a, b) = (x - g, y - g);
+        if (a < 0.0) != (b < 0.0) {
+            t = t.min(a / (a - b));
+        }
+    }
+    t
+}
+
 /// Step 2, normal: the auxiliary variable p = min(g, s), the projection of the state onto
 /// p <= g.
 #[inline]
@@ -66,6 +81,20 @@ pub fn tangential_from_state(z: f64, threshold: f64, r: f64) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_first_crossing_ends_the_piece() {
+        let g = [1.0, 0.0, 2.0];
+        // Node 0 reaches its gap a quarter of the way, node 1 leaves its half way.
+        let (x, y) = ([0.0, 1.0, 0.0], [4.0, -1.0, 1.0]);
+        assert_eq!(first_crossing(&x, &y, &g), 0.25);
+        // The point at that fraction sits on node 0's gap; no node crosses before it.
+        let at: Vec<f64> = (0..3).map(|i| x[i] + 0.25 * (y[i] - x[i])).collect();
+        assert_eq!(at[0], g[0]);
+        assert_eq!(first_crossing(&x, &at[..], &g), 1.0);
+        // No crossing: the whole step.
+        assert_eq!(first_crossing(&[0.0, 1.0], &[0.5, 3.0], &[1.0, 0.0]), 1.0);
+    }
 
     #[test]
     fn projection_keeps_p_below_the_gap() {

@@ -44,6 +44,8 @@ pub trait LinearStep {
 /// Global sums over all ranks (an all-reduce). One rank: the identity.
 pub trait Reduce {
     fn sum_in_place(&self, values: &mut [f64]);
+    /// The smallest of each entry over all ranks.
+    fn min_in_place(&self, values: &mut [f64]);
 }
 
 /// The single-rank reduction.
@@ -51,6 +53,7 @@ pub struct NoComm;
 
 impl Reduce for NoComm {
     fn sum_in_place(&self, _values: &mut [f64]) {}
+    fn min_in_place(&self, _values: &mut [f64]) {}
 }
 
 /// The contact nodes a rank owns, with their lumped weights and initial gaps.

@@ -21,14 +21,23 @@ impl Augmentation {
     }
 
     /// The r of each direction that `kind` asks for, given whether each node's normal and
-    /// tangential directions are held (see [`tuned`]); `r` is the reference r.
-    pub fn for_statuses(kind: Retune, held: &[(bool, bool)], frictional: bool, r: f64) -> Self {
+    /// tangential directions are held (see [`tuned`]); `r` is the reference r and
+    /// `mesh_stiffness` the body's E_eff / h (0 when not known).
+    pub fn for_statuses(
+        kind: Retune,
+        held: &[(bool, bool)],
+        frictional: bool,
+        r: f64,
+        mesh_stiffness: f64,
+    ) -> Self {
         let mut aug = Augmentation::uniform(held.len(), r);
         for (i, &h) in held.iter().enumerate() {
             match kind {
-                Retune::ToStatus => (aug.r_n[i], aug.r_t[i]) = tuned(h, frictional, r),
+                Retune::ToStatus => {
+                    (aug.r_n[i], aug.r_t[i]) = tuned(h, frictional, r, mesh_stiffness)
+                }
                 Retune::Normals => {
-                    aug.r_n[i] = tuned(h, frictional, r).0;
+                    aug.r_n[i] = tuned(h, frictional, r, mesh_stiffness).0;
                     if frictional {
                         aug.r_t[i] = r / TANGENT_FACTOR;
                     }
@@ -58,6 +67,34 @@ pub(super) const NORMAL_FACTOR: f64 = 1000.0;
 /// block levels 2-3 from 33-36 to 51-214 sweeps and the Coulomb cantilever of
 /// tests/data/tolerance from 73 to 322-505.
 const TANGENT_FACTOR: f64 = 10.0;
+/// The least r of a held normal and of a sticking tangent, in units of the body's
+/// mesh-scale stiffness E_eff / h. A held direction is an equality, whose sweep contracts
+/// each of its modes by 1 / (1 + r c), c the mode's compliance; the stiffest, mesh-scale
+/// modes have c of order h / E_eff, so a held direction needs r of order E_eff / h,
+/// whatever the reference r. The factors above give far more on compact bodies (the
+/// automatic r is E_eff / sqrt(h L): held normals 40-220 E_eff / h, sticking tangents
+/// 0.8-2.2 on the built-in cases at levels 1-4), but not once the smooth-mode probe has
+/// lowered the reference r for a slender body's open nodes: a plank lying flat under its own weight
+/// (r lowered 2300-fold) had its sticking tangents at 0.0015 E_eff / h, contracting by
+/// 0.998 per sweep: 290 sweeps (Coulomb 0.6; frictionless, held normals at 0.15 E_eff / h,
+/// 68). With these floors 36 and 20.
+///
+/// Both floors stay well below what the stiffest modes alone would ask for, because a
+/// retune that jumps a direction's r by thousands moves statuses, and the retunes that
+/// follow can cycle (docs/performance-history.md has the measurements). The normals'
+/// floor: 1, 3 or 10 took the frictionless plank to 13, 9 and 7 sweeps, but with the
+/// tangents' floor a slab on a slope (held out at first) cycled through the retune
+/// budget (954-990 sweeps, 47 at 0.3 and 43 before the floors).
+pub(super) const HELD_NORMAL_FLOOR: f64 = 0.3;
+/// The tangents' floor: a sticking tangent much stiffer amplifies the tangential motion
+/// left while the body still bends, its node flips to slip, and the stick/slip statuses
+/// cycle. Measured (sweeps of the Coulomb cantilever of tests/data/tolerance, the 2 m
+/// Coulomb beam, the Coulomb plank), with a normals' floor of 10: 0.1: 75, 71, 50; 0.15:
+/// 72, 67, 54; 0.2: 67, 59, 44; 0.3: 71, 75, 35; 0.4: 310, 74, 30 (the cantilever's
+/// statuses cycle: 30 retunes); 0.5: 322; 1: 59, 66, 21 but the 2 m beam and the
+/// cantilever meshed finely 118 and 178; 3: the 1 and 2 m beams spent the retune budget
+/// (396, 655). 0.2 is half the lowest floor where a case cycled.
+pub(super) const HELD_TANGENT_FLOOR: f64 = 0.2;
 /// Retunes allowed in one run, all kinds together. The normals follow their statuses at
 /// every sweep that changes one, so a run that finds its contact zone node by node
 /// retunes as often (measured: at most 47 on the slender cases of
@@ -67,16 +104,33 @@ const TANGENT_FACTOR: f64 = 10.0;
 pub const MAX_RETUNES: usize = 100;
 
 /// The r of a node's normal and tangential directions for its statuses: raised where
-/// held (pressed, sticking), lowered where free (open, slipping). Without friction the
-/// tangent is not part of the method and keeps r.
-pub fn tuned((held_n, held_t): (bool, bool), frictional: bool, r: f64) -> (f64, f64) {
-    let pick = |held: bool, factor: f64| if held { r * factor } else { r / factor };
+/// held (pressed, sticking), at least to the floors above in units of `mesh_stiffness`
+/// (E_eff / h, 0 when not known); lowered where free (open, slipping). Without friction
+/// the tangent is not part of the method and keeps r.
+pub fn tuned(
+    (held_n, held_t): (bool, bool),
+    frictional: bool,
+    r: f64,
+    mesh_stiffness: f64,
+) -> (f64, f64) {
+    let pick = |held: bool, factor: f64, floor: f64| {
+        if held {
+            (r * factor).max(floor * mesh_stiffness)
+        } else {
+            r / factor
+        }
+    };
     let t = if frictional {
-        pick(held_t, TANGENT_FACTOR)
+        pick(held_t, TANGENT_FACTOR, HELD_TANGENT_FLOOR)
     } else {
         r
     };
-    (pick(held_n, NORMAL_FACTOR), t)
+    (pick(held_n, NORMAL_FACTOR, HELD_NORMAL_FLOOR), t)
+}
+
+/// The largest r that [`tuned`] gives any direction: the scale of the sweep's round-off.
+pub fn largest_tuned(r: f64, mesh_stiffness: f64) -> f64 {
+    (r * NORMAL_FACTOR).max(HELD_NORMAL_FLOOR * mesh_stiffness)
 }
 
 /// What [`retuned`] asks for.
@@ -220,6 +274,29 @@ mod tests {
     }
 
     #[test]
+    fn held_directions_are_at_least_as_stiff_as_the_mesh_asks() {
+        // A reference r lowered far below the mesh-scale stiffness (a slender body):
+        // held directions rise to their floors, free ones stay below the reference.
+        let (r, k) = (1.0, 1e6);
+        let (n, t) = tuned((true, true), true, r, k);
+        assert_eq!((n, t), (HELD_NORMAL_FLOOR * k, HELD_TANGENT_FLOOR * k));
+        assert_eq!(
+            tuned((false, false), true, r, k),
+            (r / NORMAL_FACTOR, r / TANGENT_FACTOR)
+        );
+        // A compact body's reference r: the factors already exceed the floors.
+        let r = 1e5;
+        assert_eq!(
+            tuned((true, true), true, r, 1e6),
+            (r * NORMAL_FACTOR, r * TANGENT_FACTOR)
+        );
+        assert_eq!(largest_tuned(r, 1e6), r * NORMAL_FACTOR);
+        assert_eq!(largest_tuned(1.0, 1e6), HELD_NORMAL_FLOOR * 1e6);
+        // Without friction the tangent keeps the reference r, floor or not.
+        assert_eq!(tuned((true, true), false, 1.0, k).1, 1.0);
+    }
+
+    #[test]
     fn after_the_budget_every_direction_returns_once_to_the_reference() {
         let mut spent = sweep(1, 3, MAX_RETUNES - 1);
         spent.mistuned_n = 3;
@@ -240,23 +317,23 @@ mod tests {
     fn statuses_ask_for_their_r() {
         let r = 10.0;
         assert_eq!(
-            tuned((true, false), true, r),
+            tuned((true, false), true, r, 0.0),
             (r * NORMAL_FACTOR, r / TANGENT_FACTOR)
         );
         assert_eq!(
-            tuned((false, true), true, r),
+            tuned((false, true), true, r, 0.0),
             (r / NORMAL_FACTOR, r * TANGENT_FACTOR)
         );
         // Without friction the tangent keeps the reference r.
-        assert_eq!(tuned((true, false), false, r), (r * NORMAL_FACTOR, r));
+        assert_eq!(tuned((true, false), false, r, 0.0), (r * NORMAL_FACTOR, r));
         // Normals alone: tangents lowered with friction, kept without.
         let held = [(true, true), (false, true)];
-        let a = Augmentation::for_statuses(Retune::Normals, &held, true, r);
+        let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0);
         assert_eq!(a.r_n, vec![r * NORMAL_FACTOR, r / NORMAL_FACTOR]);
         assert_eq!(a.r_t, vec![r / TANGENT_FACTOR; 2]);
-        let a = Augmentation::for_statuses(Retune::Normals, &held, false, r);
+        let a = Augmentation::for_statuses(Retune::Normals, &held, false, r, 0.0);
         assert_eq!(a.r_t, vec![r; 2]);
-        let a = Augmentation::for_statuses(Retune::ToReference, &held, true, r);
+        let a = Augmentation::for_statuses(Retune::ToReference, &held, true, r, 0.0);
         assert_eq!(a, Augmentation::uniform(2, r));
     }
 }

@@ -3,7 +3,7 @@
 //! sums that the sweep's one all-reduce turns into its line of the history.
 
 use super::kernels::{coulomb_threshold, project_normal, shrink, state, update_multiplier};
-use super::retune::{tuned, Augmentation, NORMAL_FACTOR};
+use super::retune::{largest_tuned, tuned, Augmentation};
 use super::{ContactNodes, LinearStep, Reduce};
 use crate::error::Result;
 
@@ -234,14 +234,14 @@ impl SweepSums {
     /// The relative changes (p_n, p_t, u) of the sweep: each quantity's change over its
     /// own size plus [`SCALE_FLOOR`] times the other force (p_n, p_t), or the forces
     /// over the reference r `r` (u).
-    pub(super) fn changes(&self, r: f64) -> [f64; 3] {
+    pub(super) fn changes(&self, r: f64, mesh_stiffness: f64) -> [f64; 3] {
         let (pn, pt) = (self.force_n.sqrt(), self.force_t.sqrt());
         let u = self.displacement_n.sqrt() + self.displacement_t.sqrt();
         // What round-off leaves of a change: the sweep's forces are formed from r u and
         // the multipliers, so a force change below ROUNDOFF times their size is noise;
         // with r raised on held directions, the largest r forms them.
         let r_max = if self.stiff > 0.0 {
-            r * NORMAL_FACTOR
+            largest_tuned(r, mesh_stiffness)
         } else {
             r
         };
@@ -269,10 +269,17 @@ impl SweepSums {
         [pressure, traction, displacement]
     }
 
-    /// The history line of sweep `iter` from the global sums, with the reference r `r`
-    /// and the estimated `contraction` of the plain sweep.
-    pub(super) fn sweep(&self, iter: usize, retunes: usize, r: f64, contraction: f64) -> Sweep {
-        let [pressure, traction, displacement] = self.changes(r);
+    /// The history line of sweep `iter` from the global sums, with the reference r `r`,
+    /// the body's `mesh_stiffness` (E_eff / h, 0 when not known) and the estimated
+    /// `contraction` of the plain sweep.
+    pub(super) fn sweep(
+        &self,
+        iter: usize,
+        retunes: usize,
+        (r, mesh_stiffness): (f64, f64),
+        contraction: f64,
+    ) -> Sweep {
+        let [pressure, traction, displacement] = self.changes(r, mesh_stiffness);
         Sweep {
             iter,
             pressure,
@@ -369,6 +376,8 @@ pub(super) struct Sweeper<'a, S: LinearStep> {
     pub(super) nodes: &'a ContactNodes,
     /// The reference r: the scale of the residuals, and the r of a direction not retuned.
     pub(super) r_ref: f64,
+    /// E_eff / h, which sets the least r of a held direction (0 when not known).
+    pub(super) mesh_stiffness: f64,
     pub(super) aug: Augmentation,
     /// The statuses in the image of the last evaluation (empty before the first).
     last_held: Vec<(bool, bool)>,
@@ -383,12 +392,18 @@ pub(super) struct Sweeper<'a, S: LinearStep> {
 
 impl<'a, S: LinearStep> Sweeper<'a, S> {
     /// A sweeper with the reference r in every direction.
-    pub(super) fn new(step: &'a mut S, nodes: &'a ContactNodes, r: f64) -> Self {
+    pub(super) fn new(
+        step: &'a mut S,
+        nodes: &'a ContactNodes,
+        r: f64,
+        mesh_stiffness: f64,
+    ) -> Self {
         let n = nodes.len();
         Sweeper {
             step,
             nodes,
             r_ref: r,
+            mesh_stiffness,
             aug: Augmentation::uniform(n, r),
             last_held: Vec::new(),
             margin: f64::INFINITY,
@@ -495,7 +510,7 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             if before.unwrap_or_else(|| inp.held(i, frictional)) != held {
                 s.changed += 1.0;
             }
-            let (want_n, want_t) = tuned(held, frictional, r);
+            let (want_n, want_t) = tuned(held, frictional, r, self.mesh_stiffness);
             for (have, want) in [(aug.r_n[i], want_n), (aug.r_t[i], want_t)] {
                 if have > r {
                     s.stiff += 1.0;

@@ -40,7 +40,7 @@
 //! estimate is below tol (docs/ALGORITHM.md, "The stopping test").
 
 use super::anderson::{dot, metric, span_secant, Anderson};
-use super::kernels::{coulomb_threshold, state};
+use super::kernels::{coulomb_threshold, first_crossing, state};
 use super::retune::{retuned, Augmentation};
 use super::sweep::{
     error_estimate, project_and_update, relative, Derived, Law, Reduced, Sweep, Sweeper, ROUNDOFF,
@@ -133,6 +133,9 @@ pub struct Snapshot {
     /// retune that moves few directions updates the factor in place, so the factor
     /// depends on the sequence, and a resumed run replays it to continue bit for bit.
     pub applied: Vec<Augmentation>,
+    /// The piece of the last refusal (see [`Run::safeguard`]).
+    #[serde(default)]
+    pub refused_on: Option<(usize, usize, usize)>,
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -202,7 +205,14 @@ pub fn solve_with(
     } else {
         (params.r, None)
     };
-    let mut run = Run::new(Sweeper::new(step, nodes, r), comm, params, monitor, ckpt);
+    // Not known (a caller without a mesh): no floor under the held directions' r.
+    let mesh_stiffness = if params.mesh_stiffness > 0.0 {
+        params.mesh_stiffness
+    } else {
+        0.0
+    };
+    let sweeper = Sweeper::new(step, nodes, r, mesh_stiffness);
+    let mut run = Run::new(sweeper, comm, params, monitor, ckpt);
     if r != params.r {
         run.applied.push(Augmentation::uniform(n, r));
     }
@@ -360,6 +370,9 @@ struct Run<'r, 'a, S: LinearStep, C: Reduce> {
     /// The smallest secant ratio |f(y) - f(x)| / |y - x| (f(x) = G(x) - x) since the map
     /// last changed (infinite before the first).
     min_secant: f64,
+    /// The piece (active and slipping nodes of the last accepted image, retunes) on which
+    /// the safeguard last refused a mixed point (see [`Run::safeguard`]).
+    refused_on: Option<(usize, usize, usize)>,
 }
 
 /// An evaluation of G after the global reduction.
@@ -378,6 +391,9 @@ struct Evaluated {
     worst: f64,
     /// |f(x) - f(anchor)| / |x - anchor| (infinite without an anchor).
     secant: f64,
+    /// Active and slipping nodes of G(x), over all ranks.
+    active: usize,
+    slip: usize,
 }
 
 impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
@@ -408,6 +424,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             applied: Vec::new(),
             anchor: None,
             min_secant: f64::INFINITY,
+            refused_on: None,
         }
     }
 
@@ -533,9 +550,12 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         };
         let sweep = Sweep {
             refused: self.refused,
-            ..global
-                .sums
-                .sweep(self.history.len() + 1, self.retunes, r, contraction)
+            ..global.sums.sweep(
+                self.history.len() + 1,
+                self.retunes,
+                (r, self.sweeper.mesh_stiffness),
+                contraction,
+            )
         };
         // The next sweep's margin: this one's state error, |G(x) - x|_W / (1 - rho), made
         // a value per node (the W-norm's mean square over the contact length) and tripled
@@ -559,6 +579,8 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             gram: global.gram,
             worst: sweep.error,
             secant,
+            active: sweep.active,
+            slip: sweep.slip,
         })
     }
 
@@ -577,6 +599,22 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// The safeguard on the Anderson point y: kept if its fixed-point residual does not
     /// exceed that of the last accepted point (or it meets the tolerance); otherwise
     /// refused, the memory cleared, and the plain step taken from the last accepted point.
+    ///
+    /// **A second refusal on one piece.** G is affine on each set of statuses, and
+    /// Anderson's point extrapolates the piece of the last accepted point. Where that
+    /// piece contracts slowly along one mode (a body that nothing holds in the normal
+    /// direction but friction, creeping towards the foundation), the extrapolation
+    /// lands far through the foundation, on a piece where the residual is large, and is
+    /// refused; the plain steps creep on, the memory refills and the same happens again
+    /// (the pressed strip of docs/performance-history.md: a refusal every 5 sweeps for
+    /// 460 sweeps with no node in contact). So when the safeguard refuses a point again
+    /// with the same piece behind it (the same active and slipping counts, no retune
+    /// since), the step is cut back to where its first node crosses its gap, the end of
+    /// the piece on which the extrapolation holds ([`first_crossing`]), and that point
+    /// goes through the same safeguard before the plain step is taken. Not at the first
+    /// refusal: there the plain step often crosses into a closer piece than the cut
+    /// point (beams meshed finely: 19 and 29 sweeps with the plain step, 28 and 35 with
+    /// the cut at every refusal).
     fn safeguard(
         &mut self,
         law: Law,
@@ -596,6 +634,20 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             last.refused = self.refused;
         }
         aa.clear();
+        let piece = (cur.active, cur.slip, self.retunes);
+        if self.refused_on.replace(piece) == Some(piece) {
+            let n = self.sweeper.nodes.len();
+            let mut t = [first_crossing(&x[..n], &y[..n], &self.sweeper.nodes.g)];
+            self.comm.min_in_place(&mut t);
+            if t[0] > 0.0 && t[0] < 1.0 {
+                let cut: Vec<f64> = x.iter().zip(&y).map(|(a, b)| a + t[0] * (b - a)).collect();
+                let next = self.evaluate(law, &cut, Some(aa))?;
+                if next.res <= cur.res || next.worst <= self.stop_tol() {
+                    *x = cut;
+                    return Ok(next);
+                }
+            }
+        }
         self.plain_step(law, cur, x, Some(aa))
     }
 
@@ -613,7 +665,13 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         };
         let n = last.p.len();
         let held: Vec<(bool, bool)> = (0..n).map(|i| last.held(i, frictional)).collect();
-        let aug = Augmentation::for_statuses(kind, &held, frictional, self.sweeper.r_ref);
+        let aug = Augmentation::for_statuses(
+            kind,
+            &held,
+            frictional,
+            self.sweeper.r_ref,
+            self.sweeper.mesh_stiffness,
+        );
         if !self.sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
             self.can_retune = false;
             return Ok(false);
@@ -699,6 +757,8 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         self.applied = snap.applied;
         sweeper.r_ref = snap.r_ref;
         let out = project_and_update(&snap.gx, sweeper.nodes, law, &sweeper.aug);
+        let (active, slip) = snap.history.last().map_or((0, 0), |s| (s.active, s.slip));
+        self.refused_on = snap.refused_on;
         sweeper.remember_statuses(&out, law.frictional());
         self.retunes = snap.retunes;
         self.min_secant = snap.min_secant;
@@ -716,6 +776,8 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             gram: snap.gram,
             worst: snap.worst,
             secant: snap.secant,
+            active,
+            slip,
         })
     }
 
@@ -747,6 +809,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             secant: cur.secant,
             r_ref: self.sweeper.r_ref,
             applied: self.applied.clone(),
+            refused_on: self.refused_on,
         };
         (self.ckpt.save)(&snap)
     }

@@ -250,6 +250,13 @@ impl Reduce for Mpi {
         }
         self.reduce_in_place(values, |a, b| a + b, SystemOperation::sum());
     }
+
+    fn min_in_place(&self, values: &mut [f64]) {
+        if self.size == 1 {
+            return;
+        }
+        self.reduce_in_place(values, f64::min, SystemOperation::min());
+    }
 }
 
 impl Mpi {

@@ -6,6 +6,8 @@ Documentation of how the committed files were made; CI does not run it. Needs th
     python3 tests/data/tolerance/make_cases.py                  # the committed test meshes
     python3 tests/data/tolerance/make_cases.py --scale 0.35 --out DIR   # finer (about 12k nodes)
     python3 tests/data/tolerance/make_cases.py --beams --out DIR        # clamped beams 0.2-2 m
+    python3 tests/data/tolerance/make_cases.py --slender --out DIR      # held-out slender bodies
+    python3 tests/data/tolerance/make_cases.py --heldout --out DIR      # block on a slope, ring, slab
 `--scale` multiplies every mesh size; the case files are written next to the meshes.
 
 The cases, each with its own units, group names and foundation:
@@ -254,6 +256,150 @@ def slender(scale, out):
             f.write(text)
 
 
+def heldout(scale, out):
+    """Held-out cases made after the floors of the held directions' r and the cut step
+    of the safeguard were chosen (docs/performance-history.md), run once with each binary:
+    a steel block in mm with Coulomb 0.8 on a foundation inclined by 15 degrees that
+    friction alone holds along the slope, a thin aluminium half ring (mm) standing on its
+    outer arc that only the contact holds vertically, and a thin slab in mm on a foundation
+    inclined by 3 degrees under its own weight."""
+    geo = gmsh.model.geo
+    cases = []
+    # The block, rotated onto the slope, 0.005 mm above it.
+    a = math.radians(15.0)
+    d, n = (math.cos(a), math.sin(a)), (-math.sin(a), math.cos(a))
+    L, H, gap = 40.0, 20.0, 0.005
+    pts = [(gap * n[0], gap * n[1])]
+    pts.append((pts[0][0] + L * d[0], pts[0][1] + L * d[1]))
+    pts.append((pts[1][0] + H * n[0], pts[1][1] + H * n[1]))
+    pts.append((pts[0][0] + H * n[0], pts[0][1] + H * n[1]))
+    gmsh.model.add("incline")
+    _, lines, surface = polygon(pts, 0.9 * scale)
+    gmsh.model.geo.synchronize()
+    for line, group in zip(lines, ["under", "right", "top", "left"]):
+        gmsh.model.addPhysicalGroup(1, [line], name=group)
+    gmsh.model.addPhysicalGroup(2, [surface], name="body")
+    gmsh.model.mesh.generate(2)
+    write(out, "incline.msh")
+    gmsh.model.remove()
+    cases.append(("incline", "A steel block (mm, N, MPa) on a 15-degree slope that friction alone holds along it; Coulomb 0.8.",
+                  210000.0, 0.3, "plane_strain", "",
+                  f'[[traction]]\ngroup = "top"\nt = [{-0.05 * n[0]:.6e}, {-0.05 * n[1]:.6e}]\n\n[body_force]\nf = [0.0, -7.7e-5]\n',
+                  (0.0, 0.0), n, 'friction = "coulomb"\ncoefficient = 0.8'))
+    # The half ring: outer radius 50 mm, 3 mm thick, centre 50.01 mm above the foundation.
+    R, t, c = 50.0, 3.0, 50.01
+    gmsh.model.add("ring")
+    lc = 0.6 * scale
+    o = geo.addPoint(0, c, 0, lc)
+    pts = [geo.addPoint(x, c, 0, lc) for x in (-R, -R + t, R - t, R)]
+    bottom_out, bottom_in = geo.addPoint(0, c - R, 0, lc), geo.addPoint(0, c - R + t, 0, lc)
+    outer = [geo.addCircleArc(pts[0], o, bottom_out), geo.addCircleArc(bottom_out, o, pts[3])]
+    inner = [geo.addCircleArc(pts[2], o, bottom_in), geo.addCircleArc(bottom_in, o, pts[1])]
+    right, left = geo.addLine(pts[3], pts[2]), geo.addLine(pts[1], pts[0])
+    surface = geo.addPlaneSurface([geo.addCurveLoop(outer + [right] + inner + [left])])
+    geo.synchronize()
+    gmsh.model.addPhysicalGroup(1, outer, name="under")
+    gmsh.model.addPhysicalGroup(1, [left], name="left")
+    gmsh.model.addPhysicalGroup(1, [right], name="right")
+    gmsh.model.addPhysicalGroup(2, [surface], name="body")
+    gmsh.model.mesh.generate(2)
+    write(out, "ring.msh")
+    gmsh.model.remove()
+    cases.append(("ring", "A thin aluminium half ring (mm) on its outer arc, its end faces pressed down, under its own weight; Coulomb 0.4.",
+                  70000.0, 0.33, "plane_stress", '[[dirichlet]]\ngroup = "left"\nux = 0.0\n',
+                  '[[traction]]\ngroup = "left"\nt = [0.0, -0.5]\n\n[[traction]]\ngroup = "right"\nt = [0.0, -0.5]\n\n[body_force]\nf = [0.0, -2.65e-5]\n',
+                  (0.0, 0.0), (0.0, 1.0), 'friction = "coulomb"\ncoefficient = 0.4'))
+    # The slab: 1000 x 20 mm of concrete, 0.01 mm above a 3-degree slope, held at its
+    # upper end face along x.
+    a = math.radians(3.0)
+    d, n = (math.cos(a), math.sin(a)), (-math.sin(a), math.cos(a))
+    L, H, gap = 1000.0, 20.0, 0.01
+    pts = [(gap * n[0], gap * n[1])]
+    pts.append((pts[0][0] + L * d[0], pts[0][1] + L * d[1]))
+    pts.append((pts[1][0] + H * n[0], pts[1][1] + H * n[1]))
+    pts.append((pts[0][0] + H * n[0], pts[0][1] + H * n[1]))
+    gmsh.model.add("slab")
+    _, lines, surface = polygon(pts, 4.0 * scale)
+    gmsh.model.geo.synchronize()
+    for line, group in zip(lines, ["under", "right", "top", "left"]):
+        gmsh.model.addPhysicalGroup(1, [line], name=group)
+    gmsh.model.addPhysicalGroup(2, [surface], name="body")
+    gmsh.model.mesh.generate(2)
+    write(out, "slab.msh")
+    gmsh.model.remove()
+    cases.append(("slab", "A thin concrete slab (mm) on a 3-degree slope under its own weight, held along x at its upper end; Coulomb 0.5.",
+                  30000.0, 0.2, "plane_strain", '[[dirichlet]]\ngroup = "right"\nux = 0.0\n',
+                  "[body_force]\nf = [0.0, -2.4e-5]\n", (0.0, 0.0), n,
+                  'friction = "coulomb"\ncoefficient = 0.5'))
+    # Made after the normals' floor was lowered for the slab (held out from that choice):
+    # a steel sheet (SI) 0.5 m x 5 mm on a 5-degree slope, held along x at its lower end,
+    # and an aluminium L-bracket (mm) standing on its foot with a sideways load on its
+    # upright.
+    a = math.radians(5.0)
+    d, n = (math.cos(a), math.sin(a)), (-math.sin(a), math.cos(a))
+    L, H, gap = 0.5, 0.005, 2e-6
+    pts = [(gap * n[0], gap * n[1])]
+    pts.append((pts[0][0] + L * d[0], pts[0][1] + L * d[1]))
+    pts.append((pts[1][0] + H * n[0], pts[1][1] + H * n[1]))
+    pts.append((pts[0][0] + H * n[0], pts[0][1] + H * n[1]))
+    gmsh.model.add("sheet")
+    _, lines, surface = polygon(pts, 0.0015 * scale)
+    gmsh.model.geo.synchronize()
+    for line, group in zip(lines, ["under", "right", "top", "left"]):
+        gmsh.model.addPhysicalGroup(1, [line], name=group)
+    gmsh.model.addPhysicalGroup(2, [surface], name="body")
+    gmsh.model.mesh.generate(2)
+    write(out, "sheet.msh")
+    gmsh.model.remove()
+    cases.append(("sheet", "A steel sheet (SI) on a 5-degree slope under its own weight, held along x at its lower end; Coulomb 0.3.",
+                  2.1e11, 0.3, "plane_stress", '[[dirichlet]]\ngroup = "left"\nux = 0.0\n',
+                  "[body_force]\nf = [0.0, -77008.5]\n", (0.0, 0.0), n,
+                  'friction = "coulomb"\ncoefficient = 0.3'))
+    gmsh.model.add("bracket")
+    pts = [(0, 0.002), (120, 0.002), (120, 6.002), (6, 6.002), (6, 80.002), (0, 80.002)]
+    _, lines, surface = polygon(pts, 1.2 * scale)
+    gmsh.model.geo.synchronize()
+    for line, group in zip(lines, ["under", "toe", "foot", "inner", "head", "back"]):
+        gmsh.model.addPhysicalGroup(1, [line], name=group)
+    gmsh.model.addPhysicalGroup(2, [surface], name="body")
+    gmsh.model.mesh.generate(2)
+    write(out, "bracket.msh")
+    gmsh.model.remove()
+    cases.append(("bracket", "An aluminium L-bracket (mm) on its foot, pressed down on its foot and pushed sideways at its head; Coulomb 0.6.",
+                  70000.0, 0.33, "plane_strain", '[[dirichlet]]\ngroup = "toe"\nux = 0.0\n',
+                  '[[traction]]\ngroup = "foot"\nt = [0.0, -0.2]\n\n[[traction]]\ngroup = "head"\nt = [0.5, 0.0]\n\n[body_force]\nf = [0.0, -2.65e-5]\n',
+                  (0.0, 0.0), (0.0, 1.0), 'friction = "coulomb"\ncoefficient = 0.6'))
+    for name, what, young, nu, hyp, dirichlet, loads, p0, normal, friction in cases:
+        text = HELDOUT_CASE.format(what=what, title=name, mesh=name + ".msh", young=young,
+                                   poisson=nu, hyp=hyp, dirichlet=dirichlet, loads=loads,
+                                   px=p0[0], py=p0[1], nx=normal[0], ny=normal[1],
+                                   friction=friction)
+        with open(os.path.join(out, name + ".toml"), "w") as f:
+            f.write(text)
+
+
+HELDOUT_CASE = """# {what}
+# Made by make_cases.py --heldout (a held-out check of the loop's sweep counts: not used
+# to choose any of its rules).
+title = "{title}"
+
+[mesh]
+file = "{mesh}"
+
+[material]
+young = {young}
+poisson = {poisson}
+hypothesis = "{hyp}"
+{dirichlet}
+{loads}
+[contact]
+group = "under"
+obstacle_point = [{px}, {py}]
+obstacle_normal = [{nx:.12f}, {ny:.12f}]
+{friction}
+"""
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--scale", type=float, default=1.0)
@@ -262,13 +408,16 @@ def main():
                     help="write the clamped beams of the slender-body study instead")
     ap.add_argument("--slender", action="store_true",
                     help="write the held-out slender bodies instead")
+    ap.add_argument("--heldout", action="store_true",
+                    help="write the held-out block on a slope, half ring and slab instead")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
-    if args.beams or args.slender:
+    if args.beams or args.slender or args.heldout:
         gmsh.initialize()
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("Mesh.Algorithm", 6)
-        (beams if args.beams else slender)(args.scale, args.out)
+        make = beams if args.beams else slender if args.slender else heldout
+        make(args.scale, args.out)
         gmsh.finalize()
         return
     gmsh.initialize()
