@@ -805,6 +805,7 @@ mod tests {
             w: vec![0.5],
             g: vec![g],
             s: vec![0.0; 1],
+            ..Default::default()
         };
         let mut s = Springs {
             k: vec![2.0],
@@ -837,6 +838,7 @@ mod tests {
                 w: vec![0.5],
                 g: vec![1.0],
                 s: vec![0.0; 1],
+                ..Default::default()
             };
             let mut s = Springs {
                 k: vec![1e-13],
@@ -898,6 +900,7 @@ mod tests {
                     w: vec![0.5],
                     g: vec![1.0],
                     s: vec![0.0; 1],
+                    ..Default::default()
                 };
                 let mut s = Springs {
                     k: vec![2.0],
@@ -924,6 +927,7 @@ mod tests {
             w: vec![0.5],
             g: vec![1.0],
             s: vec![0.0; 1],
+            ..Default::default()
         };
         let mut p = params(Friction::None, PLAIN);
         p.max_iter = 2;
@@ -946,6 +950,7 @@ mod tests {
             w: vec![0.5; n],
             g: (0..n).map(|i| 0.02 * i as f64).collect(),
             s: (0..n).map(|i| i as f64).collect(),
+            ..Default::default()
         };
         let k = (0..n)
             .map(|i| 0.05 + 20.0 * (i as f64 / n as f64).powi(2))
@@ -1057,6 +1062,7 @@ mod tests {
                 w: vec![0.5; n],
                 g: vec![0.01; n],
                 s: (0..n).map(|i| i as f64).collect(),
+                ..Default::default()
             };
             let mut step = Tunable {
                 f: vec![[1.0, 0.0]; n],

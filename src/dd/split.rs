@@ -7,8 +7,9 @@
 //! order; every rank orders its boundary dofs last: contact, then interface.
 //!
 //! A contact dof is in B only if the contact acts on it ([`contact_components`]): without
-//! friction on a foundation whose normal is along an axis, the other component of a
-//! contact node stays in the interior. The dense work of a rank grows like |B|^3 and its
+//! friction, at a node whose normal is along an axis, the other component stays in the
+//! interior (the dofs are not rotated into each node's frame, so a node with an oblique
+//! normal keeps both). The dense work of a rank grows like |B|^3 and its
 //! sweep like |B|^2, so this halves the contact part of B where it applies (frictionless
 //! Hertz at 1.2M nodes: the last dense supernode of the one-rank factor shrinks from
 //! 5047 to 3293 columns).
@@ -80,12 +81,14 @@ pub fn split(
     part: &Partition,
     frictional: bool,
 ) -> Result<(Vec<SubProblem>, GlobalMap)> {
-    let read = contact_components(frictional, prob.normal);
     let n = prob.mesh.num_nodes();
     let nparts = part.nparts;
     let mut is_contact = vec![false; n];
-    for &c in &prob.contact_nodes {
+    // The components each node's contact reads (none off the contact boundary).
+    let mut read = vec![[false; 2]; n];
+    for (k, &c) in prob.contact_nodes.iter().enumerate() {
         is_contact[c] = true;
+        read[c] = contact_components(frictional, prob.contact.normal[k]);
     }
     let mut on_interface = vec![false; n];
     for p in &part.parts {
@@ -105,7 +108,7 @@ pub fn split(
                 interface_index[v][c] = Some(n_interface);
                 n_interface += 1;
                 n_boundary += 1;
-            } else if is_contact[v] && read[c] {
+            } else if is_contact[v] && read[v][c] {
                 n_boundary += 1;
             }
         }
@@ -141,7 +144,7 @@ pub fn split(
                 if let Some(b) = interface_index[g][c] {
                     interface_dofs.push(2 * l + c);
                     interface_global.push(b);
-                } else if is_contact[g] && read[c] && prob.fixed[2 * g + c].is_none() {
+                } else if is_contact[g] && read[g][c] && prob.fixed[2 * g + c].is_none() {
                     boundary_dofs.push(2 * l + c);
                 }
             }
@@ -161,11 +164,7 @@ pub fn split(
                 .iter()
                 .map(|&k| local_of[prob.contact_nodes[k]])
                 .collect(),
-            contact: ContactNodes {
-                w: mine.iter().map(|&k| prob.contact.w[k]).collect(),
-                g: mine.iter().map(|&k| prob.contact.g[k]).collect(),
-                s: mine.iter().map(|&k| prob.contact.s[k]).collect(),
-            },
+            contact: prob.contact.select(mine),
             boundary_dofs,
             n_contact_dofs,
             interface_global,

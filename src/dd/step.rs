@@ -26,8 +26,6 @@ pub struct StepSetup<'a> {
     pub r: f64,
     /// Shift of the interface block of every local matrix (see `LocalFactor`).
     pub alpha: f64,
-    pub normal: [f64; 2],
-    pub tangent: [f64; 2],
     pub frictional: bool,
     /// Interface dofs of the whole mesh (0: a single subdomain).
     pub n_interface: usize,
@@ -63,7 +61,7 @@ impl LocalSystem {
                 &sub.contact.w,
                 &rr,
                 &rr,
-                s.normal,
+                &sub.contact.normal,
                 s.frictional,
             );
             let mut g_nodes: Vec<usize> = sub.boundary_dofs[sub.n_contact_dofs..]
@@ -152,8 +150,7 @@ impl<'a> CondensedStep<'a> {
             &sub.contact_nodes,
             &sub.fixed,
             &sub.boundary_dofs,
-            setup.normal,
-            setup.tangent,
+            &sub.contact.normal,
             setup.frictional,
         ))?;
         drop(schur);
@@ -309,7 +306,7 @@ impl LinearStep for CondensedStep<'_> {
             &self.sub.contact.w,
             &shift(r_n),
             &shift(r_t),
-            self.setup.normal,
+            &self.sub.contact.normal,
             self.setup.frictional,
         );
         let updated = boundary_entries(&blocks, &self.sub.fixed, &self.sub.boundary_dofs)
