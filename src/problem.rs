@@ -202,14 +202,14 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
 
 /// The contact nodes of every contact (global ids, increasing), their weights and
 /// geometry against their obstacles, and the mean contact edge length. Refuses a group
-/// off the boundary, a node in two contacts and a node already through its obstacle.
+/// off the boundary and a node already through its obstacle.
 fn contact_geometry(
     case: &Case,
     mesh: &Mesh,
     boundary: &std::collections::HashSet<(usize, usize)>,
 ) -> Result<(Vec<usize>, ContactNodes, f64)> {
-    // Per node: its weight and its contact.
-    let mut weight: HashMap<usize, (f64, usize)> = HashMap::new();
+    // Per node: its weight in each contact whose group holds it.
+    let mut weight: HashMap<usize, Vec<(usize, f64)>> = HashMap::new();
     let mut lengths = Vec::new();
     for (i, c) in case.contacts.iter().enumerate() {
         let lines = line_group(case, mesh, "contact", &c.group)?;
@@ -226,34 +226,42 @@ fn contact_geometry(
             let len = edge_length(&mesh.nodes, a, b);
             lengths.push(len);
             for v in [a, b] {
-                let e = weight.entry(v).or_insert((0.0, i));
-                if e.1 != i {
-                    let x = mesh.nodes[v];
-                    return input(format!(
-                        "{}: the node at ({}, {}) is in the contact groups \"{}\" and \"{}\"; a node can be in one contact only: take it out of one group",
-                        case.origin, x[0], x[1], case.contacts[e.1].group, c.group
-                    ));
+                let per = weight.entry(v).or_default();
+                match per.iter_mut().find(|(j, _)| *j == i) {
+                    Some((_, w)) => *w += 0.5 * len,
+                    None => per.push((i, 0.5 * len)),
                 }
-                e.0 += 0.5 * len;
             }
         }
     }
+    // A node in several groups (the corner between two sides) is one node of the contact
+    // whose obstacle is nearest (the first on a tie), with its weight in that group: one
+    // normal per node, the other obstacle's pressure there left to its neighbours.
+    let owner: HashMap<usize, (usize, f64)> = (weight.iter())
+        .map(|(&v, per)| {
+            let gap = |i: usize| case.contacts[i].obstacle.geometry(mesh.nodes[v]).gap;
+            let best = (per.iter().copied())
+                .min_by(|a, b| gap(a.0).total_cmp(&gap(b.0)).then(a.0.cmp(&b.0)))
+                .expect("a contact node has a contact");
+            (v, best)
+        })
+        .collect();
     // Summed in a fixed order, so that r does not depend on the order of the file's
     // edges by a rounding (the loop's retunes can turn that into a sweep more or less).
     lengths.sort_unstable_by(f64::total_cmp);
     let total_len: f64 = lengths.iter().sum();
     let contact_h = total_len / lengths.len() as f64;
-    let mut contact_nodes: Vec<usize> = weight.keys().copied().collect();
+    let mut contact_nodes: Vec<usize> = owner.keys().copied().collect();
     contact_nodes.sort_unstable();
     let geometry: Vec<_> = (contact_nodes.iter())
-        .map(|v| case.contacts[weight[v].1].obstacle.geometry(mesh.nodes[*v]))
+        .map(|v| case.contacts[owner[v].0].obstacle.geometry(mesh.nodes[*v]))
         .collect();
     let contact = ContactNodes {
-        w: contact_nodes.iter().map(|v| weight[v].0).collect(),
+        w: contact_nodes.iter().map(|v| owner[v].1).collect(),
         g: geometry.iter().map(|g| g.gap).collect(),
         s: geometry.iter().map(|g| g.s).collect(),
         normal: geometry.iter().map(|g| g.normal).collect(),
-        pair: contact_nodes.iter().map(|v| weight[v].1 as u32).collect(),
+        pair: contact_nodes.iter().map(|v| owner[v].0 as u32).collect(),
     };
     // Round-off in mesh coordinates can put a touching node a hair below the line.
     if let Some(k) = (0..contact_nodes.len()).find(|&k| contact.g[k] < -1e-9 * contact_h) {

@@ -1,0 +1,241 @@
+//! Rigid obstacles of any shape (`[[contact]]` with `obstacle = { type = ... }`): Hertz
+//! line contact of the elastic quarter cylinder against a rigid circle from outside
+//! (convex-convex) and from inside (a pin in a hole), the discrete contact conditions at
+//! every node against its own gap, the old `[contact]` table against the same line in the
+//! new syntax and against a polyline of one segment, a block between two obstacles, and
+//! agreement of 1 and 3 ranks.
+
+mod common;
+
+use common::*;
+use std::f64::consts::PI;
+
+/// The built-in hertz case at `level` with its `[contact]` table replaced by `contact`
+/// (the table is the last of the built-in case).
+fn hertz_with(level: u32, contact: &str) -> String {
+    let text = contact_par::case::builtin_case_text("hertz", level).expect("hertz");
+    let head = text.split("[contact]").next().unwrap().to_string();
+    head + contact
+}
+
+/// The convex cylinder (R1 = 50, centre (0, 50)) on a rigid roller of radius 50 under it.
+const ON_ROLLER: &str = r#"[[contact]]
+slave = "contact"
+obstacle = { type = "circle", centre = [0.0, -50.0], radius = 50.0, body = "outside" }
+"#;
+/// The cylinder in a rigid hole of radius 100 touching it at the origin.
+const IN_HOLE: &str = r#"[[contact]]
+slave = "contact"
+obstacle = { type = "circle", centre = [0.0, 100.0], radius = 100.0, body = "inside" }
+"#;
+
+/// Hertz's half-width and peak pressure for the run's total force (quarter model: the
+/// whole cylinder carries twice), E* of the elastic body only, 1/R = 1/R1 + 1/R2 (R2 < 0
+/// for a hole).
+fn hertz(run: &Run, r2: f64) -> (f64, f64) {
+    let p = 2.0 * num(&run.summary(), "total_normal_force");
+    let e_star = 210000.0 / (1.0 - 0.3 * 0.3);
+    let radius = 1.0 / (1.0 / 50.0 + 1.0 / r2);
+    let a = (4.0 * p * radius / (PI * e_star)).sqrt();
+    (a, 2.0 * p / (PI * a))
+}
+
+/// (half-width error, peak error, worst profile error over x < 0.8 a, all relative) of
+/// one Hertz run, after its bracketing and KKT checks.
+fn hertz_errors(level: u32, contact: &str, r2: f64) -> (f64, f64, f64) {
+    let run = run_case(&hertz_with(level, contact), &[]);
+    run.expect_code(0);
+    let rows = run.contact();
+    let what = format!("level {level}, R2 = {r2}");
+    check_kkt(&rows, Law::None, 1e-7, &what);
+    let (a, p0) = hertz(&run, r2);
+    let last = rows.iter().rposition(|r| r.p_n > 0.0).expect("no contact");
+    assert!(
+        rows[..last].iter().all(|r| r.p_n > 0.0),
+        "{what}: contact zone is not one interval"
+    );
+    let (x_in, x_out) = (rows[last].x, rows[last + 1].x);
+    assert!(
+        x_in <= a * 1.03 && x_out >= a * 0.97,
+        "{what}: a = {a} not between the nodes {x_in}, {x_out}"
+    );
+    let e_a = (0.5 * (x_in + x_out) - a) / a;
+    let pmax = rows.iter().map(|r| r.p_n).fold(0.0, f64::max);
+    let e_p = (pmax - p0) / p0;
+    let profile = (rows.iter().filter(|r| r.x < 0.8 * a))
+        .map(|r| (r.p_n - p0 * (1.0 - (r.x / a).powi(2)).sqrt()).abs() / p0)
+        .fold(0.0, f64::max);
+    println!(
+        "{what}: a = {a}, p0 = {p0}: half-width {e_a:+.3e}, peak {e_p:+.3e}, profile {profile:.3e}"
+    );
+    (e_a, e_p, profile)
+}
+
+/// Half-width and peak within 3% at every level, the profile's error shrinking level by
+/// level (the half-width and peak errors are bounded by the node spacing and by Hertz's
+/// a << R, so they need not fall monotonically).
+fn hertz_study(contact: &str, r2: f64) {
+    let mut previous = f64::INFINITY;
+    for level in 1..=3 {
+        let (e_a, e_p, profile) = hertz_errors(level, contact, r2);
+        assert!(
+            e_a.abs() <= 0.03,
+            "level {level}: half-width off by {e_a:e}"
+        );
+        assert!(e_p.abs() <= 0.03, "level {level}: peak off by {e_p:e}");
+        assert!(
+            profile < previous,
+            "level {level}: profile error {profile:e} did not shrink from {previous:e}"
+        );
+        previous = profile;
+    }
+    assert!(previous <= 0.015, "finest profile error {previous:e}");
+}
+
+#[test]
+fn hertz_cylinder_on_a_rigid_roller() {
+    hertz_study(ON_ROLLER, 50.0);
+}
+
+#[test]
+fn hertz_cylinder_in_a_rigid_hole() {
+    hertz_study(IN_HOLE, -100.0);
+}
+
+#[test]
+fn the_old_table_and_the_new_line_give_the_same_numbers() {
+    let old = std::fs::read(
+        run_builtin("hertz", 1, &[])
+            .expect_code(0)
+            .out
+            .join("contact.csv"),
+    );
+    let line = r#"[[contact]]
+slave = "contact"
+obstacle = { type = "line", point = [0.0, 0.0], normal = [0.0, 1.0] }
+friction = "none"
+"#;
+    let new = run_case(&hertz_with(1, line), &[]);
+    new.expect_code(0);
+    assert_eq!(
+        old.unwrap(),
+        std::fs::read(new.out.join("contact.csv")).unwrap(),
+        "contact.csv differs"
+    );
+    // Coulomb on a tilted foundation, as a polyline of one segment.
+    let t: f64 = 1e-3;
+    let m = [t.sin(), t.cos()];
+    let old = run_case(
+        &block_case(
+            1,
+            "ux = 0.01\nuy = -0.02",
+            "friction = \"coulomb\"\ncoefficient = 0.3",
+            m,
+            "",
+        ),
+        &[],
+    );
+    old.expect_code(0);
+    let p0 = [0.0, -0.001];
+    let along = |l: f64| [p0[0] + l * m[1], p0[1] - l * m[0]];
+    let (a, b) = (along(-5.0), along(60.0));
+    let poly = block_case(1, "ux = 0.01\nuy = -0.02", "", m, "").replace(
+        &format!(
+            "[contact]\ngroup = \"bottom\"\nobstacle_point = [0.0, -0.001]\nobstacle_normal = [{:?}, {:?}]\n",
+            m[0], m[1]
+        ),
+        &format!(
+            "[[contact]]\nslave = \"bottom\"\nobstacle = {{ type = \"polyline\", points = [[{:?}, {:?}], [{:?}, {:?}]] }}\nfriction = \"coulomb\"\ncoefficient = 0.3\n",
+            a[0], a[1], b[0], b[1]
+        ),
+    );
+    assert!(poly.contains("polyline"), "{poly}");
+    let new = run_case(&poly, &[]);
+    new.expect_code(0);
+    let counts = check_kkt(&new.contact(), Law::Coulomb(0.3), 1e-7, "polyline");
+    assert!(
+        counts.stick > 0 && counts.slip > 0 && counts.free > 0,
+        "{counts:?}"
+    );
+    assert_same_columns(
+        &old.contact(),
+        &new.contact(),
+        1e-8,
+        "line vs one-segment polyline",
+    );
+}
+
+/// The block pushed right and down by its top, frictionless on a floor and against a
+/// wall at its right: the obstacles carry the load, each its own share.
+#[test]
+fn a_block_between_a_floor_and_a_wall() {
+    let case = r#"title = "block between a floor and a wall"
+[mesh]
+builtin = "block"
+level = 1
+[material]
+young = 70000.0
+poisson = 0.3
+[[traction]]
+group = "top"
+t = [20.0, -50.0]
+[[contact]]
+slave = "bottom"
+obstacle = { type = "polyline", points = [[-10.0, -0.001], [50.0, -0.001]] }
+[[contact]]
+slave = "right"
+obstacle = { type = "line", point = [40.002, 0.0], normal = [-1.0, 0.0] }
+[solver]
+tol = 1e-10
+"#;
+    let run = run_case(case, &[]);
+    run.expect_code(0);
+    check_kkt(&run.contact(), Law::None, 1e-7, "floor and wall");
+    let s = run.summary();
+    let pairs = s["contacts"].as_array().expect("contacts");
+    assert_eq!(pairs.len(), 2);
+    let force = |i: usize| -> [f64; 2] {
+        let f = pairs[i]["force"].as_array().unwrap();
+        [f[0].as_f64().unwrap(), f[1].as_f64().unwrap()]
+    };
+    println!("floor {:?}, wall {:?}", force(0), force(1));
+    assert_eq!(pairs[0]["slave"], "bottom");
+    assert_eq!(pairs[1]["obstacle"], "line");
+    // Equilibrium: the top's traction over its 40 mm.
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs();
+    assert!(close(force(0)[1], 2000.0) && force(0)[0].abs() < 1e-9);
+    assert!(close(force(1)[0], -800.0) && force(1)[1].abs() < 1e-9);
+    assert!(close(num(&s, "total_normal_force"), 2800.0));
+}
+
+#[test]
+fn a_frictional_roller_gives_the_same_answer_on_1_and_3_ranks() {
+    let case = hertz_with(1, ON_ROLLER)
+        + "friction = \"coulomb\"\ncoefficient = 0.2\n[solver]\ntol = 1e-10\n";
+    let dir = tempfile::TempDir::new().unwrap();
+    std::fs::write(dir.path().join("case.toml"), &case).unwrap();
+    let mut outs = Vec::new();
+    for np in [1, 3] {
+        let out = format!("out{np}");
+        let o = mpirun(np, dir.path())
+            .args([
+                "case.toml",
+                "--out",
+                &out,
+                "--quiet",
+                "--subdomains-per-rank",
+                "1",
+            ])
+            .output()
+            .expect("mpirun");
+        assert!(
+            o.status.success(),
+            "{np} ranks: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        outs.push(read_contact(&dir.path().join(out).join("contact.csv")));
+    }
+    let counts = check_kkt(&outs[1], Law::Coulomb(0.2), 1e-7, "3 ranks");
+    assert!(counts.stick + counts.slip > 0, "{counts:?}");
+    assert_same_columns(&outs[0], &outs[1], 1e-8, "1 against 3 ranks");
+}
