@@ -8,8 +8,9 @@
 //! names its split and its index, so that a part of another split is refused.
 //!
 //! A run reads the case file again. Only what the parts are made of must be unchanged:
-//! the mesh, the Dirichlet conditions, the tractions, the body force, the contact group,
-//! the foundation and whether there is friction (which decides the boundary dofs). The
+//! the mesh, the Dirichlet conditions, the tractions, the body force, the contact groups,
+//! their obstacles (the nodes' normals and gaps) and whether there is friction (which
+//! decides the boundary dofs and the nodes turned into their frames). The
 //! material, the friction coefficient or threshold and the solver settings may change
 //! between runs of one split: the split keeps the mesh's lengths, not the default r.
 

@@ -208,34 +208,65 @@ tol = 1e-10
     assert!(close(num(&s, "total_normal_force"), 2800.0));
 }
 
+/// Frictionless (each node's dofs turned into its frame, one dof per contact node in the
+/// condensed system) and Coulomb (both dofs, in x, y): the same answer on 1 and 3 ranks,
+/// and without friction the same as the uncondensed solve in x, y (`--linear full`).
 #[test]
-fn a_frictional_roller_gives_the_same_answer_on_1_and_3_ranks() {
-    let case = hertz_with(1, ON_ROLLER)
-        + "friction = \"coulomb\"\ncoefficient = 0.2\n[solver]\ntol = 1e-10\n";
-    let dir = tempfile::TempDir::new().unwrap();
-    std::fs::write(dir.path().join("case.toml"), &case).unwrap();
-    let mut outs = Vec::new();
-    for np in [1, 3] {
-        let out = format!("out{np}");
-        let o = mpirun(np, dir.path())
-            .args([
-                "case.toml",
-                "--out",
-                &out,
-                "--quiet",
-                "--subdomains-per-rank",
-                "1",
-            ])
-            .output()
-            .expect("mpirun");
-        assert!(
-            o.status.success(),
-            "{np} ranks: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        outs.push(read_contact(&dir.path().join(out).join("contact.csv")));
+fn a_roller_gives_the_same_answer_on_1_and_3_ranks() {
+    for friction in [
+        "friction = \"none\"",
+        "friction = \"coulomb\"\ncoefficient = 0.2",
+    ] {
+        let case = hertz_with(1, ON_ROLLER) + friction + "\n[solver]\ntol = 1e-10\n";
+        let dir = tempfile::TempDir::new().unwrap();
+        std::fs::write(dir.path().join("case.toml"), &case).unwrap();
+        let mut runs: Vec<(&str, &[&str])> = vec![("1", &[]), ("3", &[])];
+        if !friction.contains("coulomb") {
+            runs.push(("1", &["--linear", "full"]));
+        }
+        let mut outs = Vec::new();
+        for (k, (np, extra)) in runs.iter().enumerate() {
+            let out = format!("out{k}");
+            let o = mpirun(np.parse().unwrap(), dir.path())
+                .args([
+                    "case.toml",
+                    "--out",
+                    &out,
+                    "--quiet",
+                    "--subdomains-per-rank",
+                    "1",
+                ])
+                .args(*extra)
+                .output()
+                .expect("mpirun");
+            assert!(
+                o.status.success(),
+                "{np} ranks {extra:?}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+            let out = dir.path().join(out);
+            outs.push((
+                read_contact(&out.join("contact.csv")),
+                read_summary(&out.join("summary.json")),
+            ));
+        }
+        let rows = &outs[0].0;
+        if friction.contains("coulomb") {
+            let counts = check_kkt(&outs[1].0, Law::Coulomb(0.2), 1e-7, "3 ranks");
+            assert!(counts.stick + counts.slip > 0, "{counts:?}");
+            // Both ends of the arc have a prescribed component (ux on the axis, uy under
+            // the top).
+            assert_eq!(
+                num(&outs[0].1, "boundary_dofs") as usize,
+                2 * rows.len() - 2
+            );
+        } else {
+            check_kkt(&outs[1].0, Law::None, 1e-7, "3 ranks");
+            // One dof per node: the normal one where turned; at the ends of the arc the
+            // free one of x, y (their other component is prescribed).
+            assert_eq!(num(&outs[0].1, "boundary_dofs") as usize, rows.len());
+            assert_same_columns(rows, &outs[2].0, 1e-8, "condensed in frames against full");
+        }
+        assert_same_columns(rows, &outs[1].0, 1e-8, "1 against 3 ranks");
     }
-    let counts = check_kkt(&outs[1], Law::Coulomb(0.2), 1e-7, "3 ranks");
-    assert!(counts.stick + counts.slip > 0, "{counts:?}");
-    assert_same_columns(&outs[0], &outs[1], 1e-8, "1 against 3 ranks");
 }
