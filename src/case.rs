@@ -927,7 +927,10 @@ pub const BLOCK_WIDTH: f64 = 40.0;
 pub const BLOCK_HEIGHT: f64 = 10.0;
 
 /// Names of the built-in cases, the first being the default.
-pub const BUILTIN_CASES: [&str; 3] = ["hertz", "block", "block_flat"];
+pub const BUILTIN_CASES: [&str; 4] = ["hertz", "block", "block_flat", "punch"];
+
+/// Radius of the built-in punch (mm).
+pub const PUNCH_RADIUS: f64 = 100.0;
 
 /// The TOML text of a built-in case, so users can print it and start from it.
 pub fn builtin_case_text(name: &str, level: u32) -> Option<String> {
@@ -1001,6 +1004,32 @@ obstacle_point = [0.0, -0.001]
 obstacle_normal = [0.0, 1.0]
 friction = "none"
 "#
+        ),
+        // A rigid cylindrical punch over the middle of the block's top, pressed in and
+        // dragged along it: the block's base is moved instead (down-right of the punch
+        // is up-left of the block), so the obstacle stays where it is. Coulomb friction:
+        // a sticking centre and slipping edges.
+        "punch" => format!(
+            r#"title = "Rigid circular punch pressed into a block and dragged along it, Coulomb friction"
+[mesh]
+builtin = "block"          # {BLOCK_WIDTH} x {BLOCK_HEIGHT} mm
+level = {level}
+[material]
+young = 70000.0            # MPa
+poisson = 0.33
+hypothesis = "plane_strain"
+[[dirichlet]]              # the base moved: the punch pressed in by 0.05 mm, dragged by 0.01 mm along +x
+group = "bottom"
+ux = -0.01
+uy = 0.05
+[[contact]]
+slave = "top"
+obstacle = {{ type = "circle", centre = [{cx:?}, {cy:?}], radius = {PUNCH_RADIUS:?}, body = "outside" }}
+friction = "coulomb"
+coefficient = 0.3
+"#,
+            cx = BLOCK_WIDTH / 2.0,
+            cy = BLOCK_HEIGHT + PUNCH_RADIUS,
         ),
         _ => return None,
     };

@@ -270,3 +270,59 @@ fn a_roller_gives_the_same_answer_on_1_and_3_ranks() {
         assert_same_columns(rows, &outs[1].0, 1e-8, "1 against 3 ranks");
     }
 }
+
+/// The built-in punch (a rigid roller pressed into the block's top and dragged along it,
+/// Coulomb): the same answer on 1 and 3 ranks, the discrete conditions at every node, one
+/// sticking interval beside slipping nodes (on the side away from the drag: the thin
+/// clamped block couples normal and tangential response, so the stick zone is not
+/// centred as on a half-space), and the punch's force pushing the block down and
+/// dragging it along +x, within the friction cone.
+#[test]
+fn the_punch_sticks_and_slips() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let mut outs = Vec::new();
+    for np in [1, 3] {
+        let out = format!("out{np}");
+        let o = mpirun(np, dir.path())
+            .args([
+                "--builtin",
+                "punch",
+                "--level",
+                "2",
+                "--out",
+                &out,
+                "--quiet",
+            ])
+            .args(["--tol", "1e-10", "--subdomains-per-rank", "1"])
+            .output()
+            .expect("mpirun");
+        assert!(
+            o.status.success(),
+            "{np} ranks: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let out = dir.path().join(out);
+        outs.push((
+            read_contact(&out.join("contact.csv")),
+            read_summary(&out.join("summary.json")),
+        ));
+    }
+    assert_same_columns(&outs[0].0, &outs[1].0, 1e-8, "punch, 1 against 3 ranks");
+    let (rows, s) = &outs[0];
+    let counts = check_kkt(rows, Law::Coulomb(0.3), 1e-7, "punch");
+    assert!(counts.stick >= 3 && counts.slip >= 3, "{counts:?}");
+    // Rows are sorted by x along the top: the sticking nodes lie between slipping ones.
+    let active: Vec<_> = rows.iter().filter(|r| r.p_n > 0.0).collect();
+    let sticks = |r: &&Row| r.p_t.abs() < 0.3 * r.p_n * (1.0 - 1e-6);
+    let first = active.iter().position(sticks).expect("a sticking node");
+    let last = active.iter().rposition(sticks).unwrap();
+    assert!(last + 1 < active.len(), "no slip beyond the stick zone");
+    assert!(
+        active[first..=last].iter().all(sticks),
+        "stick zone not one interval"
+    );
+    let force = &s["contacts"][0]["force"];
+    let (fx, fy) = (force[0].as_f64().unwrap(), force[1].as_f64().unwrap());
+    println!("punch force on the block: ({fx}, {fy})");
+    assert!(fy < 0.0 && fx > 0.0 && fx < 0.3 * -fy, "({fx}, {fy})");
+}
