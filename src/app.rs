@@ -262,7 +262,8 @@ fn iterate(ctx: &Subdomain, sub: &SubProblem, step: &mut impl LinearStep) -> Res
         };
         let params = ctx.setup.params();
         let mut on_sweep = |s: &Sweep| monitor.sweep(s);
-        contact::solve_with(step, mpi, &sub.contact, &params, &mut on_sweep, &mut ckpt)?
+        let nodes = problem::with_friction_values(&ctx.setup.case, &sub.contact);
+        contact::solve_with(step, mpi, &nodes, &params, &mut on_sweep, &mut ckpt)?
     };
     monitor.last(&outcome);
     let sweeps = outcome.iterations;

@@ -81,13 +81,15 @@ pub struct Case {
     pub dirichlet: Vec<Dirichlet>,
     pub traction: Vec<Traction>,
     pub body_force: [f64; 2],
-    /// At least one; all with the same friction law (checked).
+    /// At least one; all with the same kind of friction law (checked), each with its
+    /// own coefficient or threshold.
     pub contacts: Vec<Contact>,
     pub solver: Solver,
 }
 
 impl Case {
-    /// The friction law, the same on every contact.
+    /// The friction law, the same kind on every contact (the first contact's value;
+    /// `problem::with_friction_values` gives each node its own).
     pub fn friction(&self) -> Friction {
         self.contacts[0].friction
     }
@@ -622,14 +624,19 @@ fn validate_contacts(raw: RawContacts, origin: &str) -> Result<Vec<Contact>> {
             friction,
         });
     }
+    let law = |f: &Friction| match f {
+        Friction::None => "none",
+        Friction::Tresca { .. } => "tresca",
+        Friction::Coulomb { .. } => "coulomb",
+    };
     if let Some((i, c)) =
-        (contacts.iter().enumerate()).find(|(_, c)| c.friction != contacts[0].friction)
+        (contacts.iter().enumerate()).find(|(_, c)| law(&c.friction) != law(&contacts[0].friction))
     {
         return input(format!(
-            "{origin}: contact #{} has friction {:?} but contact #1 {:?}; all contacts share one friction law for now: give every [[contact]] the same friction, threshold and coefficient",
+            "{origin}: contact #{} has friction = \"{}\" but contact #1 friction = \"{}\"; all contacts share one friction law for now (their coefficients or thresholds may differ): give every [[contact]] the same friction",
             i + 1,
-            c.friction,
-            contacts[0].friction
+            law(&c.friction),
+            law(&contacts[0].friction)
         ));
     }
     if let Some((i, c)) = (contacts.iter().enumerate())

@@ -66,6 +66,26 @@ impl Problem {
     }
 }
 
+/// `nodes` with each node's friction value (Coulomb coefficient or Tresca threshold) from
+/// its contact's law, where the contacts give different values (the law is the same
+/// kind on all: checked with the case); otherwise as they are, the one value of
+/// `Case::friction` serving every node.
+pub fn with_friction_values(case: &Case, nodes: &ContactNodes) -> ContactNodes {
+    let value = |f: Friction| match f {
+        Friction::None => 0.0,
+        Friction::Tresca { threshold } => threshold,
+        Friction::Coulomb { coefficient } => coefficient,
+    };
+    let first = value(case.friction());
+    let mut out = nodes.clone();
+    if case.contacts.iter().any(|c| value(c.friction) != first) {
+        out.friction = (nodes.pair.iter())
+            .map(|&p| value(case.contacts[p as usize].friction))
+            .collect();
+    }
+    out
+}
+
 /// The two lengths of the mesh that set the default r (kept in a split directory, so that
 /// a run from it needs no mesh and may change the material).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -262,6 +282,7 @@ fn contact_geometry(
         s: geometry.iter().map(|g| g.s).collect(),
         normal: geometry.iter().map(|g| g.normal).collect(),
         pair: contact_nodes.iter().map(|v| owner[v].0 as u32).collect(),
+        friction: Vec::new(),
     };
     // Round-off in mesh coordinates can put a touching node a hair below the line.
     if let Some(k) = (0..contact_nodes.len()).find(|&k| contact.g[k] < -1e-9 * contact_h) {

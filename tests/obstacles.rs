@@ -326,3 +326,49 @@ fn the_punch_sticks_and_slips() {
     println!("punch force on the block: ({fx}, {fy})");
     assert!(fy < 0.0 && fx > 0.0 && fx < 0.3 * -fy, "({fx}, {fy})");
 }
+
+/// Two contacts with their own Coulomb coefficients: the block pushed by its left side
+/// slides against a wall (0.1) while its floor (0.3) holds it; each node obeys its own
+/// contact's cone.
+#[test]
+fn each_contact_has_its_own_friction_coefficient() {
+    let case = r#"title = "block on a floor against a wall"
+[mesh]
+builtin = "block"
+level = 1
+[material]
+young = 70000.0
+poisson = 0.33
+[[dirichlet]]
+group = "top"
+uy = -0.02
+[[traction]]
+group = "left"
+t = [40.0, 0.0]
+[[contact]]
+slave = "bottom"
+obstacle = { type = "line", point = [0.0, 0.0], normal = [0.0, 1.0] }
+friction = "coulomb"
+coefficient = 0.3
+[[contact]]
+slave = "right"
+obstacle = { type = "line", point = [40.001, 0.0], normal = [-1.0, 0.0] }
+friction = "coulomb"
+coefficient = 0.1
+[solver]
+tol = 1e-10
+"#;
+    let run = run_case(case, &[]);
+    run.expect_code(0);
+    let rows = run.contact();
+    // The corner (40, 0) is the floor's: both obstacles are as near, the floor first.
+    let (wall, floor): (Vec<Row>, Vec<Row>) = rows.iter().partition(|r| r.x == 40.0 && r.y > 0.0);
+    assert_eq!(wall.len(), 20);
+    check_kkt(&floor, Law::Coulomb(0.3), 1e-7, "floor");
+    let counts = check_kkt(&wall, Law::Coulomb(0.1), 1e-7, "wall");
+    assert!(counts.slip >= 10, "the wall should slip: {counts:?}");
+    let f = &run.summary()["contacts"][1]["force"];
+    let (fx, fy) = (f[0].as_f64().unwrap(), f[1].as_f64().unwrap());
+    println!("wall force on the block ({fx}, {fy})");
+    assert!(fx < 0.0 && (fy / fx + 0.1).abs() < 1e-6, "({fx}, {fy})");
+}

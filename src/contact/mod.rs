@@ -68,6 +68,12 @@ pub struct ContactNodes {
     pub normal: Vec<[f64; 2]>,
     /// The contact (the case's `[[contact]]` entry, from 0) each node belongs to.
     pub pair: Vec<u32>,
+    /// The friction law's value at each node (Coulomb coefficient, Tresca threshold)
+    /// where contacts give different ones; empty: the one of `Params::friction`. Filled
+    /// from the case at each run (a split's parts leave it empty, so the values may
+    /// change between runs of one split).
+    #[serde(default)]
+    pub friction: Vec<f64>,
 }
 
 /// The tangent of a unit normal: m turned clockwise.
@@ -84,6 +90,19 @@ impl ContactNodes {
             s: keep.iter().map(|&k| self.s[k]).collect(),
             normal: keep.iter().map(|&k| self.normal[k]).collect(),
             pair: keep.iter().map(|&k| self.pair[k]).collect(),
+            friction: keep
+                .iter()
+                .filter_map(|&k| self.friction.get(k).copied())
+                .collect(),
+        }
+    }
+
+    /// The friction law's value at every node: per node where given, else `value`.
+    pub fn friction_values(&self, value: f64) -> Vec<f64> {
+        if self.friction.is_empty() {
+            vec![value; self.len()]
+        } else {
+            self.friction.clone()
         }
     }
 

@@ -213,17 +213,19 @@ pub fn solve_with(
             (c, d, vec![0.0; n])
         }
         (Friction::Tresca { threshold }, _) => {
-            let s = vec![threshold; n];
+            let s = nodes.friction_values(threshold);
             let (c, d) = run.sweeps(Law::Fixed(&s), &mut x)?;
             (c, d, s)
         }
         (Friction::Coulomb { coefficient }, CoulombMode::Inner) => {
-            let (c, d) = run.sweeps(Law::Coulomb(coefficient), &mut x)?;
-            let s = coulomb_thresholds(coefficient, &d.lambda);
+            let coefficient = nodes.friction_values(coefficient);
+            let (c, d) = run.sweeps(Law::Coulomb(&coefficient), &mut x)?;
+            let s = coulomb_thresholds(&coefficient, &d.lambda);
             (c, d, s)
         }
         (Friction::Coulomb { coefficient }, CoulombMode::Outer) => {
-            let (c, d, s, outer) = run.coulomb_outer(coefficient, &mut x)?;
+            let coefficient = nodes.friction_values(coefficient);
+            let (c, d, s, outer) = run.coulomb_outer(&coefficient, &mut x)?;
             outer_iterations = outer;
             (c, d, s)
         }
@@ -308,11 +310,10 @@ fn initial_state(nodes: &ContactNodes, frictional: bool) -> Vec<f64> {
     x
 }
 
-/// The Coulomb thresholds of the pressures `lambda`.
-fn coulomb_thresholds(coefficient: f64, lambda: &[f64]) -> Vec<f64> {
-    lambda
-        .iter()
-        .map(|&l| coulomb_threshold(coefficient, l))
+/// The Coulomb thresholds of the pressures `lambda`, each node with its coefficient.
+fn coulomb_thresholds(coefficient: &[f64], lambda: &[f64]) -> Vec<f64> {
+    (coefficient.iter().zip(lambda))
+        .map(|(&c, &l)| coulomb_threshold(c, l))
         .collect()
 }
 
@@ -635,7 +636,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// [`Run::sweeps`], the last thresholds and the outer iterations.
     fn coulomb_outer(
         &mut self,
-        coefficient: f64,
+        coefficient: &[f64],
         x: &mut Vec<f64>,
     ) -> Result<(bool, Derived, Vec<f64>, usize)> {
         let n = self.sweeper.nodes.len();
