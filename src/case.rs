@@ -777,6 +777,15 @@ fn validate_obstacle(o: RawObstacle, origin: &str, key: &str) -> Result<Obstacle
                     ));
                 }
             }
+            if let Some(k) = (1..points.len()).find(|&k| {
+                let len = (points[k][0] - points[k - 1][0]).hypot(points[k][1] - points[k - 1][1]);
+                !(len.is_finite() && len > 0.0)
+            }) {
+                return input(format!(
+                    "{origin}: {key}.points: the segment from point {k} to point {} has no finite length; give points of the scale of the mesh",
+                    k + 1
+                ));
+            }
             match o.body.as_deref().unwrap_or("left") {
                 "left" => {}
                 // The kernel keeps the body on the left: walk the other way.

@@ -285,7 +285,11 @@ fn contact_geometry(
         friction: Vec::new(),
     };
     // Round-off in mesh coordinates can put a touching node a hair below the line.
-    if let Some(k) = (0..contact_nodes.len()).find(|&k| contact.g[k] < -1e-9 * contact_h) {
+    // (A gap that is not a number, from an obstacle far beyond the mesh's scale, is
+    // refused alike.)
+    if let Some(k) = (0..contact_nodes.len())
+        .find(|&k| contact.g[k].is_nan() || contact.g[k] < -1e-9 * contact_h)
+    {
         let x = mesh.nodes[contact_nodes[k]];
         let c = &case.contacts[contact.pair[k] as usize];
         let fix = match c.obstacle {
