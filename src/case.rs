@@ -383,7 +383,11 @@ pub fn parse_case(text: &str, origin: &str, dir: &Path) -> Result<Case> {
             None => Error::Input(format!("{origin}: {}", explain(&msg, None))),
         }
     })?;
-    validate(raw, origin, dir)
+    // Values are quoted in messages; a multi-line string must not make them two lines.
+    validate(raw, origin, dir).map_err(|e| match e {
+        Error::Input(m) => Error::Input(m.replace('\n', "\\n").replace('\r', "\\r")),
+        e => e,
+    })
 }
 
 fn finite(origin: &str, key: &str, v: f64) -> Result<f64> {
@@ -1170,6 +1174,63 @@ max_iter = 50
         assert!(e(None, None, Some(0)).contains("--max-iter = 0: it must be at least 1"));
         assert!(err(&GOOD.replace("max_iter = 50", "max_iter = 0"))
             .contains("case.toml: solver.max_iter = 0"));
+    }
+
+    #[test]
+    fn contact_entries_map_onto_obstacles() {
+        let head = GOOD.split("[contact]").next().unwrap();
+        let tail = "[solver]\nr = 1.0e4\n";
+        let c = parse(&format!(
+            r#"{head}[[contact]]
+slave = "bottom"
+obstacle = {{ type = "circle", centre = [1.0, -2.0], radius = 2.0, body = "inside" }}
+friction = "coulomb"
+coefficient = 0.3
+[[contact]]
+slave = "right"
+obstacle = {{ type = "polyline", points = [[0.0, 0.0], [1.0, 0.0], [2.0, 1.0]], body = "right" }}
+friction = "coulomb"
+coefficient = 0.1
+{tail}"#
+        ))
+        .unwrap();
+        assert_eq!(c.contacts.len(), 2);
+        assert_eq!(
+            c.contacts[0].obstacle,
+            Obstacle::Circle {
+                centre: [1.0, -2.0],
+                radius: 2.0,
+                body: Side::Inside
+            }
+        );
+        // The body on the right: walked the other way, the kernel keeps it on the left.
+        assert_eq!(
+            c.contacts[1].obstacle,
+            Obstacle::Polyline {
+                points: vec![[2.0, 1.0], [1.0, 0.0], [0.0, 0.0]]
+            }
+        );
+        assert_eq!(
+            c.contacts[1].friction,
+            Friction::Coulomb { coefficient: 0.1 }
+        );
+        // The old table is a line.
+        let old = parse(GOOD).unwrap();
+        assert_eq!(
+            old.contacts[0].obstacle,
+            Obstacle::Line {
+                point: [0.0, -0.001],
+                normal: [0.0, 1.0]
+            }
+        );
+        assert_eq!(old.contacts[0].group, "bottom");
+        // An empty list, and a missing slave.
+        let e = err(&format!("contact = []\n{head}{tail}"));
+        assert!(e.contains("empty list"), "{e}");
+        let e = err(&format!(
+            "{head}[[contact]]\nobstacle = {{ type = \"circle\", centre = [0.0, 0.0], radius = 1.0 }}\n{tail}"
+        ));
+        assert!(e.contains("lacks the required key slave"), "{e}");
     }
 
     #[test]
