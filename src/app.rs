@@ -263,7 +263,16 @@ fn iterate(ctx: &Subdomain, sub: &SubProblem, step: &mut impl LinearStep) -> Res
         let params = ctx.setup.params();
         let mut on_sweep = |s: &Sweep| monitor.sweep(s);
         let nodes = problem::with_friction_values(&ctx.setup.case, &sub.contact);
-        contact::solve_with(step, mpi, &nodes, &params, &mut on_sweep, &mut ckpt)?
+        let mut o = contact::solve_with(step, mpi, &nodes, &params, &mut on_sweep, &mut ckpt)?;
+        // A frictionless contact's nodes in a frictional run (a zero threshold) neither
+        // stick nor slip: in contact, as in a frictionless run.
+        for (status, &pair) in o.status.iter_mut().zip(&sub.contact.pair) {
+            let none = ctx.setup.case.contacts[pair as usize].friction == Friction::None;
+            if none && matches!(status, Status::Stick | Status::Slip) {
+                *status = Status::Contact;
+            }
+        }
+        o
     };
     monitor.last(&outcome);
     let sweeps = outcome.iterations;

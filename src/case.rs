@@ -81,17 +81,20 @@ pub struct Case {
     pub dirichlet: Vec<Dirichlet>,
     pub traction: Vec<Traction>,
     pub body_force: [f64; 2],
-    /// At least one; all with the same kind of friction law (checked), each with its
-    /// own coefficient or threshold.
+    /// At least one; the frictional ones with the same kind of law (checked), each with
+    /// its own coefficient or threshold.
     pub contacts: Vec<Contact>,
     pub solver: Solver,
 }
 
 impl Case {
-    /// The friction law, the same kind on every contact (the first contact's value;
-    /// `problem::with_friction_values` gives each node its own).
+    /// The friction law, the same kind on every frictional contact (the first one's
+    /// value; `problem::with_friction_values` gives each node its own, zero on a
+    /// frictionless contact among frictional ones).
     pub fn friction(&self) -> Friction {
-        self.contacts[0].friction
+        (self.contacts.iter().map(|c| c.friction))
+            .find(|f| *f != Friction::None)
+            .unwrap_or(Friction::None)
     }
 }
 
@@ -633,14 +636,21 @@ fn validate_contacts(raw: RawContacts, origin: &str) -> Result<Vec<Contact>> {
         Friction::Tresca { .. } => "tresca",
         Friction::Coulomb { .. } => "coulomb",
     };
-    if let Some((i, c)) =
-        (contacts.iter().enumerate()).find(|(_, c)| law(&c.friction) != law(&contacts[0].friction))
+    // Frictionless contacts mix with frictional ones (a frictionless node is one with a
+    // zero coefficient or threshold); two frictional laws do not.
+    let frictional: Vec<(usize, &Contact)> = (contacts.iter().enumerate())
+        .filter(|(_, c)| c.friction != Friction::None)
+        .collect();
+    if let Some(&(i, c)) = frictional
+        .iter()
+        .find(|(_, c)| law(&c.friction) != law(&frictional[0].1.friction))
     {
         return input(format!(
-            "{origin}: contact #{} has friction = \"{}\" but contact #1 friction = \"{}\"; all contacts share one friction law for now (their coefficients or thresholds may differ): give every [[contact]] the same friction",
+            "{origin}: contact #{} has friction = \"{}\" but contact #{} friction = \"{}\"; all contacts share one friction law for now (each its own coefficient or threshold, or \"none\"): give every frictional [[contact]] the same friction",
             i + 1,
             law(&c.friction),
-            law(&contacts[0].friction)
+            frictional[0].0 + 1,
+            law(&frictional[0].1.friction)
         ));
     }
     if let Some((i, c)) = (contacts.iter().enumerate())

@@ -205,7 +205,7 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
 
     let (contact_nodes, contact, contact_h) = contact_geometry(case, &mesh, &boundary)?;
 
-    check_held(case, &mesh, &fixed, &contact_nodes, &contact.normal)?;
+    check_held(case, &mesh, &fixed, &contact_nodes, &contact)?;
 
     let n = mesh.num_nodes();
     let prob = Problem {
@@ -366,7 +366,7 @@ pub fn check_held(
     mesh: &Mesh,
     fixed: &[Option<f64>],
     contact_nodes: &[usize],
-    normals: &[[f64; 2]],
+    contact: &ContactNodes,
 ) -> Result<()> {
     let (part, count) = validate::parts(mesh);
     let tol = validate::SAME_LINE * validate::size(mesh);
@@ -380,11 +380,13 @@ pub fn check_held(
         kinds[part[node]][c] = true;
     }
     let frictional = Problem::is_frictional(case);
-    for (&node, &m) in contact_nodes.iter().zip(normals) {
+    for (k, &node) in contact_nodes.iter().enumerate() {
+        let (m, pair) = (contact.normal[k], contact.pair[k] as usize);
         let t = tangent_of(m);
         holds[part[node]].add(mesh.nodes[node], m);
         kinds[part[node]][2] = true;
-        if frictional {
+        // A frictionless contact among frictional ones holds along its normals only.
+        if case.contacts[pair].friction != Friction::None {
             holds[part[node]].add(mesh.nodes[node], t);
             kinds[part[node]][3] = true;
         }

@@ -327,12 +327,17 @@ fn the_punch_sticks_and_slips() {
     assert!(fy < 0.0 && fx > 0.0 && fx < 0.3 * -fy, "({fx}, {fy})");
 }
 
-/// Two contacts with their own Coulomb coefficients: the block pushed by its left side
-/// slides against a wall (0.1) while its floor (0.3) holds it; each node obeys its own
-/// contact's cone.
+/// Two contacts with their own friction: the block pushed by its left side slides
+/// against a wall (Coulomb 0.1, or frictionless) while its floor (Coulomb 0.3) holds it;
+/// each node obeys its own contact's law.
 #[test]
-fn each_contact_has_its_own_friction_coefficient() {
-    let case = r#"title = "block on a floor against a wall"
+fn each_contact_has_its_own_friction() {
+    for wall_law in [
+        "friction = \"coulomb\"\ncoefficient = 0.1",
+        "friction = \"none\"",
+    ] {
+        let case = format!(
+            r#"title = "block on a floor against a wall"
 [mesh]
 builtin = "block"
 level = 1
@@ -347,28 +352,41 @@ group = "left"
 t = [40.0, 0.0]
 [[contact]]
 slave = "bottom"
-obstacle = { type = "line", point = [0.0, 0.0], normal = [0.0, 1.0] }
+obstacle = {{ type = "line", point = [0.0, 0.0], normal = [0.0, 1.0] }}
 friction = "coulomb"
 coefficient = 0.3
 [[contact]]
 slave = "right"
-obstacle = { type = "line", point = [40.001, 0.0], normal = [-1.0, 0.0] }
-friction = "coulomb"
-coefficient = 0.1
+obstacle = {{ type = "line", point = [40.001, 0.0], normal = [-1.0, 0.0] }}
+{wall_law}
 [solver]
 tol = 1e-10
-"#;
-    let run = run_case(case, &[]);
-    run.expect_code(0);
-    let rows = run.contact();
-    // The corner (40, 0) is the floor's: both obstacles are as near, the floor first.
-    let (wall, floor): (Vec<Row>, Vec<Row>) = rows.iter().partition(|r| r.x == 40.0 && r.y > 0.0);
-    assert_eq!(wall.len(), 20);
-    check_kkt(&floor, Law::Coulomb(0.3), 1e-7, "floor");
-    let counts = check_kkt(&wall, Law::Coulomb(0.1), 1e-7, "wall");
-    assert!(counts.slip >= 10, "the wall should slip: {counts:?}");
-    let f = &run.summary()["contacts"][1]["force"];
-    let (fx, fy) = (f[0].as_f64().unwrap(), f[1].as_f64().unwrap());
-    println!("wall force on the block ({fx}, {fy})");
-    assert!(fx < 0.0 && (fy / fx + 0.1).abs() < 1e-6, "({fx}, {fy})");
+"#
+        );
+        let run = run_case(&case, &[]);
+        run.expect_code(0);
+        let rows = run.contact();
+        // The corner (40, 0) is the floor's: both obstacles are as near, the floor first.
+        let (wall, floor): (Vec<Row>, Vec<Row>) =
+            rows.iter().partition(|r| r.x == 40.0 && r.y > 0.0);
+        assert_eq!(wall.len(), 20);
+        check_kkt(&floor, Law::Coulomb(0.3), 1e-7, "floor");
+        let f = &run.summary()["contacts"][1]["force"];
+        let (fx, fy) = (f[0].as_f64().unwrap(), f[1].as_f64().unwrap());
+        println!("{wall_law}: wall force on the block ({fx}, {fy})");
+        assert!(fx < 0.0, "({fx}, {fy})");
+        if wall_law.contains("none") {
+            check_kkt(&wall, Law::None, 1e-7, "frictionless wall");
+            assert!(wall.iter().all(|r| r.p_t == 0.0), "friction on the wall");
+            assert_eq!(fy, 0.0);
+            // Its nodes are in contact, neither sticking nor slipping.
+            let s = run.summary();
+            assert_eq!(s["contacts"][1]["active_nodes"], 20);
+            assert_eq!(num(&s, "stick_nodes") + num(&s, "slip_nodes"), 81.0);
+        } else {
+            let counts = check_kkt(&wall, Law::Coulomb(0.1), 1e-7, "wall");
+            assert!(counts.slip >= 10, "the wall should slip: {counts:?}");
+            assert!((fy / fx + 0.1).abs() < 1e-6, "({fx}, {fy})");
+        }
+    }
 }
