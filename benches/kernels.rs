@@ -102,7 +102,7 @@ impl Fixture {
             &self.prob.contact.w,
             &r,
             &r,
-            self.prob.normal,
+            &self.prob.contact.normal,
             self.frictional,
         )
     }
@@ -158,8 +158,7 @@ impl Fixture {
         ContactDofs {
             nodes: &self.prob.contact_nodes,
             w: &self.prob.contact.w,
-            normal: self.prob.normal,
-            tangent: self.prob.tangent,
+            normals: &self.prob.contact.normal,
             frictional: self.frictional,
         }
     }
@@ -186,8 +185,7 @@ impl Fixture {
             &self.prob.contact_nodes,
             &self.prob.fixed,
             &self.boundary_dofs(),
-            self.prob.normal,
-            self.prob.tangent,
+            &self.prob.contact.normal,
             self.frictional,
         )
         .expect("contact rows");
@@ -200,7 +198,7 @@ impl Fixture {
             r: self.r,
             tol: 0.0,
             max_iter: 1,
-            friction: self.case.contact.friction,
+            friction: self.case.friction(),
             coulomb: self.case.solver.coulomb,
             acceleration: Acceleration::None,
             adapt_r: false,

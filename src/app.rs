@@ -5,7 +5,9 @@
 
 use crate::case::{self, BuiltinMesh, Case, MeshSource};
 use crate::checkpoint::CheckpointFiles;
+use crate::contact::obstacle::Obstacle;
 use crate::contact::operators::ContactDofs;
+use crate::contact::tangent_of;
 use crate::contact::{
     self, Acceleration, CoulombMode, Friction, LinearStep, Outcome, Reduce, Status, Sweep,
 };
@@ -19,7 +21,7 @@ use crate::fem::AssemblyFigures;
 use crate::host;
 use crate::linear::Ordering;
 use crate::mesh::{builtin, gmsh, Mesh};
-use crate::output::plot::Foundation;
+use crate::output::plot::{Foundation, ALONG_OBSTACLES};
 use crate::output::{
     self, blocks, Gathered, PieceRows, PlotFacts, RankStats, RunFacts, SharedFile,
     SubdomainSolution, Written,
@@ -222,7 +224,7 @@ fn solve_condensed(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
         format!("the displacement of {} nodes", ctx.setup.facts.nodes),
     );
     let factors = FactorFigures::condensed(&step);
-    Ok(Solved::new(ctx.setup, sub, outcome, u, factors))
+    Ok(Solved::new(sub, outcome, u, factors))
 }
 
 /// The uncondensed path (one rank): a sparse forward and backward solve per sweep, so
@@ -238,13 +240,7 @@ fn solve_full(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
     let sweeps = outcome.iterations.max(1) as f64;
     timer.add(Phase::OneSolve, timer.seconds(Phase::Loop) / sweeps);
     let factors = FactorFigures::full(step.factor_nnz(), step.factor_flops());
-    Ok(Solved::new(
-        setup,
-        sub,
-        outcome,
-        step.displacement(),
-        factors,
-    ))
+    Ok(Solved::new(sub, outcome, step.displacement(), factors))
 }
 
 /// Phase 6: the Uzawa loop on this subdomain's contact nodes, with its checkpoint files
@@ -266,7 +262,17 @@ fn iterate(ctx: &Subdomain, sub: &SubProblem, step: &mut impl LinearStep) -> Res
         };
         let params = ctx.setup.params();
         let mut on_sweep = |s: &Sweep| monitor.sweep(s);
-        contact::solve_with(step, mpi, &sub.contact, &params, &mut on_sweep, &mut ckpt)?
+        let nodes = problem::with_friction_values(&ctx.setup.case, &sub.contact);
+        let mut o = contact::solve_with(step, mpi, &nodes, &params, &mut on_sweep, &mut ckpt)?;
+        // A frictionless contact's nodes in a frictional run (a zero threshold) neither
+        // stick nor slip: in contact, as in a frictionless run.
+        for (status, &pair) in o.status.iter_mut().zip(&sub.contact.pair) {
+            let none = ctx.setup.case.contacts[pair as usize].friction == Friction::None;
+            if none && matches!(status, Status::Stick | Status::Slip) {
+                *status = Status::Contact;
+            }
+        }
+        o
     };
     monitor.last(&outcome);
     let sweeps = outcome.iterations;
@@ -367,12 +373,19 @@ fn plot_facts<'a>(ctx: &Subdomain<'a>) -> PlotFacts<'a> {
         } else {
             &case.title
         },
-        pair: &case.contact.group,
-        foundation: Foundation {
-            point: case.contact.obstacle_point,
-            tangent: ctx.setup.facts.tangent,
+        pairs: case.contacts.iter().map(|c| c.group.clone()).collect(),
+        abscissa: match &case.contacts[..] {
+            [c] => match c.obstacle {
+                Obstacle::Line { point, normal } => Foundation {
+                    point,
+                    tangent: tangent_of(normal),
+                }
+                .axis_label(),
+                _ => ALONG_OBSTACLES,
+            },
+            _ => ALONG_OBSTACLES,
         },
-        friction: format!("friction {}", friction_name(&case.contact.friction)),
+        friction: format!("friction {}", friction_name(&case.friction())),
         frictional: Problem::is_frictional(case),
         tol: case.solver.tol,
     }
@@ -582,8 +595,6 @@ impl Setup {
             material: &self.case.material,
             r: self.r,
             alpha: self.alpha,
-            normal: self.facts.normal,
-            tangent: self.facts.tangent,
             frictional: Problem::is_frictional(&self.case),
             n_interface: self.facts.n_interface,
             ordering: self.ordering,
@@ -602,8 +613,7 @@ impl Setup {
             contact: ContactDofs {
                 nodes: &sub.contact_nodes,
                 w: &sub.contact.w,
-                normal: self.facts.normal,
-                tangent: self.facts.tangent,
+                normals: &sub.contact.normal,
                 frictional: Problem::is_frictional(&self.case),
             },
             r: self.r,
@@ -617,7 +627,7 @@ impl Setup {
             r: self.r,
             tol: solver.tol,
             max_iter: solver.max_iter,
-            friction: self.case.contact.friction,
+            friction: self.case.friction(),
             coulomb: solver.coulomb,
             acceleration: solver.acceleration,
             // A given r is the user's: kept as it is.
@@ -765,8 +775,6 @@ fn partition_problem(
         lengths: prob.lengths(),
         n_boundary: map.n_boundary,
         n_interface: map.n_interface,
-        normal: prob.normal,
-        tangent: prob.tangent,
         nodes: prob.mesh.num_nodes(),
         elements: prob.mesh.triangles.len(),
         free_dofs: prob.fixed.iter().filter(|f| f.is_none()).count(),
@@ -906,7 +914,7 @@ fn header_line(case: &Case, size: &Size, r: f64, layout: Layout, per_rank: usize
         size.nodes,
         size.elements,
         size.contact_nodes,
-        friction_name(&case.contact.friction),
+        friction_name(&case.friction()),
         r,
         case.solver.tol,
         layout.ranks,
@@ -999,7 +1007,6 @@ impl Solved {
     /// Reports u_n and u_t of the recovered field `u` in `outcome` (frictionless sweeps
     /// do not compute u_t).
     fn new(
-        setup: &Setup,
         sub: &SubProblem,
         mut outcome: Outcome,
         u: Vec<[f64; 2]>,
@@ -1007,8 +1014,9 @@ impl Solved {
     ) -> Self {
         for (k, &node) in sub.contact_nodes.iter().enumerate() {
             let u = u[node];
-            outcome.un[k] = -(setup.facts.normal[0] * u[0] + setup.facts.normal[1] * u[1]);
-            outcome.ut[k] = setup.facts.tangent[0] * u[0] + setup.facts.tangent[1] * u[1];
+            let (m, t) = (sub.contact.normal[k], tangent_of(sub.contact.normal[k]));
+            outcome.un[k] = -(m[0] * u[0] + m[1] * u[1]);
+            outcome.ut[k] = t[0] * u[0] + t[1] * u[1];
         }
         Solved {
             outcome,
@@ -1147,7 +1155,10 @@ fn run_facts(ctx: &Subdomain) -> RunFacts {
         boundary_dofs: setup.facts.n_boundary,
         interface_dofs: setup.facts.n_interface,
         contact_nodes: setup.facts.contact_nodes,
-        friction: friction_name(&case.contact.friction),
+        friction: friction_name(&case.friction()),
+        pairs: (case.contacts.iter())
+            .map(|c| (c.group.clone(), c.obstacle.kind()))
+            .collect(),
         r: setup.r,
         tol: case.solver.tol,
         partition: setup.facts.partition.clone(),

@@ -1,6 +1,7 @@
 //! The case file: a TOML description of one contact problem, parsed, typed and validated
 //! here so that every later stage can trust it. Also the built-in cases.
 
+use crate::contact::obstacle::{Obstacle, Side};
 use crate::contact::{Acceleration, CoulombMode, Friction, DEFAULT_ANDERSON_MEMORY};
 use crate::error::{input, Error, Result};
 use crate::fem::{Hypothesis, Material};
@@ -20,13 +21,13 @@ pub struct Traction {
     pub t: [f64; 2],
 }
 
-/// The rigid straight foundation and the friction law.
+/// One contact: a boundary group of the body against a rigid obstacle, and its friction
+/// law.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Contact {
+    /// The body's candidate contact boundary (a line group).
     pub group: String,
-    pub obstacle_point: [f64; 2],
-    /// Unit normal m pointing from the foundation into the body.
-    pub obstacle_normal: [f64; 2],
+    pub obstacle: Obstacle,
     pub friction: Friction,
 }
 
@@ -80,8 +81,21 @@ pub struct Case {
     pub dirichlet: Vec<Dirichlet>,
     pub traction: Vec<Traction>,
     pub body_force: [f64; 2],
-    pub contact: Contact,
+    /// At least one; the frictional ones with the same kind of law (checked), each with
+    /// its own coefficient or threshold.
+    pub contacts: Vec<Contact>,
     pub solver: Solver,
+}
+
+impl Case {
+    /// The friction law, the same kind on every frictional contact (the first one's
+    /// value; `problem::with_friction_values` gives each node its own, zero on a
+    /// frictionless contact among frictional ones).
+    pub fn friction(&self) -> Friction {
+        (self.contacts.iter().map(|c| c.friction))
+            .find(|f| *f != Friction::None)
+            .unwrap_or(Friction::None)
+    }
 }
 
 // ---- raw TOML schema (serde), kept private: only validated `Case`s leave this module ----
@@ -97,7 +111,7 @@ struct RawCase {
     #[serde(default)]
     traction: Vec<RawTraction>,
     body_force: Option<RawBodyForce>,
-    contact: RawContact,
+    contact: RawContacts,
     #[serde(default)]
     solver: RawSolver,
 }
@@ -141,17 +155,73 @@ struct RawBodyForce {
     f: [f64; 2],
 }
 
+/// A contact entry, either form: the single `[contact]` table of a straight foundation
+/// (group, obstacle_point, obstacle_normal) or a `[[contact]]` entry (slave, obstacle).
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawContact {
-    group: String,
-    #[serde(deserialize_with = "pair")]
-    obstacle_point: [f64; 2],
-    #[serde(deserialize_with = "pair")]
-    obstacle_normal: [f64; 2],
+    group: Option<String>,
+    slave: Option<String>,
+    #[serde(default, deserialize_with = "opt_pair")]
+    obstacle_point: Option<[f64; 2]>,
+    #[serde(default, deserialize_with = "opt_pair")]
+    obstacle_normal: Option<[f64; 2]>,
+    obstacle: Option<RawObstacle>,
     friction: Option<String>,
     threshold: Option<f64>,
     coefficient: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawObstacle {
+    #[serde(rename = "type")]
+    kind: String,
+    #[serde(default, deserialize_with = "opt_pair")]
+    point: Option<[f64; 2]>,
+    #[serde(default, deserialize_with = "opt_pair")]
+    normal: Option<[f64; 2]>,
+    #[serde(default, deserialize_with = "opt_pair")]
+    centre: Option<[f64; 2]>,
+    radius: Option<f64>,
+    body: Option<String>,
+    #[serde(default, deserialize_with = "opt_points")]
+    points: Option<Vec<[f64; 2]>>,
+}
+
+/// `contact` is a table (`[contact]`, the old single foundation) or an array of tables
+/// (`[[contact]]`); the deserializer is handed on, so that errors keep their place in
+/// the file.
+enum RawContacts {
+    One(Box<RawContact>),
+    Many(Vec<RawContact>),
+}
+
+impl<'de> Deserialize<'de> for RawContacts {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = RawContacts;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a [contact] table or [[contact]] entries")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                RawContact::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    .map(|c| RawContacts::One(Box::new(c)))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                seq: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                Vec::<RawContact>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
+                    .map(RawContacts::Many)
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
 }
 
 #[derive(Deserialize, Default)]
@@ -179,12 +249,37 @@ fn pair<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<[f64; 2], D::Err
     })
 }
 
+fn opt_pair<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Option<[f64; 2]>, D::Error> {
+    pair(d).map(Some)
+}
+
+/// A list of points `[[x, y], ...]`, each exactly two numbers.
+fn opt_points<'de, D: Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<Option<Vec<[f64; 2]>>, D::Error> {
+    let v = Vec::<Vec<f64>>::deserialize(d)?;
+    v.iter()
+        .enumerate()
+        .map(|(k, p)| {
+            <[f64; 2]>::try_from(p.as_slice()).map_err(|_| {
+                serde::de::Error::custom(format!(
+                    "point {} of the polyline: expected [x, y], two numbers, found {} number{}",
+                    k + 1,
+                    p.len(),
+                    if p.len() == 1 { "" } else { "s" }
+                ))
+            })
+        })
+        .collect::<std::result::Result<Vec<_>, _>>()
+        .map(Some)
+}
+
 /// What a required key holds, for the message when it is missing.
 fn required(key: &str) -> Option<&'static str> {
     Some(match key {
         "mesh" => "[mesh] with file = \"mesh.msh\" (or builtin = \"block\")",
         "material" => "[material] with young and poisson",
-        "contact" => "[contact] with group, obstacle_point and obstacle_normal",
+        "contact" => "[[contact]] with slave and obstacle (or [contact] with group, obstacle_point and obstacle_normal)",
         "young" => "young = <Young's modulus>, e.g. young = 210000.0",
         "poisson" => "poisson = <Poisson's ratio in (-1, 0.5)>, e.g. poisson = 0.3",
         "group" => "group = \"<name of a physical group of the mesh>\"",
@@ -192,6 +287,7 @@ fn required(key: &str) -> Option<&'static str> {
         "obstacle_normal" => {
             "obstacle_normal = [mx, my], the unit normal from the foundation into the body"
         }
+        "type" => "type = \"line\" | \"circle\" | \"polyline\" to the obstacle",
         "t" => "t = [tx, ty], the traction (force per unit length)",
         "f" => "f = [fx, fy], the body force (per unit area)",
         _ => return None,
@@ -290,7 +386,11 @@ pub fn parse_case(text: &str, origin: &str, dir: &Path) -> Result<Case> {
             None => Error::Input(format!("{origin}: {}", explain(&msg, None))),
         }
     })?;
-    validate(raw, origin, dir)
+    // Values are quoted in messages; a multi-line string must not make them two lines.
+    validate(raw, origin, dir).map_err(|e| match e {
+        Error::Input(m) => Error::Input(m.replace('\n', "\\n").replace('\r', "\\r")),
+        e => e,
+    })
 }
 
 fn finite(origin: &str, key: &str, v: f64) -> Result<f64> {
@@ -414,76 +514,7 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
         finite(origin, "body_force.f", v)?;
     }
 
-    let c = raw.contact;
-    for v in c.obstacle_point {
-        finite(origin, "contact.obstacle_point", v)?;
-    }
-    for v in c.obstacle_normal {
-        finite(origin, "contact.obstacle_normal", v)?;
-    }
-    let [mx, my] = c.obstacle_normal;
-    let norm = mx.hypot(my);
-    if norm == 0.0 {
-        return input(format!(
-            "{origin}: contact.obstacle_normal is zero; give the unit normal pointing from the foundation into the body, e.g. [0.0, 1.0]"
-        ));
-    }
-    if (norm - 1.0).abs() > 1e-6 {
-        return input(format!(
-            "{origin}: contact.obstacle_normal has length {norm}, not 1; use [{}, {}]",
-            mx / norm,
-            my / norm
-        ));
-    }
-    // A threshold or coefficient under another law would be ignored: most likely the
-    // friction line was forgotten, and the run would silently be frictionless.
-    let law = c.friction.as_deref().unwrap_or("none");
-    for (key, given, needs) in [
-        ("threshold", c.threshold.is_some(), "tresca"),
-        ("coefficient", c.coefficient.is_some(), "coulomb"),
-    ] {
-        if given && law != needs && matches!(law, "none" | "tresca" | "coulomb") {
-            return input(format!(
-                "{origin}: contact.{key} applies to friction = \"{needs}\" only, but friction = \"{law}\"; set friction = \"{needs}\" or remove {key}"
-            ));
-        }
-    }
-    let friction = match law {
-        "none" => Friction::None,
-        "tresca" => {
-            let threshold = c.threshold.ok_or_else(|| {
-                Error::Input(format!(
-                    "{origin}: contact.friction = \"tresca\" needs contact.threshold (slip threshold, force per unit length)"
-                ))
-            })?;
-            let threshold = finite(origin, "contact.threshold", threshold)?;
-            if threshold < 0.0 {
-                return input(format!(
-                    "{origin}: contact.threshold = {threshold} must be >= 0"
-                ));
-            }
-            Friction::Tresca { threshold }
-        }
-        "coulomb" => {
-            let coefficient = c.coefficient.ok_or_else(|| {
-                Error::Input(format!(
-                    "{origin}: contact.friction = \"coulomb\" needs contact.coefficient (friction coefficient)"
-                ))
-            })?;
-            let coefficient = finite(origin, "contact.coefficient", coefficient)?;
-            if coefficient < 0.0 {
-                return input(format!(
-                    "{origin}: contact.coefficient = {coefficient} must be >= 0"
-                ));
-            }
-            Friction::Coulomb { coefficient }
-        }
-        other => {
-            return input(format!(
-                "{origin}: contact.friction = \"{other}\" is unknown; use \"none\", \"tresca\" or \"coulomb\""
-            ))
-        }
-    };
+    let contacts = validate_contacts(raw.contact, origin)?;
 
     let mut solver = Solver::default();
     let s = raw.solver;
@@ -532,13 +563,314 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
         dirichlet,
         traction,
         body_force,
-        contact: Contact {
-            group: c.group,
-            obstacle_point: c.obstacle_point,
-            obstacle_normal: [mx, my],
-            friction,
-        },
+        contacts,
         solver,
+    })
+}
+
+/// The contact entries, each mapped onto a [`Contact`]; `[contact]` (one straight
+/// foundation) is the line obstacle of one entry.
+fn validate_contacts(raw: RawContacts, origin: &str) -> Result<Vec<Contact>> {
+    let (entries, single_table) = match raw {
+        RawContacts::One(c) => (vec![*c], true),
+        RawContacts::Many(v) => (v, false),
+    };
+    if entries.is_empty() {
+        return input(format!(
+            "{origin}: contact is an empty list; add a [[contact]] with slave and obstacle (see the case-file reference in README.md)"
+        ));
+    }
+    let several = entries.len() > 1;
+    let mut contacts = Vec::with_capacity(entries.len());
+    for (i, c) in entries.into_iter().enumerate() {
+        // How messages name the entry and its keys.
+        let key = if several {
+            format!("contact #{}", i + 1)
+        } else {
+            "contact".to_string()
+        };
+        let table = if single_table {
+            "[contact]"
+        } else {
+            "[[contact]]"
+        };
+        let lacks = |k: &str| -> Error {
+            let what = required(k).unwrap_or_default();
+            Error::Input(format!(
+                "{origin}: {table}{} lacks the required key {k}; add {what} (see the case-file reference in README.md)",
+                if several { format!(" #{}", i + 1) } else { String::new() }
+            ))
+        };
+        let (group, obstacle) = if c.obstacle.is_some() || c.slave.is_some() {
+            for (k, given) in [
+                ("group", c.group.is_some()),
+                ("obstacle_point", c.obstacle_point.is_some()),
+                ("obstacle_normal", c.obstacle_normal.is_some()),
+            ] {
+                if given {
+                    return input(format!(
+                        "{origin}: {key}.{k} belongs to the single-foundation form (group, obstacle_point, obstacle_normal); with slave and obstacle, remove it (a straight foundation is obstacle = {{ type = \"line\", point = [x, y], normal = [mx, my] }})"
+                    ));
+                }
+            }
+            let slave = c.slave.ok_or_else(|| lacks("slave"))?;
+            let obstacle = c.obstacle.ok_or_else(|| lacks("obstacle"))?;
+            (slave, validate_obstacle(obstacle, origin, &key)?)
+        } else {
+            let group = c.group.ok_or_else(|| lacks("group"))?;
+            let point = c.obstacle_point.ok_or_else(|| lacks("obstacle_point"))?;
+            let normal = c.obstacle_normal.ok_or_else(|| lacks("obstacle_normal"))?;
+            let point = finite_pair(origin, &format!("{key}.obstacle_point"), point)?;
+            let normal = unit_normal(origin, &format!("{key}.obstacle_normal"), normal)?;
+            (group, Obstacle::Line { point, normal })
+        };
+        let friction = validate_friction(&c.friction, c.threshold, c.coefficient, origin, &key)?;
+        contacts.push(Contact {
+            group,
+            obstacle,
+            friction,
+        });
+    }
+    let law = |f: &Friction| match f {
+        Friction::None => "none",
+        Friction::Tresca { .. } => "tresca",
+        Friction::Coulomb { .. } => "coulomb",
+    };
+    // Frictionless contacts mix with frictional ones (a frictionless node is one with a
+    // zero coefficient or threshold); two frictional laws do not.
+    let frictional: Vec<(usize, &Contact)> = (contacts.iter().enumerate())
+        .filter(|(_, c)| c.friction != Friction::None)
+        .collect();
+    if let Some(&(i, c)) = frictional
+        .iter()
+        .find(|(_, c)| law(&c.friction) != law(&frictional[0].1.friction))
+    {
+        return input(format!(
+            "{origin}: contact #{} has friction = \"{}\" but contact #{} friction = \"{}\"; all contacts share one friction law for now (each its own coefficient or threshold, or \"none\"): give every frictional [[contact]] the same friction",
+            i + 1,
+            law(&c.friction),
+            frictional[0].0 + 1,
+            law(&frictional[0].1.friction)
+        ));
+    }
+    if let Some((i, c)) = (contacts.iter().enumerate())
+        .find(|(i, c)| contacts[..*i].iter().any(|d| d.group == c.group))
+    {
+        return input(format!(
+            "{origin}: contact #{} names slave = \"{}\" again; each boundary group can be in one contact only: merge the obstacles into one polyline or give the nodes different groups",
+            i + 1,
+            c.group
+        ));
+    }
+    Ok(contacts)
+}
+
+fn finite_pair(origin: &str, key: &str, v: [f64; 2]) -> Result<[f64; 2]> {
+    for x in v {
+        finite(origin, key, x)?;
+    }
+    Ok(v)
+}
+
+fn unit_normal(origin: &str, key: &str, v: [f64; 2]) -> Result<[f64; 2]> {
+    let [mx, my] = finite_pair(origin, key, v)?;
+    let norm = mx.hypot(my);
+    if norm == 0.0 {
+        return input(format!(
+            "{origin}: {key} is zero; give the unit normal pointing from the foundation into the body, e.g. [0.0, 1.0]"
+        ));
+    }
+    if (norm - 1.0).abs() > 1e-6 {
+        return input(format!(
+            "{origin}: {key} has length {norm}, not 1; use [{}, {}]",
+            mx / norm,
+            my / norm
+        ));
+    }
+    Ok([mx, my])
+}
+
+/// The obstacle of a `[[contact]]` entry; `key` names the entry in messages.
+fn validate_obstacle(o: RawObstacle, origin: &str, key: &str) -> Result<Obstacle> {
+    let key = format!("{key}.obstacle");
+    let takes: &[&str] = match o.kind.as_str() {
+        "line" => &["point", "normal"],
+        "circle" => &["centre", "radius", "body"],
+        "polyline" => &["points", "body"],
+        other => {
+            return input(format!(
+                "{origin}: {key}.type = \"{other}\" is unknown; use \"line\", \"circle\" or \"polyline\""
+            ))
+        }
+    };
+    let given = [
+        ("point", o.point.is_some()),
+        ("normal", o.normal.is_some()),
+        ("centre", o.centre.is_some()),
+        ("radius", o.radius.is_some()),
+        ("body", o.body.is_some()),
+        ("points", o.points.is_some()),
+    ];
+    if let Some((k, _)) = given.iter().find(|(k, g)| *g && !takes.contains(k)) {
+        return input(format!(
+            "{origin}: {key}.{k} does not apply to type = \"{}\", which takes {}; remove {k}",
+            o.kind,
+            takes.join(", ")
+        ));
+    }
+    let need = |k: &str, what: &str| {
+        Error::Input(format!(
+            "{origin}: {key} of type = \"{}\" needs {k} = {what}",
+            o.kind
+        ))
+    };
+    Ok(match o.kind.as_str() {
+        "line" => {
+            let point = o
+                .point
+                .ok_or_else(|| need("point", "[x, y], a point of the line"))?;
+            let normal = o.normal.ok_or_else(|| {
+                need(
+                    "normal",
+                    "[mx, my], the unit normal from the line into the body",
+                )
+            })?;
+            Obstacle::Line {
+                point: finite_pair(origin, &format!("{key}.point"), point)?,
+                normal: unit_normal(origin, &format!("{key}.normal"), normal)?,
+            }
+        }
+        "circle" => {
+            let centre = o.centre.ok_or_else(|| need("centre", "[x, y]"))?;
+            let centre = finite_pair(origin, &format!("{key}.centre"), centre)?;
+            let radius = o
+                .radius
+                .ok_or_else(|| need("radius", "<the circle's radius>"))?;
+            let radius = finite(origin, &format!("{key}.radius"), radius)?;
+            if radius <= 0.0 {
+                return input(format!(
+                    "{origin}: {key}.radius = {radius} must be positive; give the circle's radius"
+                ));
+            }
+            let body = match o.body.as_deref().unwrap_or("outside") {
+                "outside" => Side::Outside,
+                "inside" => Side::Inside,
+                other => {
+                    return input(format!(
+                        "{origin}: {key}.body = \"{other}\" is unknown for a circle; use \"outside\" (the body outside the rigid disc) or \"inside\" (the body in the rigid hole)"
+                    ))
+                }
+            };
+            Obstacle::Circle {
+                centre,
+                radius,
+                body,
+            }
+        }
+        _ => {
+            let mut points = o
+                .points
+                .ok_or_else(|| need("points", "[[x0, y0], [x1, y1], ...]"))?;
+            for p in &points {
+                finite_pair(origin, &format!("{key}.points"), *p)?;
+            }
+            if points.len() < 2 {
+                return input(format!(
+                    "{origin}: {key}.points has {} point(s); a polyline needs at least 2 distinct points",
+                    points.len()
+                ));
+            }
+            for (k, p) in points.iter().enumerate() {
+                if let Some(j) = points[..k].iter().position(|q| q == p) {
+                    return input(format!(
+                        "{origin}: {key}.points repeats the point [{}, {}] (points {} and {}); remove the repetition: every point of a polyline must be distinct",
+                        p[0],
+                        p[1],
+                        j + 1,
+                        k + 1
+                    ));
+                }
+            }
+            if let Some(k) = (1..points.len()).find(|&k| {
+                let len = (points[k][0] - points[k - 1][0]).hypot(points[k][1] - points[k - 1][1]);
+                !(len.is_finite() && len > 0.0)
+            }) {
+                return input(format!(
+                    "{origin}: {key}.points: the segment from point {k} to point {} has no finite length; give points of the scale of the mesh",
+                    k + 1
+                ));
+            }
+            match o.body.as_deref().unwrap_or("left") {
+                "left" => {}
+                // The kernel keeps the body on the left: walk the other way.
+                "right" => points.reverse(),
+                other => {
+                    return input(format!(
+                        "{origin}: {key}.body = \"{other}\" is unknown for a polyline; use \"left\" or \"right\" (the body's side, walking from the first point to the last)"
+                    ))
+                }
+            }
+            Obstacle::Polyline { points }
+        }
+    })
+}
+
+/// The friction law of one contact entry; `key` names the entry in messages.
+fn validate_friction(
+    law: &Option<String>,
+    threshold: Option<f64>,
+    coefficient: Option<f64>,
+    origin: &str,
+    key: &str,
+) -> Result<Friction> {
+    // A threshold or coefficient under another law would be ignored: most likely the
+    // friction line was forgotten, and the run would silently be frictionless.
+    let law = law.as_deref().unwrap_or("none");
+    for (k, given, needs) in [
+        ("threshold", threshold.is_some(), "tresca"),
+        ("coefficient", coefficient.is_some(), "coulomb"),
+    ] {
+        if given && law != needs && matches!(law, "none" | "tresca" | "coulomb") {
+            return input(format!(
+                "{origin}: {key}.{k} applies to friction = \"{needs}\" only, but friction = \"{law}\"; set friction = \"{needs}\" or remove {k}"
+            ));
+        }
+    }
+    Ok(match law {
+        "none" => Friction::None,
+        "tresca" => {
+            let threshold = threshold.ok_or_else(|| {
+                Error::Input(format!(
+                    "{origin}: {key}.friction = \"tresca\" needs {key}.threshold (slip threshold, force per unit length)"
+                ))
+            })?;
+            let threshold = finite(origin, &format!("{key}.threshold"), threshold)?;
+            if threshold < 0.0 {
+                return input(format!(
+                    "{origin}: {key}.threshold = {threshold} must be >= 0"
+                ));
+            }
+            Friction::Tresca { threshold }
+        }
+        "coulomb" => {
+            let coefficient = coefficient.ok_or_else(|| {
+                Error::Input(format!(
+                    "{origin}: {key}.friction = \"coulomb\" needs {key}.coefficient (friction coefficient)"
+                ))
+            })?;
+            let coefficient = finite(origin, &format!("{key}.coefficient"), coefficient)?;
+            if coefficient < 0.0 {
+                return input(format!(
+                    "{origin}: {key}.coefficient = {coefficient} must be >= 0"
+                ));
+            }
+            Friction::Coulomb { coefficient }
+        }
+        other => {
+            return input(format!(
+                "{origin}: {key}.friction = \"{other}\" is unknown; use \"none\", \"tresca\" or \"coulomb\""
+            ))
+        }
     })
 }
 
@@ -625,7 +957,10 @@ pub const BLOCK_WIDTH: f64 = 40.0;
 pub const BLOCK_HEIGHT: f64 = 10.0;
 
 /// Names of the built-in cases, the first being the default.
-pub const BUILTIN_CASES: [&str; 3] = ["hertz", "block", "block_flat"];
+pub const BUILTIN_CASES: [&str; 4] = ["hertz", "block", "block_flat", "punch"];
+
+/// Radius of the built-in punch (mm).
+pub const PUNCH_RADIUS: f64 = 100.0;
 
 /// The TOML text of a built-in case, so users can print it and start from it.
 pub fn builtin_case_text(name: &str, level: u32) -> Option<String> {
@@ -700,6 +1035,32 @@ obstacle_normal = [0.0, 1.0]
 friction = "none"
 "#
         ),
+        // A rigid cylindrical punch over the middle of the block's top, pressed in and
+        // dragged along it: the block's base is moved instead (down-right of the punch
+        // is up-left of the block), so the obstacle stays where it is. Coulomb friction:
+        // a sticking centre and slipping edges.
+        "punch" => format!(
+            r#"title = "Rigid circular punch pressed into a block and dragged along it, Coulomb friction"
+[mesh]
+builtin = "block"          # {BLOCK_WIDTH} x {BLOCK_HEIGHT} mm
+level = {level}
+[material]
+young = 70000.0            # MPa
+poisson = 0.33
+hypothesis = "plane_strain"
+[[dirichlet]]              # the base moved: the punch pressed in by 0.05 mm, dragged by 0.01 mm along +x
+group = "bottom"
+ux = -0.01
+uy = 0.05
+[[contact]]
+slave = "top"
+obstacle = {{ type = "circle", centre = [{cx:?}, {cy:?}], radius = {PUNCH_RADIUS:?}, body = "outside" }}
+friction = "coulomb"
+coefficient = 0.3
+"#,
+            cx = BLOCK_WIDTH / 2.0,
+            cy = BLOCK_HEIGHT + PUNCH_RADIUS,
+        ),
         _ => return None,
     };
     Some(text)
@@ -760,7 +1121,7 @@ max_iter = 50
         assert_eq!(c.material.hypothesis, Hypothesis::PlaneStrain);
         assert_eq!(c.dirichlet[0].ux, None);
         assert_eq!(c.dirichlet[0].uy, Some(-0.01));
-        assert_eq!(c.contact.friction, Friction::Coulomb { coefficient: 0.3 });
+        assert_eq!(c.friction(), Friction::Coulomb { coefficient: 0.3 });
         assert_eq!(c.solver.r, Some(1.0e4));
         assert_eq!(c.solver.max_iter, 50);
         assert_eq!(c.solver.coulomb, CoulombMode::Inner);
@@ -823,6 +1184,63 @@ max_iter = 50
         assert!(e(None, None, Some(0)).contains("--max-iter = 0: it must be at least 1"));
         assert!(err(&GOOD.replace("max_iter = 50", "max_iter = 0"))
             .contains("case.toml: solver.max_iter = 0"));
+    }
+
+    #[test]
+    fn contact_entries_map_onto_obstacles() {
+        let head = GOOD.split("[contact]").next().unwrap();
+        let tail = "[solver]\nr = 1.0e4\n";
+        let c = parse(&format!(
+            r#"{head}[[contact]]
+slave = "bottom"
+obstacle = {{ type = "circle", centre = [1.0, -2.0], radius = 2.0, body = "inside" }}
+friction = "coulomb"
+coefficient = 0.3
+[[contact]]
+slave = "right"
+obstacle = {{ type = "polyline", points = [[0.0, 0.0], [1.0, 0.0], [2.0, 1.0]], body = "right" }}
+friction = "coulomb"
+coefficient = 0.1
+{tail}"#
+        ))
+        .unwrap();
+        assert_eq!(c.contacts.len(), 2);
+        assert_eq!(
+            c.contacts[0].obstacle,
+            Obstacle::Circle {
+                centre: [1.0, -2.0],
+                radius: 2.0,
+                body: Side::Inside
+            }
+        );
+        // The body on the right: walked the other way, the kernel keeps it on the left.
+        assert_eq!(
+            c.contacts[1].obstacle,
+            Obstacle::Polyline {
+                points: vec![[2.0, 1.0], [1.0, 0.0], [0.0, 0.0]]
+            }
+        );
+        assert_eq!(
+            c.contacts[1].friction,
+            Friction::Coulomb { coefficient: 0.1 }
+        );
+        // The old table is a line.
+        let old = parse(GOOD).unwrap();
+        assert_eq!(
+            old.contacts[0].obstacle,
+            Obstacle::Line {
+                point: [0.0, -0.001],
+                normal: [0.0, 1.0]
+            }
+        );
+        assert_eq!(old.contacts[0].group, "bottom");
+        // An empty list, and a missing slave.
+        let e = err(&format!("contact = []\n{head}{tail}"));
+        assert!(e.contains("empty list"), "{e}");
+        let e = err(&format!(
+            "{head}[[contact]]\nobstacle = {{ type = \"circle\", centre = [0.0, 0.0], radius = 1.0 }}\n{tail}"
+        ));
+        assert!(e.contains("lacks the required key slave"), "{e}");
     }
 
     #[test]

@@ -3,7 +3,8 @@
 //! needs the whole mesh happens here, once, on the reading rank.
 
 use crate::case::Case;
-use crate::contact::{ContactNodes, Friction};
+use crate::contact::obstacle::Obstacle;
+use crate::contact::{tangent_of, ContactNodes, Friction};
 use crate::error::{input, Error, Result};
 use crate::fem::assembly::{add_body_force, add_edge_traction, edge_length};
 use crate::fem::Hypothesis;
@@ -22,11 +23,8 @@ pub struct Problem {
     pub load: Vec<f64>,
     /// Global node ids of the contact nodes, increasing.
     pub contact_nodes: Vec<usize>,
-    /// Weights and gaps of `contact_nodes`, same order.
+    /// Weights, normals and gaps of `contact_nodes`, same order.
     pub contact: ContactNodes,
-    /// Unit normal m (foundation -> body) and tangent t = (m_y, -m_x).
-    pub normal: [f64; 2],
-    pub tangent: [f64; 2],
     /// Mean length of the contact edges.
     pub contact_h: f64,
     /// The mesh file's index of each node (the row of `nodes.csv`): the nodes are
@@ -64,8 +62,28 @@ impl Problem {
     }
 
     pub fn is_frictional(case: &Case) -> bool {
-        !matches!(case.contact.friction, Friction::None)
+        !matches!(case.friction(), Friction::None)
     }
+}
+
+/// `nodes` with each node's friction value (Coulomb coefficient or Tresca threshold) from
+/// its contact's law, where the contacts give different values (the law is the same
+/// kind on all: checked with the case); otherwise as they are, the one value of
+/// `Case::friction` serving every node.
+pub fn with_friction_values(case: &Case, nodes: &ContactNodes) -> ContactNodes {
+    let value = |f: Friction| match f {
+        Friction::None => 0.0,
+        Friction::Tresca { threshold } => threshold,
+        Friction::Coulomb { coefficient } => coefficient,
+    };
+    let first = value(case.friction());
+    let mut out = nodes.clone();
+    if case.contacts.iter().any(|c| value(c.friction) != first) {
+        out.friction = (nodes.pair.iter())
+            .map(|&p| value(case.contacts[p as usize].friction))
+            .collect();
+    }
+    out
 }
 
 /// The two lengths of the mesh that set the default r (kept in a split directory, so that
@@ -182,56 +200,9 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         line_group(case, &mesh, "traction", &t.group)?;
     }
 
-    let c = &case.contact;
-    let lines = line_group(case, &mesh, "contact", &c.group)?;
-    if let Some(&[a, b]) = lines
-        .iter()
-        .find(|&&[a, b]| !boundary.contains(&(a.min(b), a.max(b))))
-    {
-        return input(format!(
-            "{}: contact group \"{}\" has the edge ({}, {}) - ({}, {}) that is not on the boundary of the body; the contact group must be a boundary line",
-            case.origin, c.group, mesh.nodes[a][0], mesh.nodes[a][1], mesh.nodes[b][0], mesh.nodes[b][1]
-        ));
-    }
-    let mut weight: HashMap<usize, f64> = HashMap::new();
-    let mut lengths = Vec::with_capacity(lines.len());
-    for &[a, b] in lines {
-        let len = edge_length(&mesh.nodes, a, b);
-        lengths.push(len);
-        *weight.entry(a).or_insert(0.0) += 0.5 * len;
-        *weight.entry(b).or_insert(0.0) += 0.5 * len;
-    }
-    // Summed in a fixed order, so that r does not depend on the order of the file's
-    // edges by a rounding (the loop's retunes can turn that into a sweep more or less).
-    lengths.sort_unstable_by(f64::total_cmp);
-    let total_len: f64 = lengths.iter().sum();
-    let mut contact_nodes: Vec<usize> = weight.keys().copied().collect();
-    contact_nodes.sort_unstable();
-    let m = c.obstacle_normal;
-    let p0 = c.obstacle_point;
-    let gap = |x: [f64; 2]| (x[0] - p0[0]) * m[0] + (x[1] - p0[1]) * m[1];
-    let contact = ContactNodes {
-        w: contact_nodes.iter().map(|i| weight[i]).collect(),
-        g: contact_nodes.iter().map(|&i| gap(mesh.nodes[i])).collect(),
-        s: contact_nodes
-            .iter()
-            .map(|&i| {
-                let x = mesh.nodes[i];
-                (x[0] - p0[0]) * m[1] - (x[1] - p0[1]) * m[0]
-            })
-            .collect(),
-    };
-    let contact_h = total_len / lines.len() as f64;
-    // Round-off in mesh coordinates can put a touching node a hair below the line.
-    if let Some(k) = (0..contact_nodes.len()).find(|&k| contact.g[k] < -1e-9 * contact_h) {
-        let x = mesh.nodes[contact_nodes[k]];
-        return input(format!(
-            "{}: contact node at ({}, {}) already penetrates the foundation by {} (gap (x - obstacle_point) . obstacle_normal < 0); move obstacle_point or check that obstacle_normal points from the foundation into the body",
-            case.origin, x[0], x[1], -contact.g[k]
-        ));
-    }
+    let (contact_nodes, contact, contact_h) = contact_geometry(case, &mesh, &boundary)?;
 
-    check_held(case, &mesh, &fixed, &contact_nodes)?;
+    check_held(case, &mesh, &fixed, &contact_nodes, &contact)?;
 
     let n = mesh.num_nodes();
     let prob = Problem {
@@ -240,8 +211,6 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         load: Vec::new(),
         contact_nodes,
         contact,
-        normal: m,
-        tangent: [m[1], -m[0]],
         contact_h,
         file_node: (0..n).collect(),
     };
@@ -262,6 +231,91 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
     );
     prob.load = load;
     Ok(prob)
+}
+
+/// The contact nodes of every contact (global ids, increasing), their weights and
+/// geometry against their obstacles, and the mean contact edge length. Refuses a group
+/// off the boundary and a node already through its obstacle.
+fn contact_geometry(
+    case: &Case,
+    mesh: &Mesh,
+    boundary: &std::collections::HashSet<(usize, usize)>,
+) -> Result<(Vec<usize>, ContactNodes, f64)> {
+    // Per node: its weight in each contact whose group holds it.
+    let mut weight: HashMap<usize, Vec<(usize, f64)>> = HashMap::new();
+    let mut lengths = Vec::new();
+    for (i, c) in case.contacts.iter().enumerate() {
+        let lines = line_group(case, mesh, "contact", &c.group)?;
+        if let Some(&[a, b]) = lines
+            .iter()
+            .find(|&&[a, b]| !boundary.contains(&(a.min(b), a.max(b))))
+        {
+            return input(format!(
+                "{}: contact group \"{}\" has the edge ({}, {}) - ({}, {}) that is not on the boundary of the body; the contact group must be a boundary line",
+                case.origin, c.group, mesh.nodes[a][0], mesh.nodes[a][1], mesh.nodes[b][0], mesh.nodes[b][1]
+            ));
+        }
+        for &[a, b] in lines {
+            let len = edge_length(&mesh.nodes, a, b);
+            lengths.push(len);
+            for v in [a, b] {
+                let per = weight.entry(v).or_default();
+                match per.iter_mut().find(|(j, _)| *j == i) {
+                    Some((_, w)) => *w += 0.5 * len,
+                    None => per.push((i, 0.5 * len)),
+                }
+            }
+        }
+    }
+    // A node in several groups (the corner between two sides) is one node of the contact
+    // whose obstacle is nearest (the first on a tie), with its weight in that group: one
+    // normal per node, the other obstacle's pressure there left to its neighbours.
+    let owner: HashMap<usize, (usize, f64)> = (weight.iter())
+        .map(|(&v, per)| {
+            let gap = |i: usize| case.contacts[i].obstacle.geometry(mesh.nodes[v]).gap;
+            let best = (per.iter().copied())
+                .min_by(|a, b| gap(a.0).total_cmp(&gap(b.0)).then(a.0.cmp(&b.0)))
+                .expect("a contact node has a contact");
+            (v, best)
+        })
+        .collect();
+    // Summed in a fixed order, so that r does not depend on the order of the file's
+    // edges by a rounding (the loop's retunes can turn that into a sweep more or less).
+    lengths.sort_unstable_by(f64::total_cmp);
+    let total_len: f64 = lengths.iter().sum();
+    let contact_h = total_len / lengths.len() as f64;
+    let mut contact_nodes: Vec<usize> = owner.keys().copied().collect();
+    contact_nodes.sort_unstable();
+    let geometry: Vec<_> = (contact_nodes.iter())
+        .map(|v| case.contacts[owner[v].0].obstacle.geometry(mesh.nodes[*v]))
+        .collect();
+    let contact = ContactNodes {
+        w: contact_nodes.iter().map(|v| owner[v].1).collect(),
+        g: geometry.iter().map(|g| g.gap).collect(),
+        s: geometry.iter().map(|g| g.s).collect(),
+        normal: geometry.iter().map(|g| g.normal).collect(),
+        pair: contact_nodes.iter().map(|v| owner[v].0 as u32).collect(),
+        friction: Vec::new(),
+    };
+    // Round-off in mesh coordinates can put a touching node a hair below the line.
+    // (A gap that is not a number, from an obstacle far beyond the mesh's scale, is
+    // refused alike.)
+    if let Some(k) = (0..contact_nodes.len())
+        .find(|&k| contact.g[k].is_nan() || contact.g[k] < -1e-9 * contact_h)
+    {
+        let x = mesh.nodes[contact_nodes[k]];
+        let c = &case.contacts[contact.pair[k] as usize];
+        let fix = match c.obstacle {
+            Obstacle::Line { .. } => "move obstacle_point or check that obstacle_normal points from the foundation into the body (obstacle.point and obstacle.normal in a [[contact]] entry)",
+            Obstacle::Circle { .. } => "check the centre and the radius, and body = \"outside\" (the body outside the disc) or \"inside\" (in the hole)",
+            Obstacle::Polyline { .. } => "check the points, and body = \"left\" or \"right\" (the body's side walking from the first point to the last)",
+        };
+        return input(format!(
+            "{}: contact node at ({}, {}) already penetrates the foundation by {} (contact \"{}\", obstacle type {}); {fix}",
+            case.origin, x[0], x[1], -contact.g[k], c.group, c.obstacle.kind()
+        ));
+    }
+    Ok((contact_nodes, contact, contact_h))
 }
 
 /// `v` (two values per node) in the node order `old_of` (new -> old).
@@ -286,14 +340,9 @@ fn in_locality_order(prob: Problem) -> Problem {
         .map(|(k, &c)| (new_of[c], k))
         .collect();
     by_new.sort_unstable();
-    let take = |v: &[f64]| by_new.iter().map(|&(_, k)| v[k]).collect();
-    let c = &prob.contact;
+    let keep: Vec<usize> = by_new.iter().map(|&(_, k)| k).collect();
     Problem {
-        contact: ContactNodes {
-            w: take(&c.w),
-            g: take(&c.g),
-            s: take(&c.s),
-        },
+        contact: prob.contact.select(&keep),
         contact_nodes: by_new.iter().map(|&(v, _)| v).collect(),
         file_node: old_of.iter().map(|&o| prob.file_node[o]).collect(),
         mesh,
@@ -319,7 +368,7 @@ fn component(v: [f64; 2]) -> &'static str {
 /// The rule is structural (see [`Holds`] for why it is exact): each separate part of the
 /// mesh (triangles joined through nodes) must be held by lines of action that are neither
 /// all parallel nor all through one point. Each fixed dof holds its node along x or y;
-/// each contact node holds along the obstacle normal, and with friction (Tresca or
+/// each contact node holds along its normal, and with friction (Tresca or
 /// Coulomb) also along the tangent. So frictionless contact alone always leaves the
 /// sliding along the foundation free, which some Dirichlet condition must stop. Pieces
 /// joined at a single node (a hinge) count as one part here; a mechanism through such a
@@ -329,6 +378,7 @@ pub fn check_held(
     mesh: &Mesh,
     fixed: &[Option<f64>],
     contact_nodes: &[usize],
+    contact: &ContactNodes,
 ) -> Result<()> {
     let (part, count) = validate::parts(mesh);
     let tol = validate::SAME_LINE * validate::size(mesh);
@@ -341,13 +391,14 @@ pub fn check_held(
         holds[part[node]].add(mesh.nodes[node], dir);
         kinds[part[node]][c] = true;
     }
-    let m = case.contact.obstacle_normal;
-    let t = [m[1], -m[0]];
     let frictional = Problem::is_frictional(case);
-    for &node in contact_nodes {
+    for (k, &node) in contact_nodes.iter().enumerate() {
+        let (m, pair) = (contact.normal[k], contact.pair[k] as usize);
+        let t = tangent_of(m);
         holds[part[node]].add(mesh.nodes[node], m);
         kinds[part[node]][2] = true;
-        if frictional {
+        // A frictionless contact among frictional ones holds along its normals only.
+        if case.contacts[pair].friction != Friction::None {
             holds[part[node]].add(mesh.nodes[node], t);
             kinds[part[node]][3] = true;
         }

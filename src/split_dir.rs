@@ -8,8 +8,9 @@
 //! names its split and its index, so that a part of another split is refused.
 //!
 //! A run reads the case file again. Only what the parts are made of must be unchanged:
-//! the mesh, the Dirichlet conditions, the tractions, the body force, the contact group,
-//! the foundation and whether there is friction (which decides the boundary dofs). The
+//! the mesh, the Dirichlet conditions, the tractions, the body force, the contact groups,
+//! their obstacles (the nodes' normals and gaps) and whether there is friction (which
+//! decides the boundary dofs and the nodes turned into their frames). The
 //! material, the friction coefficient or threshold and the solver settings may change
 //! between runs of one split: the split keeps the mesh's lengths, not the default r.
 
@@ -28,7 +29,7 @@ use std::path::{Path, PathBuf};
 /// The manifest's file name in a split directory.
 pub const MANIFEST: &str = "split.json";
 /// Bumped whenever the part files or the manifest change layout.
-const FORMAT: u32 = 1;
+const FORMAT: u32 = 2;
 const MAGIC: &[u8; 8] = b"CPSPLIT\x01";
 
 /// What partitioning and splitting a case fixes, whoever did it (the first rank of a run,
@@ -39,8 +40,6 @@ pub struct Facts {
     pub lengths: Lengths,
     pub n_boundary: usize,
     pub n_interface: usize,
-    pub normal: [f64; 2],
-    pub tangent: [f64; 2],
     pub nodes: usize,
     pub elements: usize,
     pub free_dofs: usize,
@@ -112,13 +111,16 @@ fn fingerprint(case: &Case) -> BTreeMap<String, String> {
         ),
         MeshSource::Builtin { name, level } => format!("builtin {name:?} {level}"),
     };
-    let c = &case.contact;
+    // Each contact's group and obstacle (the nodes' frames and gaps are in the parts),
+    // and whether there is friction (which decides the boundary dofs).
     let contact = format!(
-        "{} {} {} {}",
-        json(&c.group),
-        json(&c.obstacle_point),
-        json(&c.obstacle_normal),
-        !matches!(c.friction, Friction::None)
+        "{} {}",
+        json(
+            &(case.contacts.iter())
+                .map(|c| (&c.group, &c.obstacle))
+                .collect::<Vec<_>>()
+        ),
+        !matches!(case.friction(), Friction::None)
     );
     [
         ("mesh", mesh),

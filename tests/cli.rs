@@ -98,7 +98,7 @@ fn exhausted_budget_exits_3_with_outputs_marked() {
 
 #[test]
 fn printed_case_runs_like_the_builtin() {
-    for (name, level) in [("block", 0), ("block_flat", 0), ("hertz", 0)] {
+    for (name, level) in [("block", 0), ("block_flat", 0), ("hertz", 0), ("punch", 0)] {
         let text = print_case(name, level);
         let from_file = run_case(&text, &[]);
         let builtin = run_builtin(name, level, &[]);

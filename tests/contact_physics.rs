@@ -186,7 +186,8 @@ fn kkt_frictionless_partial_contact() {
 fn condensed_system_keeps_the_contact_components_that_are_read() {
     for (friction, normal, per_node) in [
         ("friction = \"none\"", FLAT, 1),
-        ("friction = \"none\"", tilted(), 2),
+        // Turned into each node's frame: the normal dof only.
+        ("friction = \"none\"", tilted(), 1),
         ("friction = \"coulomb\"\ncoefficient = 0.3", FLAT, 2),
     ] {
         let what = format!("{friction}, normal {normal:?}");

@@ -130,6 +130,34 @@ fn a_split_builtin_case_runs_as_the_unsplit_one() {
     compare_layouts(p, &case, "parts");
 }
 
+/// A pin in a rigid hole, frictionless (its contact nodes turned into their frames in the
+/// parts): from a split as unsplit, and a split of another hole refused.
+#[test]
+fn a_split_obstacle_case_runs_as_the_unsplit_one_and_keeps_its_obstacle() {
+    let dir = TempDir::new().unwrap();
+    let p = dir.path();
+    let text = contact_par::case::builtin_case_text("hertz", 1).unwrap();
+    let head = text.split("[contact]").next().unwrap();
+    let hole = |radius: f64| {
+        format!(
+            "{head}[[contact]]\nslave = \"contact\"\nobstacle = {{ type = \"circle\", centre = [0.0, {radius:?}], radius = {radius:?}, body = \"inside\" }}\n"
+        )
+    };
+    std::fs::write(p.join("case.toml"), hole(100.0)).unwrap();
+    ok(
+        &split(p, &["case.toml", "--parts", "4", "--out", "parts"]),
+        "split",
+    );
+    compare_layouts(p, &["case.toml"], "parts");
+    std::fs::write(p.join("other.toml"), hole(120.0)).unwrap();
+    refused(
+        p,
+        2,
+        &["other.toml", "--mesh-split", "parts"],
+        "contact section differs",
+    );
+}
+
 /// The split keeps what the parts are made of, not the material: a new Young's modulus,
 /// friction coefficient and tolerance run from the old split, and the mesh file need not
 /// be there.

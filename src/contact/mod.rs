@@ -4,6 +4,7 @@
 mod anderson;
 pub mod kernels;
 mod law;
+pub mod obstacle;
 pub mod operators;
 pub mod probe;
 pub mod retune;
@@ -56,18 +57,58 @@ impl Reduce for NoComm {
     fn min_in_place(&self, _values: &mut [f64]) {}
 }
 
-/// The contact nodes a rank owns, with their lumped weights and initial gaps.
+/// The contact nodes a rank owns, with their lumped weights, frames and initial gaps.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct ContactNodes {
     /// Lumped boundary weight w_i (half the length of each contact edge at the node).
     pub w: Vec<f64>,
-    /// Initial gap g_i = (x_i - p0) . m.
+    /// Initial gap g_i along the node's normal (for a line (x_i - p0) . m).
     pub g: Vec<f64>,
-    /// Position along the foundation, (x_i - p0) . t.
+    /// Position along the obstacle (for a line (x_i - p0) . t).
     pub s: Vec<f64>,
+    /// Unit normal m_i of each node, obstacle -> body: u_n = -m_i . u; its tangent is
+    /// t_i = (m_y, -m_x), u_t = t_i . u.
+    pub normal: Vec<[f64; 2]>,
+    /// The contact (the case's `[[contact]]` entry, from 0) each node belongs to.
+    pub pair: Vec<u32>,
+    /// The friction law's value at each node (Coulomb coefficient, Tresca threshold)
+    /// where contacts give different ones; empty: the one of `Params::friction`. Filled
+    /// from the case at each run (a split's parts leave it empty, so the values may
+    /// change between runs of one split).
+    #[serde(default)]
+    pub friction: Vec<f64>,
+}
+
+/// The tangent of a unit normal: m turned clockwise.
+pub fn tangent_of(m: [f64; 2]) -> [f64; 2] {
+    [m[1], -m[0]]
 }
 
 impl ContactNodes {
+    /// The nodes `keep` (indices into self), in that order.
+    pub fn select(&self, keep: &[usize]) -> ContactNodes {
+        ContactNodes {
+            w: keep.iter().map(|&k| self.w[k]).collect(),
+            g: keep.iter().map(|&k| self.g[k]).collect(),
+            s: keep.iter().map(|&k| self.s[k]).collect(),
+            normal: keep.iter().map(|&k| self.normal[k]).collect(),
+            pair: keep.iter().map(|&k| self.pair[k]).collect(),
+            friction: keep
+                .iter()
+                .filter_map(|&k| self.friction.get(k).copied())
+                .collect(),
+        }
+    }
+
+    /// The friction law's value at every node: per node where given, else `value`.
+    pub fn friction_values(&self, value: f64) -> Vec<f64> {
+        if self.friction.is_empty() {
+            vec![value; self.len()]
+        } else {
+            self.friction.clone()
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.w.len()
     }

@@ -109,6 +109,7 @@ mod tests {
             w: vec![0.15, 0.55, 0.7, 0.45, 0.9, 1.0, 0.25],
             g: vec![0.0; 7],
             s: s.clone(),
+            ..Default::default()
         };
         let e = smooth_shape(&nodes, &NoComm).unwrap();
         let dot =
@@ -123,6 +124,7 @@ mod tests {
             w: vec![1.0; 4],
             g: vec![0.0; 4],
             s: vec![0.0, 1.0, 0.0, 1.0],
+            ..Default::default()
         };
         assert!(smooth_shape(&two, &NoComm).is_none());
     }

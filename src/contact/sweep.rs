@@ -56,7 +56,8 @@ pub struct Sweep {
 pub(super) enum Law<'a> {
     Frictionless,
     Fixed(&'a [f64]),
-    Coulomb(f64),
+    /// The coefficient of each node.
+    Coulomb(&'a [f64]),
 }
 
 impl Law<'_> {
@@ -68,7 +69,7 @@ impl Law<'_> {
         match *self {
             Law::Frictionless => 0.0,
             Law::Fixed(s) => s[i],
-            Law::Coulomb(c) => coulomb_threshold(c, lambda),
+            Law::Coulomb(c) => coulomb_threshold(c[i], lambda),
         }
     }
 }

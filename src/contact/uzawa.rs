@@ -223,17 +223,19 @@ pub fn solve_with(
             (c, d, vec![0.0; n])
         }
         (Friction::Tresca { threshold }, _) => {
-            let s = vec![threshold; n];
+            let s = nodes.friction_values(threshold);
             let (c, d) = run.sweeps(Law::Fixed(&s), &mut x)?;
             (c, d, s)
         }
         (Friction::Coulomb { coefficient }, CoulombMode::Inner) => {
-            let (c, d) = run.sweeps(Law::Coulomb(coefficient), &mut x)?;
-            let s = coulomb_thresholds(coefficient, &d.lambda);
+            let coefficient = nodes.friction_values(coefficient);
+            let (c, d) = run.sweeps(Law::Coulomb(&coefficient), &mut x)?;
+            let s = coulomb_thresholds(&coefficient, &d.lambda);
             (c, d, s)
         }
         (Friction::Coulomb { coefficient }, CoulombMode::Outer) => {
-            let (c, d, s, outer) = run.coulomb_outer(coefficient, &mut x)?;
+            let coefficient = nodes.friction_values(coefficient);
+            let (c, d, s, outer) = run.coulomb_outer(&coefficient, &mut x)?;
             outer_iterations = outer;
             (c, d, s)
         }
@@ -318,11 +320,10 @@ fn initial_state(nodes: &ContactNodes, frictional: bool) -> Vec<f64> {
     x
 }
 
-/// The Coulomb thresholds of the pressures `lambda`.
-fn coulomb_thresholds(coefficient: f64, lambda: &[f64]) -> Vec<f64> {
-    lambda
-        .iter()
-        .map(|&l| coulomb_threshold(coefficient, l))
+/// The Coulomb thresholds of the pressures `lambda`, each node with its coefficient.
+fn coulomb_thresholds(coefficient: &[f64], lambda: &[f64]) -> Vec<f64> {
+    (coefficient.iter().zip(lambda))
+        .map(|(&c, &l)| coulomb_threshold(c, l))
         .collect()
 }
 
@@ -693,7 +694,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// [`Run::sweeps`], the last thresholds and the outer iterations.
     fn coulomb_outer(
         &mut self,
-        coefficient: f64,
+        coefficient: &[f64],
         x: &mut Vec<f64>,
     ) -> Result<(bool, Derived, Vec<f64>, usize)> {
         let n = self.sweeper.nodes.len();
@@ -868,6 +869,7 @@ mod tests {
             w: vec![0.5],
             g: vec![g],
             s: vec![0.0; 1],
+            ..Default::default()
         };
         let mut s = Springs {
             k: vec![2.0],
@@ -900,6 +902,7 @@ mod tests {
                 w: vec![0.5],
                 g: vec![1.0],
                 s: vec![0.0; 1],
+                ..Default::default()
             };
             let mut s = Springs {
                 k: vec![1e-13],
@@ -961,6 +964,7 @@ mod tests {
                     w: vec![0.5],
                     g: vec![1.0],
                     s: vec![0.0; 1],
+                    ..Default::default()
                 };
                 let mut s = Springs {
                     k: vec![2.0],
@@ -987,6 +991,7 @@ mod tests {
             w: vec![0.5],
             g: vec![1.0],
             s: vec![0.0; 1],
+            ..Default::default()
         };
         let mut p = params(Friction::None, PLAIN);
         p.max_iter = 2;
@@ -1009,6 +1014,7 @@ mod tests {
             w: vec![0.5; n],
             g: (0..n).map(|i| 0.02 * i as f64).collect(),
             s: (0..n).map(|i| i as f64).collect(),
+            ..Default::default()
         };
         let k = (0..n)
             .map(|i| 0.05 + 20.0 * (i as f64 / n as f64).powi(2))
@@ -1120,6 +1126,7 @@ mod tests {
                 w: vec![0.5; n],
                 g: vec![0.01; n],
                 s: (0..n).map(|i| i as f64).collect(),
+                ..Default::default()
             };
             let mut step = Tunable {
                 f: vec![[1.0, 0.0]; n],

@@ -19,6 +19,7 @@
 //! the trailing block of the sparse factor. The first rank's dense work is set by the
 //! interface alone (n_G^3 / 3 once, 2 n_G^2 a sweep), not by the contact boundary.
 
+use crate::contact::tangent_of;
 use crate::dd::local_factor::LocalFactor;
 use crate::error::{Error, Result};
 use crate::linear::SparseCholesky;
@@ -42,8 +43,7 @@ impl ContactRows {
         contact_nodes: &[usize],
         fixed: &[Option<f64>],
         boundary_dofs: &[usize],
-        normal: [f64; 2],
-        tangent: [f64; 2],
+        normals: &[[f64; 2]],
         frictional: bool,
     ) -> Result<Self> {
         let mut position = std::collections::HashMap::with_capacity(boundary_dofs.len());
@@ -55,6 +55,7 @@ impl ContactRows {
         let mut entries = Vec::with_capacity(2 * per * n);
         let mut c0 = vec![0.0; per * n];
         for (k, &v) in contact_nodes.iter().enumerate() {
+            let (normal, tangent) = (normals[k], tangent_of(normals[k]));
             // u_n = -m.u, u_t = t.u.
             let kinds: &[(usize, [f64; 2])] = if frictional {
                 &[(k, [-normal[0], -normal[1]]), (n + k, tangent)]
@@ -485,18 +486,18 @@ mod tests {
         // Node 0: both dofs free; node 1: x prescribed to 0.5.
         let fixed = vec![None, None, Some(0.5), None];
         let boundary = vec![3, 0, 1];
-        let (m, t) = ([0.0, -1.0], [1.0, 0.0]);
-        let rows = ContactRows::new(&[0, 1], &fixed, &boundary, m, t, true).unwrap();
+        let m = [0.0, 1.0];
+        let rows = ContactRows::new(&[0, 1], &fixed, &boundary, &[m, m], true).unwrap();
         assert_eq!(rows.len(), 4);
-        // u_n = -m.u = u_y, u_t = u_x.
+        // u_n = -m.u = -u_y, u_t = t.u = u_x.
         let mut e = rows.entries.clone();
         e.sort_by(|a, b| a.partial_cmp(b).unwrap());
-        let expected = vec![(0, 2, 1.0), (1, 0, 1.0), (2, 1, 1.0)];
+        let expected = vec![(0, 2, -1.0), (1, 0, -1.0), (2, 1, 1.0)];
         let nonzero: Vec<_> = e.into_iter().filter(|x| x.2 != 0.0).collect();
         assert_eq!(nonzero, expected);
         assert_eq!(rows.c0, vec![0.0, 0.0, 0.0, 0.5]);
         // A contact dof that is not in B is an internal error, not a panic.
-        assert!(ContactRows::new(&[0], &fixed, &[3], m, t, false).is_err());
+        assert!(ContactRows::new(&[0], &fixed, &[3], &[m], false).is_err());
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! one forward and backward solve. The textbook reference for the condensed path.
 
 use crate::contact::operators::{add_contact_forces, contact_blocks, ContactDofs, NodalForces};
-use crate::contact::LinearStep;
+use crate::contact::{tangent_of, LinearStep};
 use crate::error::Result;
 use crate::fem::{assemble, AssemblyFigures, DofMap, Material};
 use crate::linear::SparseCholesky;
@@ -37,8 +37,7 @@ pub struct DirectStep {
     base: Vec<f64>,
     rhs: Mat<f64>,
     contact_nodes: Vec<usize>,
-    normal: [f64; 2],
-    tangent: [f64; 2],
+    normals: Vec<[f64; 2]>,
     /// Without friction Tu is not part of the method: reported as 0, as the condensed
     /// step does, so both paths see the same residual scale.
     frictional: bool,
@@ -66,7 +65,7 @@ impl DirectStep {
                 contact.w,
                 &rr,
                 &rr,
-                contact.normal,
+                contact.normals,
                 contact.frictional,
             );
             let assembled = assemble(
@@ -101,8 +100,7 @@ impl DirectStep {
             base,
             rhs: Mat::zeros(n, 1),
             contact_nodes: contact.nodes.to_vec(),
-            normal: contact.normal,
-            tangent: contact.tangent,
+            normals: contact.normals.to_vec(),
             frictional: contact.frictional,
         })
     }
@@ -142,7 +140,7 @@ impl LinearStep for DirectStep {
             &self.w,
             &shift(r_n),
             &shift(r_t),
-            self.normal,
+            &self.normals,
             self.frictional,
         );
         let (cp, ri): (Vec<usize>, Vec<usize>) = (
@@ -189,7 +187,7 @@ impl LinearStep for DirectStep {
         add_contact_forces(
             &self.dofs,
             &self.contact_nodes,
-            (self.normal, self.tangent),
+            &self.normals,
             NodalForces {
                 normal: force_n,
                 tangential: force_t,
@@ -197,8 +195,8 @@ impl LinearStep for DirectStep {
             rhs,
         );
         self.chol.solve_in_place(self.rhs.as_mut());
-        let ([mx, my], [tx, ty]) = (self.normal, self.tangent);
         for (k, &node) in self.contact_nodes.iter().enumerate() {
+            let ([mx, my], [tx, ty]) = (self.normals[k], tangent_of(self.normals[k]));
             let (ux, uy) = (self.dof_value(2 * node), self.dof_value(2 * node + 1));
             un[k] = -(mx * ux + my * uy);
             ut[k] = if self.frictional {

@@ -7,8 +7,9 @@
 //! order; every rank orders its boundary dofs last: contact, then interface.
 //!
 //! A contact dof is in B only if the contact acts on it ([`contact_components`]): without
-//! friction on a foundation whose normal is along an axis, the other component of a
-//! contact node stays in the interior. The dense work of a rank grows like |B|^3 and its
+//! friction, at a node whose normal is along an axis, the other component stays in the
+//! interior; a node with an oblique normal has its dofs turned into its frame
+//! ([`in_frame`]), so that it too keeps only its normal dof in B. The dense work of a rank grows like |B|^3 and its
 //! sweep like |B|^2, so this halves the contact part of B where it applies (frictionless
 //! Hertz at 1.2M nodes: the last dense supernode of the one-rank factor shrinks from
 //! 5047 to 3293 columns).
@@ -47,6 +48,38 @@ pub struct SubProblem {
     pub interface_global: Vec<usize>,
     /// Local nodes shared with another part.
     pub interface_nodes: usize,
+    /// Local nodes whose dofs are in their contact frame ([`in_frame`]), with their
+    /// normal m, increasing; every subdomain holding such a node turns it alike.
+    pub frames: Vec<(usize, [f64; 2])>,
+}
+
+impl SubProblem {
+    /// Each local node's frame, `None` for x, y (see `fem::assemble_in_frames`).
+    pub fn node_frames(&self) -> Vec<Option<[f64; 2]>> {
+        let mut f = vec![None; self.nodes.len()];
+        for &(v, m) in &self.frames {
+            f[v] = Some(m);
+        }
+        f
+    }
+
+    /// The normal of each own contact node as the linear step sees it: (1, 0) for a node
+    /// in its frame (u'_0 = m . u, and the tangent (0, -1) reads t . u), else m.
+    pub fn step_normals(&self) -> Vec<[f64; 2]> {
+        let frames = self.node_frames();
+        (self.contact_nodes.iter().zip(&self.contact.normal))
+            .map(|(&v, &m)| frames[v].map_or(m, |_| [1.0, 0.0]))
+            .collect()
+    }
+}
+
+/// Whether a contact node's dofs are turned into its frame (m, (-m_y, m_x)): without
+/// friction, where the normal is oblique (otherwise the contact reads one component
+/// already, [`contact_components`]) and both dofs are free (a prescribed component is a
+/// condition in x, y). Then only m . u is read, and the other dof leaves the condensed
+/// system.
+pub fn in_frame(frictional: bool, m: [f64; 2], fixed: [bool; 2]) -> bool {
+    !frictional && m[0] != 0.0 && m[1] != 0.0 && !fixed[0] && !fixed[1]
 }
 
 /// The global numbering shared by all ranks, known in full on the first rank only.
@@ -80,12 +113,23 @@ pub fn split(
     part: &Partition,
     frictional: bool,
 ) -> Result<(Vec<SubProblem>, GlobalMap)> {
-    let read = contact_components(frictional, prob.normal);
     let n = prob.mesh.num_nodes();
     let nparts = part.nparts;
     let mut is_contact = vec![false; n];
-    for &c in &prob.contact_nodes {
+    // The components each node's contact reads (none off the contact boundary), in the
+    // node's frame where it has one.
+    let mut read = vec![[false; 2]; n];
+    let mut frame: Vec<Option<[f64; 2]>> = vec![None; n];
+    for (k, &c) in prob.contact_nodes.iter().enumerate() {
         is_contact[c] = true;
+        let m = prob.contact.normal[k];
+        let fixed = [0, 1].map(|i| prob.fixed[2 * c + i].is_some());
+        if in_frame(frictional, m, fixed) {
+            frame[c] = Some(m);
+            read[c] = [true, false];
+        } else {
+            read[c] = contact_components(frictional, m);
+        }
     }
     let mut on_interface = vec![false; n];
     for p in &part.parts {
@@ -105,7 +149,7 @@ pub fn split(
                 interface_index[v][c] = Some(n_interface);
                 n_interface += 1;
                 n_boundary += 1;
-            } else if is_contact[v] && read[c] {
+            } else if is_contact[v] && read[v][c] {
                 n_boundary += 1;
             }
         }
@@ -141,7 +185,7 @@ pub fn split(
                 if let Some(b) = interface_index[g][c] {
                     interface_dofs.push(2 * l + c);
                     interface_global.push(b);
-                } else if is_contact[g] && read[c] && prob.fixed[2 * g + c].is_none() {
+                } else if is_contact[g] && read[g][c] && prob.fixed[2 * g + c].is_none() {
                     boundary_dofs.push(2 * l + c);
                 }
             }
@@ -161,15 +205,14 @@ pub fn split(
                 .iter()
                 .map(|&k| local_of[prob.contact_nodes[k]])
                 .collect(),
-            contact: ContactNodes {
-                w: mine.iter().map(|&k| prob.contact.w[k]).collect(),
-                g: mine.iter().map(|&k| prob.contact.g[k]).collect(),
-                s: mine.iter().map(|&k| prob.contact.s[k]).collect(),
-            },
+            contact: prob.contact.select(mine),
             boundary_dofs,
             n_contact_dofs,
             interface_global,
             interface_nodes: p.interface.len(),
+            frames: (p.nodes.iter().enumerate())
+                .filter_map(|(l, &g)| frame[g].map(|m| (l, m)))
+                .collect(),
         };
         if sub.contact_nodes.contains(&usize::MAX) {
             return Err(Error::Numerical(format!(
@@ -193,7 +236,7 @@ pub fn split(
 
 #[cfg(test)]
 mod tests {
-    use super::contact_components;
+    use super::{contact_components, in_frame};
 
     #[test]
     fn contact_components_are_those_the_contact_reads() {
@@ -202,5 +245,14 @@ mod tests {
         assert_eq!(contact_components(false, [-1.0, 0.0]), [true, false]);
         let t: f64 = 1e-3;
         assert_eq!(contact_components(false, [t.sin(), t.cos()]), [true, true]);
+    }
+
+    #[test]
+    fn only_frictionless_oblique_free_nodes_turn() {
+        let oblique = [0.6, 0.8];
+        assert!(in_frame(false, oblique, [false, false]));
+        assert!(!in_frame(true, oblique, [false, false]));
+        assert!(!in_frame(false, [0.0, 1.0], [false, false]));
+        assert!(!in_frame(false, oblique, [true, false]));
     }
 }

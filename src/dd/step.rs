@@ -12,7 +12,7 @@ use crate::dd::interface_mumps::{self, MumpsInterface};
 use crate::dd::local_factor::{InteriorForward, LocalFactor, SchurChange};
 use crate::dd::split::SubProblem;
 use crate::error::Result;
-use crate::fem::{assemble, AssemblyFigures, DofMap, Material};
+use crate::fem::{assemble_in_frames, from_frame, to_frame, AssemblyFigures, DofMap, Material};
 use crate::host;
 use crate::linear::{interior_groups, Ordering};
 use crate::timer::{Phase, Timer};
@@ -26,8 +26,6 @@ pub struct StepSetup<'a> {
     pub r: f64,
     /// Shift of the interface block of every local matrix (see `LocalFactor`).
     pub alpha: f64,
-    pub normal: [f64; 2],
-    pub tangent: [f64; 2],
     pub frictional: bool,
     /// Interface dofs of the whole mesh (0: a single subdomain).
     pub n_interface: usize,
@@ -63,7 +61,7 @@ impl LocalSystem {
                 &sub.contact.w,
                 &rr,
                 &rr,
-                s.normal,
+                &sub.step_normals(),
                 s.frictional,
             );
             let mut g_nodes: Vec<usize> = sub.boundary_dofs[sub.n_contact_dofs..]
@@ -76,12 +74,24 @@ impl LocalSystem {
                     .iter()
                     .map(|&v| (v, [[s.alpha, 0.0], [0.0, s.alpha]])),
             );
-            let assembled = assemble(&sub.nodes, &sub.triangles, s.material, &dofs, &blocks)?;
+            let frames = sub.node_frames();
+            let assembled = assemble_in_frames(
+                &sub.nodes,
+                &sub.triangles,
+                s.material,
+                &dofs,
+                &blocks,
+                &frames,
+            )?;
             let figures = assembled.figures();
             let mut base = assembled.lifting;
+            let mut load = sub.load.clone();
+            for &(v, m) in &sub.frames {
+                [load[2 * v], load[2 * v + 1]] = to_frame(m, [load[2 * v], load[2 * v + 1]]);
+            }
             for (dof, eq) in dofs.eq.iter().enumerate() {
                 if let Some(i) = eq {
-                    base[*i] += sub.load[dof];
+                    base[*i] += load[dof];
                 }
             }
             Ok((dofs, assembled.matrix, base, figures))
@@ -152,8 +162,7 @@ impl<'a> CondensedStep<'a> {
             &sub.contact_nodes,
             &sub.fixed,
             &sub.boundary_dofs,
-            setup.normal,
-            setup.tangent,
+            &sub.step_normals(),
             setup.frictional,
         ))?;
         drop(schur);
@@ -289,13 +298,13 @@ impl<'a> CondensedStep<'a> {
         let u_free = timer.time(Phase::OneSolve, || {
             self.local.factor.recover(&self.interior_forward, &x_b)
         });
-        Ok(self
-            .local
-            .dofs
-            .expand(&u_free)
-            .chunks_exact(2)
+        let mut u: Vec<[f64; 2]> = (self.local.dofs.expand(&u_free).chunks_exact(2))
             .map(|c| [c[0], c[1]])
-            .collect())
+            .collect();
+        for &(v, m) in &self.sub.frames {
+            u[v] = from_frame(m, u[v]);
+        }
+        Ok(u)
     }
 }
 
@@ -309,7 +318,7 @@ impl LinearStep for CondensedStep<'_> {
             &self.sub.contact.w,
             &shift(r_n),
             &shift(r_t),
-            self.setup.normal,
+            &self.sub.step_normals(),
             self.setup.frictional,
         );
         let updated = boundary_entries(&blocks, &self.sub.fixed, &self.sub.boundary_dofs)

@@ -113,6 +113,32 @@ pub fn assemble(
     dofs: &DofMap,
     node_blocks: &[(usize, [[f64; 2]; 2])],
 ) -> Result<Assembled> {
+    assemble_in_frames(nodes, triangles, material, dofs, node_blocks, &[])
+}
+
+/// The dofs (u'_0, u'_1) of a node turned into the frame of the unit vector m: u = Q u'
+/// with Q = [[m_x, -m_y], [m_y, m_x]], so u'_0 = m . u and u'_1 = (-m_y, m_x) . u.
+pub fn to_frame(m: [f64; 2], u: [f64; 2]) -> [f64; 2] {
+    [m[0] * u[0] + m[1] * u[1], -m[1] * u[0] + m[0] * u[1]]
+}
+
+/// The inverse of [`to_frame`]: x and y components from the frame's.
+pub fn from_frame(m: [f64; 2], v: [f64; 2]) -> [f64; 2] {
+    [m[0] * v[0] - m[1] * v[1], m[1] * v[0] + m[0] * v[1]]
+}
+
+/// [`assemble`] with the dofs of some nodes in a frame of their own: `frames[v]` is
+/// `Some(m)` for a node whose two dofs are (m . u, (-m_y, m_x) . u) ([`to_frame`]), A
+/// then being Q'AQ; empty: every node in x, y. `node_blocks` are given in the nodes'
+/// frames. A node in a frame must have both dofs free (its lifting is not turned).
+pub fn assemble_in_frames(
+    nodes: &[[f64; 2]],
+    triangles: &[[usize; 3]],
+    material: &Material,
+    dofs: &DofMap,
+    node_blocks: &[(usize, [[f64; 2]; 2])],
+    frames: &[Option<[f64; 2]>],
+) -> Result<Assembled> {
     let d = elasticity_matrix(material);
     let n = dofs.n_free;
     let stars = Stars::new(nodes.len(), triangles)
@@ -129,6 +155,7 @@ pub fn assemble(
         d: &d,
         dofs,
         stars: &stars,
+        frames,
     };
     let chunk = (n / (4 * rayon::current_num_threads())).max(1024);
     let parts: Vec<Columns> = dof_of_eq
@@ -191,6 +218,14 @@ struct ColumnSource<'a> {
     d: &'a nalgebra::Matrix3<f64>,
     dofs: &'a DofMap,
     stars: &'a Stars,
+    /// See [`assemble_in_frames`].
+    frames: &'a [Option<[f64; 2]>],
+}
+
+impl ColumnSource<'_> {
+    fn frame(&self, v: usize) -> Option<[f64; 2]> {
+        self.frames.get(v).copied().flatten()
+    }
 }
 
 /// Consecutive columns of the lower triangle, built by one thread.
@@ -218,6 +253,7 @@ impl Columns {
             d,
             dofs,
             stars,
+            ..
         } = *mesh;
         let (v, c) = (dof / 2, dof % 2);
         self.scratch.clear();
@@ -246,7 +282,24 @@ impl Columns {
         for &e in stars.of(v) {
             let t = triangles[e as usize];
             let a = t.iter().position(|&u| u == v).unwrap_or(0);
-            let k = element_stiffness_row(&[nodes[t[0]], nodes[t[1]], nodes[t[2]]], d, 2 * a + c);
+            let p = [nodes[t[0]], nodes[t[1]], nodes[t[2]]];
+            let mut k = match mesh.frame(v) {
+                None => element_stiffness_row(&p, d, 2 * a + c),
+                Some(m) => {
+                    // Column c of Q: the element rows of x and y combined.
+                    let q = from_frame(m, if c == 0 { [1.0, 0.0] } else { [0.0, 1.0] });
+                    let (kx, ky) = (
+                        element_stiffness_row(&p, d, 2 * a),
+                        element_stiffness_row(&p, d, 2 * a + 1),
+                    );
+                    std::array::from_fn(|i| q[0] * kx[i] + q[1] * ky[i])
+                }
+            };
+            for (b, &u) in t.iter().enumerate() {
+                if let Some(m) = mesh.frame(u) {
+                    [k[2 * b], k[2 * b + 1]] = to_frame(m, [k[2 * b], k[2 * b + 1]]);
+                }
+            }
             for (m, km) in k.iter().enumerate() {
                 let other = 2 * t[m / 2] + m % 2;
                 match dofs.eq[other] {
@@ -369,6 +422,61 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn nodes_in_frames_give_q_transpose_a_q() {
+        let nodes = [[0.0, 0.0], [1.0, 0.1], [0.1, 1.0], [1.2, 1.1], [2.0, 0.4]];
+        let tris = [[0, 1, 2], [1, 3, 2], [1, 4, 3]];
+        let mat = Material {
+            young: 7.0,
+            poisson: 0.3,
+            hypothesis: Hypothesis::PlaneStrain,
+        };
+        let mut fixed = vec![None; 10];
+        fixed[0] = Some(0.5);
+        fixed[4] = Some(-0.25);
+        let dofs = DofMap::new(&fixed);
+        let (m1, m3) = ([0.6, 0.8], [-0.28, 0.96]);
+        let mut frames = vec![None; 5];
+        frames[1] = Some(m1);
+        frames[3] = Some(m3);
+        let blocks = [(3usize, [[2.0, 0.0], [0.0, 0.0]])];
+        let a = assemble_in_frames(&nodes, &tris, &mat, &dofs, &blocks, &frames).unwrap();
+        // Q' K Q with the dense K, Q block-diagonal.
+        let k = dense_k(&nodes, &tris, &mat);
+        let mut q = vec![vec![0.0; 10]; 10];
+        for v in 0..5 {
+            for c in 0..2 {
+                let unit = if c == 0 { [1.0, 0.0] } else { [0.0, 1.0] };
+                let col = frames[v].map_or(unit, |m| from_frame(m, unit));
+                q[2 * v][2 * v + c] = col[0];
+                q[2 * v + 1][2 * v + c] = col[1];
+            }
+        }
+        let mut qkq = vec![vec![0.0; 10]; 10];
+        for (i, row) in qkq.iter_mut().enumerate() {
+            for (j, x) in row.iter_mut().enumerate() {
+                *x = (0..10)
+                    .flat_map(|r| (0..10).map(move |s| (r, s)))
+                    .map(|(r, s)| q[r][i] * k[r][s] * q[s][j])
+                    .sum();
+            }
+        }
+        qkq[6][6] += 2.0;
+        assert_matches_dense(&a, &dofs, &qkq);
+        // The lifting of the prescribed dofs lands on the turned equations turned.
+        for i in 0..10 {
+            let Some(ei) = dofs.eq[i] else { continue };
+            let expect = -(qkq[i][0] * 0.5 + qkq[i][4] * -0.25);
+            assert!((a.lifting[ei] - expect).abs() < 1e-12, "{i}");
+        }
+        // The frame's maps are inverse rotations.
+        let u = [0.3, -1.7];
+        let v = to_frame(m3, u);
+        assert!((v[0] - (m3[0] * u[0] + m3[1] * u[1])).abs() < 1e-15);
+        let back = from_frame(m3, v);
+        assert!((back[0] - u[0]).abs() < 1e-15 && (back[1] - u[1]).abs() < 1e-15);
     }
 
     #[test]

@@ -5,7 +5,9 @@
 pub mod assembly;
 mod material;
 
-pub use assembly::{assemble, Assembled, AssemblyFigures, DofMap};
+pub use assembly::{
+    assemble, assemble_in_frames, from_frame, to_frame, Assembled, AssemblyFigures, DofMap,
+};
 pub use material::{Hypothesis, Material};
 
 use nalgebra::{Matrix3, SMatrix, Vector3};

@@ -26,6 +26,12 @@ pub struct ContactRow {
     pub status: Status,
     /// The node's contact weight (its share of the boundary's length).
     pub w: f64,
+    /// Its contact (the case's `[[contact]]` entry, from 0) and its position along that
+    /// contact's obstacle: for pictures and per-contact sums, not columns of contact.csv.
+    pub pair: u32,
+    pub s: f64,
+    /// The node's unit normal (obstacle -> body).
+    pub normal: [f64; 2],
 }
 
 /// A contact status as one byte on the wire.
@@ -145,6 +151,9 @@ mod tests {
             gap: v,
             status: Status::Free,
             w: 0.0,
+            pair: 0,
+            s: x,
+            normal: [0.0, 1.0],
         }
     }
 
@@ -215,6 +224,7 @@ mod tests {
                 gap: awkward[(i + 5) % awkward.len()],
                 status: Status::Slip,
                 w: 1.0,
+                ..row(0.0, 0.0, 0.0)
             })
             .collect();
         let (header, parsed) = parse_table(&contact_csv(&rows));

@@ -131,6 +131,9 @@ impl SubdomainSolution<'_> {
                     gap: sub.contact.g[k],
                     status: o.status[k],
                     w: sub.contact.w[k],
+                    pair: sub.contact.pair[k],
+                    s: sub.contact.s[k],
+                    normal: sub.contact.normal[k],
                 }
             })
             .collect()
@@ -156,6 +159,9 @@ mod tests {
                 gap: 6.0,
                 status,
                 w: 0.5,
+                pair: 2,
+                s: -1.5,
+                normal: [0.6, -0.8],
             })
             .collect();
         let bytes = crate::dd::comm::encode(&rows).unwrap();

@@ -50,7 +50,7 @@ pub const TOL_COLOUR: [u8; 3] = [127, 127, 127];
 pub const RETUNE_COLOUR: [u8; 3] = PAIR_COLOURS[4];
 pub const REFUSED_COLOUR: [u8; 3] = PAIR_COLOURS[3];
 
-/// Where positions along the foundation are measured from: s = (x - point).tangent.
+/// A straight foundation, where positions are s = (x - point).tangent.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Foundation {
     pub point: [f64; 2],
@@ -58,10 +58,6 @@ pub struct Foundation {
 }
 
 impl Foundation {
-    pub fn position(&self, x: f64, y: f64) -> f64 {
-        (x - self.point[0]) * self.tangent[0] + (y - self.point[1]) * self.tangent[1]
-    }
-
     /// The abscissa's name: plain x where s is x (a foundation along the x axis through
     /// x = 0, as in every built-in case).
     pub fn axis_label(&self) -> &'static str {
@@ -72,6 +68,9 @@ impl Foundation {
         }
     }
 }
+
+/// The abscissa's name where the obstacles are not one straight foundation.
+pub const ALONG_OBSTACLES: &str = "s, along each obstacle (arc length)";
 
 /// One contact pair's curves, its nodes in the order of their position s along the
 /// foundation.
@@ -87,17 +86,14 @@ pub struct PairSeries {
     pub gap: Vec<f64>,
 }
 
-/// The curves of one pair from its contact rows: sorted by s, ties by x then y (the order
-/// of contact.csv).
-pub fn pair_series(
-    name: &str,
-    rows: &[ContactRow],
-    foundation: &Foundation,
-    frictional: bool,
-) -> PairSeries {
+/// The curves of pair `pair` from the contact rows (those of other pairs left out):
+/// sorted by their position s along the obstacle, ties by x then y (the order of
+/// contact.csv).
+pub fn pair_series(name: &str, pair: u32, rows: &[ContactRow], frictional: bool) -> PairSeries {
     let mut sorted: Vec<(f64, &ContactRow)> = rows
         .iter()
-        .map(|r| (foundation.position(r.x, r.y), r))
+        .filter(|r| r.pair == pair)
+        .map(|r| (r.s, r))
         .collect();
     sorted.sort_by(|(sa, a), (sb, b)| {
         sa.total_cmp(sb)
@@ -754,17 +750,25 @@ mod tests {
             gap: 6.0 * v,
             status: Status::Free,
             w: 1.0,
+            pair: 0,
+            s: x,
+            normal: [0.0, 1.0],
         }
     }
 
     #[test]
     fn pair_series_are_the_rows_sorted_along_the_foundation() {
-        let rows = [row(2.0, 0.0, 1.0), row(-1.0, 0.5, 2.0), row(0.5, 0.0, 3.0)];
+        let mut rows = vec![row(2.0, 0.0, 1.0), row(-1.0, 0.5, 2.0), row(0.5, 0.0, 3.0)];
         let along_x = Foundation {
             point: [0.0, -1.0],
             tangent: [1.0, 0.0],
         };
-        let p = pair_series("bottom", &rows, &along_x, true);
+        // Another pair's row is left out.
+        rows.push(ContactRow {
+            pair: 1,
+            ..row(0.0, 0.0, 9.0)
+        });
+        let p = pair_series("bottom", 0, &rows, true);
         assert_eq!(p.name, "bottom");
         assert_eq!(p.s, [-1.0, 0.5, 2.0]);
         assert_eq!(p.p_n, [8.0, 12.0, 4.0]);
@@ -772,17 +776,18 @@ mod tests {
         assert_eq!(p.u_n, [4.0, 6.0, 2.0]);
         assert_eq!(p.gap, [12.0, 18.0, 6.0]);
         assert_eq!(along_x.axis_label(), "x");
-        // A tilted foundation: positions along its tangent, the other way round.
+        // Positions along another obstacle: the rows in their order.
+        for (r, s) in rows.iter_mut().zip([-0.6, 1.6, 0.3]) {
+            r.s = s;
+        }
+        let q = pair_series("bottom", 0, &rows, false);
+        assert_eq!(q.s, [-0.6, 0.3, 1.6]);
+        assert_eq!(q.p_n, [4.0, 12.0, 8.0]);
+        assert_eq!(q.p_t, None);
         let tilted = Foundation {
             point: [1.0, 0.0],
             tangent: [-0.6, 0.8],
         };
-        let q = pair_series("bottom", &rows, &tilted, false);
-        let s: Vec<f64> = rows.iter().map(|r| tilted.position(r.x, r.y)).collect();
-        // s = -0.6, 1.6, 0.3.
-        assert_eq!(q.s, [s[0], s[2], s[1]]);
-        assert_eq!(q.p_n, [4.0, 12.0, 8.0]);
-        assert_eq!(q.p_t, None);
         assert_ne!(tilted.axis_label(), "x");
     }
 

@@ -3,9 +3,9 @@
 //! `summary.json`.
 
 use super::piece::{vtu_file_name, PieceRows};
-use super::plot::{contact_png, convergence_png, convergence_series, pair_series, Foundation};
+use super::plot::{contact_png, convergence_png, convergence_series, pair_series};
 use super::{contact_csv, history_csv, pvtu_bytes, write_atomic, ContactRow, Written};
-use crate::contact::{Outcome, Status};
+use crate::contact::{tangent_of, Outcome, Status};
 use crate::error::{Error, Result};
 use crate::timer::Timings;
 use serde::{Deserialize, Serialize};
@@ -80,6 +80,24 @@ pub struct RunFacts {
     pub partition: String,
     pub subdomains: usize,
     pub subdomains_per_rank: usize,
+    /// Each contact's boundary group and obstacle type, in the case's order (the rows'
+    /// `pair`): summed per contact into `contacts`.
+    #[serde(skip)]
+    pub pairs: Vec<(String, &'static str)>,
+}
+
+/// One contact's figures in summary.json.
+#[derive(Serialize)]
+struct PairSums {
+    slave: String,
+    obstacle: &'static str,
+    contact_nodes: usize,
+    active_nodes: usize,
+    /// Sums of w_i p_n and w_i p_t over its nodes.
+    normal_force: f64,
+    tangential_force: f64,
+    /// The force of the obstacle on the body (x, y): the sum of w_i (p_n m_i + p_t t_i).
+    force: [f64; 2],
 }
 
 /// Every subdomain's rows, in subdomain order.
@@ -94,9 +112,10 @@ pub struct Gathered {
 pub struct PlotFacts<'a> {
     /// The case's title (or where it came from).
     pub title: &'a str,
-    /// The contact pair's name: its boundary group.
-    pub pair: &'a str,
-    pub foundation: Foundation,
+    /// Each contact pair's name (its boundary group), by pair index.
+    pub pairs: Vec<String>,
+    /// The name of the abscissa s (see `plot::Foundation::axis_label`).
+    pub abscissa: &'a str,
     /// The friction law, as the first line names it ("friction none", ...).
     pub friction: String,
     pub frictional: bool,
@@ -153,15 +172,11 @@ impl Gathered {
             false => format!("NOT converged after {} sweeps", o.iterations),
         };
         let contact = || {
-            let pair = pair_series(
-                facts.pair,
-                &self.contact,
-                &facts.foundation,
-                facts.frictional,
-            );
+            let pairs: Vec<_> = (facts.pairs.iter().enumerate())
+                .map(|(i, name)| pair_series(name, i as u32, &self.contact, facts.frictional))
+                .collect();
             let what = format!("Contact along the foundation: {}, {state}", facts.friction);
-            let abscissa = facts.foundation.axis_label();
-            contact_png([&what, facts.title], abscissa, &[pair])
+            contact_png([&what, facts.title], facts.abscissa, &pairs)
         };
         let convergence = || {
             let series = convergence_series(&o.history, facts.frictional, facts.tol);
@@ -216,7 +231,26 @@ impl Gathered {
                 of_rank.map(|s| s.peak_memory_bytes).max().unwrap_or(0)
             })
             .collect();
+        let contacts = (facts.pairs.iter().enumerate())
+            .map(|(i, (slave, obstacle))| {
+                let rows = || self.contact.iter().filter(move |r| r.pair == i as u32);
+                PairSums {
+                    slave: slave.clone(),
+                    obstacle,
+                    contact_nodes: rows().count(),
+                    active_nodes: rows().filter(|r| r.status != Status::Free).count(),
+                    normal_force: rows().map(|r| r.w * r.p_n).sum(),
+                    tangential_force: rows().map(|r| r.w * r.p_t).sum(),
+                    force: [0, 1].map(|c| {
+                        rows()
+                            .map(|r| r.w * (r.p_n * r.normal[c] + r.p_t * tangent_of(r.normal)[c]))
+                            .sum()
+                    }),
+                }
+            })
+            .collect();
         Summary {
+            contacts,
             converged: o.converged,
             iterations: o.iterations,
             outer_iterations: o.outer_iterations,
@@ -267,6 +301,8 @@ struct Summary<'a> {
     slip_nodes: Option<usize>,
     total_normal_force: f64,
     total_tangential_force: f64,
+    /// Per contact, in the case's order.
+    contacts: Vec<PairSums>,
     r_retunes: usize,
     /// The reference r of the loop: `r`, or lower for a body far softer than a compact
     /// one.
