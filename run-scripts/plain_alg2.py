@@ -19,7 +19,7 @@ no subdomains, no contraction estimate: the textbook loop.
 It reads the case files contact-par reads, for the subset it needs: [mesh] file, one
 [material], [[dirichlet]], [[traction]], [body_force], [contact] with a straight
 foundation and friction none, tresca or coulomb (inner). It writes DIR/contact.csv in
-contact-par's columns (x,y,u_n,u_t,p_n,p_t,gap, sorted by x then y) and DIR/plain.json
+contact-par's columns (x,y,u_n,u_t,p_n,p_t,gap,contact, sorted by x then y; one contact) and DIR/plain.json
 (sweeps, converged, seconds per phase).
 """
 
@@ -279,9 +279,9 @@ def main():
     os.makedirs(args.out, exist_ok=True)
     order = np.lexsort((nodes[cn, 1], nodes[cn, 0]))
     with open(os.path.join(args.out, "contact.csv"), "w") as fh:
-        fh.write("x,y,u_n,u_t,p_n,p_t,gap\n")
+        fh.write("x,y,u_n,u_t,p_n,p_t,gap,contact\n")
         for i in order:
-            fh.write(",".join(repr(float(v)) for v in [nodes[cn[i], 0], nodes[cn[i], 1], un[i], ut[i], lam[i], -mu[i], g[i]]) + "\n")
+            fh.write(",".join(repr(float(v)) for v in [nodes[cn[i], 0], nodes[cn[i], 1], un[i], ut[i], lam[i], -mu[i], g[i]]) + ",0\n")
     times["output"] = time.perf_counter() - t
     times["total"] = time.perf_counter() - t0
     json.dump({"sweeps": sweeps, "converged": converged, "solver": solver, "r": r,

@@ -181,12 +181,12 @@ fn contact_csv_numbers_round_trip_and_rows_are_sorted() {
     run.expect_code(0);
     let text = std::fs::read_to_string(run.out.join("contact.csv")).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("x,y,u_n,u_t,p_n,p_t,gap"));
+    assert_eq!(lines.next(), Some("x,y,u_n,u_t,p_n,p_t,gap,contact"));
     let mut keys = Vec::new();
     let mut count = 0;
     for l in lines {
         let fields: Vec<&str> = l.split(',').collect();
-        assert_eq!(fields.len(), 7, "{l}");
+        assert_eq!(fields.len(), 8, "{l}");
         for f in &fields {
             let v: f64 = f
                 .parse()

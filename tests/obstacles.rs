@@ -191,6 +191,12 @@ tol = 1e-10
     let run = run_case(case, &[]);
     run.expect_code(0);
     check_kkt(&run.contact(), Law::None, 1e-7, "floor and wall");
+    // contact.csv names each row's contact: the wall's are the right side's nodes above
+    // the corner, which is the floor's (both as near, the first contact wins).
+    for r in run.contact() {
+        let on_wall = r.x == 40.0 && r.y > 0.0;
+        assert_eq!(r.contact, u32::from(on_wall), "row at ({}, {})", r.x, r.y);
+    }
     let s = run.summary();
     let pairs = s["contacts"].as_array().expect("contacts");
     assert_eq!(pairs.len(), 2);
@@ -367,8 +373,8 @@ tol = 1e-10
         run.expect_code(0);
         let rows = run.contact();
         // The corner (40, 0) is the floor's: both obstacles are as near, the floor first.
-        let (wall, floor): (Vec<Row>, Vec<Row>) =
-            rows.iter().partition(|r| r.x == 40.0 && r.y > 0.0);
+        let (wall, floor): (Vec<Row>, Vec<Row>) = rows.iter().partition(|r| r.contact == 1);
+        assert!(wall.iter().all(|r| r.x == 40.0 && r.y > 0.0));
         assert_eq!(wall.len(), 20);
         check_kkt(&floor, Law::Coulomb(0.3), 1e-7, "floor");
         let f = &run.summary()["contacts"][1]["force"];

@@ -26,8 +26,8 @@ pub struct ContactRow {
     pub status: Status,
     /// The node's contact weight (its share of the boundary's length).
     pub w: f64,
-    /// Its contact (the case's `[[contact]]` entry, from 0) and its position along that
-    /// contact's obstacle: for pictures and per-contact sums, not columns of contact.csv.
+    /// Its contact (the case's `[[contact]]` entry, from 0: contact.csv's last column)
+    /// and its position along that contact's obstacle (for the pictures).
     pub pair: u32,
     pub s: f64,
     /// The node's unit normal (obstacle -> body).
@@ -54,7 +54,8 @@ mod status_code {
     }
 }
 
-/// `contact.csv`: header `x,y,u_n,u_t,p_n,p_t,gap`, rows sorted by x then y.
+/// `contact.csv`: header `x,y,u_n,u_t,p_n,p_t,gap,contact`, rows sorted by x then y;
+/// `contact` is the index of the node's contact (the case's `[[contact]]` entry, from 0).
 ///
 /// The order is fixed by the coordinates, not by node numbering or rank, so the file is the
 /// same whatever the partition and two runs can be diffed line by line. `f64::total_cmp`
@@ -63,13 +64,13 @@ pub fn contact_csv(rows: &[ContactRow]) -> String {
     let mut sorted: Vec<&ContactRow> = rows.iter().collect();
     sorted.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     let mut out = String::with_capacity(64 * (rows.len() + 1));
-    out.push_str("x,y,u_n,u_t,p_n,p_t,gap\n");
+    out.push_str("x,y,u_n,u_t,p_n,p_t,gap,contact\n");
     for r in sorted {
         // Writing into a String cannot fail.
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{}",
-            r.x, r.y, r.u_n, r.u_t, r.p_n, r.p_t, r.gap
+            "{},{},{},{},{},{},{},{}",
+            r.x, r.y, r.u_n, r.u_t, r.p_n, r.p_t, r.gap, r.pair
         );
     }
     out
@@ -168,7 +169,7 @@ mod tests {
 
     #[test]
     fn contact_header_is_exact() {
-        assert_eq!(contact_csv(&[]), "x,y,u_n,u_t,p_n,p_t,gap\n");
+        assert_eq!(contact_csv(&[]), "x,y,u_n,u_t,p_n,p_t,gap,contact\n");
     }
 
     #[test]
@@ -228,11 +229,11 @@ mod tests {
             })
             .collect();
         let (header, parsed) = parse_table(&contact_csv(&rows));
-        assert_eq!(header, "x,y,u_n,u_t,p_n,p_t,gap");
+        assert_eq!(header, "x,y,u_n,u_t,p_n,p_t,gap,contact");
         rows.sort_by(|a, b| a.x.total_cmp(&b.x));
         assert_eq!(parsed.len(), rows.len());
         for (r, p) in rows.iter().zip(&parsed) {
-            let want = [r.x, r.y, r.u_n, r.u_t, r.p_n, r.p_t, r.gap];
+            let want = [r.x, r.y, r.u_n, r.u_t, r.p_n, r.p_t, r.gap, r.pair as f64];
             let want: Vec<u64> = want.iter().map(|v| v.to_bits()).collect();
             let got: Vec<u64> = p.iter().map(|v| v.to_bits()).collect();
             assert_eq!(got, want);

@@ -156,6 +156,8 @@ pub struct Row {
     pub p_n: f64,
     pub p_t: f64,
     pub gap: f64,
+    /// The index of the node's contact (`[[contact]]` entry).
+    pub contact: u32,
 }
 
 impl Row {
@@ -193,9 +195,10 @@ fn read_rows(path: &Path, header: &str) -> Vec<Vec<f64>> {
 }
 
 pub fn read_contact(path: &Path) -> Vec<Row> {
-    read_rows(path, "x,y,u_n,u_t,p_n,p_t,gap")
+    read_rows(path, "x,y,u_n,u_t,p_n,p_t,gap,contact")
         .into_iter()
         .map(|v| Row {
+            contact: v[7] as u32,
             x: v[0],
             y: v[1],
             u_n: v[2],
