@@ -289,10 +289,22 @@ fn contact_geometry(
     let geometry: Vec<_> = (contact_nodes.iter())
         .map(|v| case.contacts[owner[v].0].obstacle.geometry(mesh.nodes[*v]))
         .collect();
+    let mut s: Vec<f64> = geometry.iter().map(|g| g.s).collect();
+    for (i, c) in case.contacts.iter().enumerate() {
+        let mine: Vec<usize> = (0..contact_nodes.len())
+            .filter(|&k| owner[&contact_nodes[k]].0 == i)
+            .collect();
+        let xs: Vec<[f64; 2]> = mine.iter().map(|&k| mesh.nodes[contact_nodes[k]]).collect();
+        if let Some(arc) = c.obstacle.arc_positions(&xs) {
+            for (&k, a) in mine.iter().zip(arc) {
+                s[k] = a;
+            }
+        }
+    }
     let contact = ContactNodes {
         w: contact_nodes.iter().map(|v| owner[v].1).collect(),
         g: geometry.iter().map(|g| g.gap).collect(),
-        s: geometry.iter().map(|g| g.s).collect(),
+        s,
         normal: geometry.iter().map(|g| g.normal).collect(),
         pair: contact_nodes.iter().map(|v| owner[v].0 as u32).collect(),
         friction: Vec::new(),

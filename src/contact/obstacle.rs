@@ -109,6 +109,50 @@ fn circle(c: [f64; 2], radius: f64, body: Side, x: [f64; 2]) -> NodeGeometry {
     }
 }
 
+impl Obstacle {
+    /// For a circle, the positions along it of the contact nodes at `xs` (all of one
+    /// contact): arc length along each node's tangent (m_y, -m_x), from the point of the
+    /// circle that faces the middle of the nodes. [`NodeGeometry::s`] counts from the
+    /// positive x direction and jumps by 2 pi R there, which a contact zone on the far
+    /// side of a circle would straddle (its pictures and sorting broken). `None` for
+    /// the other kinds, whose `s` is already continuous.
+    pub fn arc_positions(&self, xs: &[[f64; 2]]) -> Option<Vec<f64>> {
+        let Obstacle::Circle {
+            centre,
+            radius,
+            body,
+        } = self
+        else {
+            return None;
+        };
+        let angle = |x: [f64; 2]| (x[1] - centre[1]).atan2(x[0] - centre[0]);
+        let (sy, sx) = xs.iter().fold((0.0, 0.0), |(sy, sx), &x| {
+            let a = angle(x);
+            (sy + a.sin(), sx + a.cos())
+        });
+        let middle = if sx == 0.0 && sy == 0.0 {
+            0.0
+        } else {
+            sy.atan2(sx)
+        };
+        // The tangent turns clockwise round a disc (m outwards), counter-clockwise
+        // round a hole (m inwards).
+        let sense = match body {
+            Side::Outside => -1.0,
+            Side::Inside => 1.0,
+        };
+        let tau = std::f64::consts::TAU;
+        Some(
+            xs.iter()
+                .map(|&x| {
+                    let turn = (angle(x) - middle + tau / 2.0).rem_euclid(tau) - tau / 2.0;
+                    sense * radius * turn
+                })
+                .collect(),
+        )
+    }
+}
+
 /// The left unit normal of the segment a -> b and its unit direction.
 fn segment_frame(a: [f64; 2], b: [f64; 2]) -> ([f64; 2], [f64; 2], f64) {
     let d = sub(b, a);
@@ -288,5 +332,53 @@ mod tests {
         // Beyond an end the end segment runs on.
         let g = roof.geometry([-3.0, -2.0 + 0.1]);
         assert!(close(g.gap, 0.1 * h));
+    }
+
+    #[test]
+    fn arc_positions_run_along_the_tangent_across_the_far_side() {
+        // Nodes on the circle of radius 2 round (1, 1), on both sides of its -x point,
+        // where the angle from +x jumps by 2 pi.
+        let disc = Obstacle::Circle {
+            centre: [1.0, 1.0],
+            radius: 2.0,
+            body: Side::Outside,
+        };
+        let angles: Vec<f64> = (-3..=3)
+            .map(|k| std::f64::consts::PI + 0.1 * k as f64)
+            .collect();
+        let xs: Vec<[f64; 2]> = angles
+            .iter()
+            .map(|a| [1.0 + 2.0 * a.cos(), 1.0 + 2.0 * a.sin()])
+            .collect();
+        let s = disc.arc_positions(&xs).unwrap();
+        for (k, (&sk, &x)) in s.iter().zip(&xs).enumerate() {
+            // 0 at the middle node, 0.2 of arc per step, along the tangent (m_y, -m_x).
+            assert!(
+                (sk - (-0.2 * (k as f64 - 3.0))).abs() < 1e-12,
+                "node {k}: s {sk}"
+            );
+            if k > 0 {
+                let g = disc.geometry(x);
+                let t = [g.normal[1], -g.normal[0]];
+                let step = [x[0] - xs[k - 1][0], x[1] - xs[k - 1][1]];
+                let along = step[0] * t[0] + step[1] * t[1];
+                assert!(
+                    (along > 0.0) == (sk > s[k - 1]),
+                    "node {k}: s against the tangent"
+                );
+            }
+        }
+        let hole = Obstacle::Circle {
+            centre: [1.0, 1.0],
+            radius: 2.0,
+            body: Side::Inside,
+        };
+        let h = hole.arc_positions(&xs).unwrap();
+        assert!(h.iter().zip(&s).all(|(a, b)| (a + b).abs() < 1e-12));
+        let line = Obstacle::Line {
+            point: [0.0, 0.0],
+            normal: [0.0, 1.0],
+        };
+        assert!(line.arc_positions(&xs).is_none());
     }
 }
