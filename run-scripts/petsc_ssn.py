@@ -1,0 +1,204 @@
+"""Frictionless contact as PETSc's semismooth Newton solves it, on contact-par's case files:
+the yardstick of issue 27's side-by-side timing against an established solver.
+
+    apt-get install python3-petsc4py python3-scipy     # Debian 12: PETSc 3.18, Open MPI
+    python3 -m venv --system-site-packages venvp && venvp/bin/pip install gmsh
+    mpirun -n 2 venvp/bin/python run-scripts/petsc_ssn.py CASE.toml --out DIR
+
+The problem is the one contact-par solves: P1 plane elasticity (the stiffness, loads and
+prescribed dofs of run-scripts/plain_alg2.py), a frictionless straight foundation whose
+normal is a coordinate axis, so that non-penetration is a bound on one displacement
+component of each contact node, m.u_i >= -g_i. PETSc solves the bound-constrained
+problem K u = f with SNES's reduced-space semismooth Newton (`vinewtonrsls`), each
+Newton step a CG solve preconditioned by GAMG on the inactive set; the matrix is
+distributed by rows over the ranks in node pairs, with the rigid-body modes as GAMG's
+near null space (every rank assembles the whole matrix with NumPy and keeps its rows:
+the set-up is not what is compared; prescribed dofs are identity rows). The contact pressure is the
+residual of the active rows, divided by the node's lumped weight. It writes
+DIR/contact.csv in contact-par's columns and DIR/petsc.json (Newton steps, KSP
+iterations, seconds per phase); rank 0 prints the same JSON.
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+import tomllib
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI  # noqa: F401  (petsc4py needs MPI initialised through it)
+from petsc4py import PETSc
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from plain_alg2 import read_mesh, stiffness, group_nodes  # noqa: E402
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("case")
+    ap.add_argument("--out", default="petsc-out")
+    ap.add_argument("--rtol", type=float, default=1e-10, help="SNES relative tolerance")
+    ap.add_argument("--pc", choices=["gamg", "mumps"], default="gamg",
+                    help="each Newton step's linear solve: CG + GAMG, or MUMPS's LU")
+    args = ap.parse_args()
+    comm = PETSc.COMM_WORLD
+    rank = comm.getRank()
+    t0 = time.perf_counter()
+    times = {}
+    case = tomllib.load(open(args.case, "rb"))
+    here = os.path.dirname(os.path.abspath(args.case))
+    nodes, tri, groups = read_mesh(os.path.join(here, case["mesh"]["file"]))
+    times["read"] = time.perf_counter() - t0
+
+    t = time.perf_counter()
+    mat = case["material"]
+    k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], mat.get("hypothesis", "plane_strain"))
+    n = 2 * len(nodes)
+    f = np.zeros(n)
+    bf = case.get("body_force", {}).get("f", [0.0, 0.0])
+    for c in range(2):
+        np.add.at(f, 2 * tri.ravel() + c, np.repeat(area / 3 * bf[c], 3))
+    for tr in case.get("traction", []):
+        segs = groups[tr["group"]][1]
+        length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
+        for c in range(2):
+            np.add.at(f, 2 * segs.ravel() + c, np.repeat(length / 2 * tr["t"][c], 2))
+    fixed = np.full(n, np.nan)
+    for d in case.get("dirichlet", []):
+        v = group_nodes(groups, d["group"])
+        if "ux" in d:
+            fixed[2 * v] = d["ux"]
+        if "uy" in d:
+            fixed[2 * v + 1] = d["uy"]
+    con = case["contact"]
+    if con.get("friction", "none") != "none":
+        sys.exit("petsc_ssn.py: frictionless contact only")
+    m = np.array(con["obstacle_normal"], dtype=float)
+    axis = int(np.argmax(np.abs(m)))
+    if abs(abs(m[axis]) - 1.0) > 1e-12:
+        sys.exit("petsc_ssn.py: the foundation's normal must be a coordinate axis")
+    sign = m[axis]
+    segs = groups[con["group"]][1]
+    cn = np.unique(segs.ravel())
+    where = {v: i for i, v in enumerate(cn)}
+    length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
+    w = np.zeros(len(cn))
+    np.add.at(w, [where[v] for v in segs[:, 0]], length / 2)
+    np.add.at(w, [where[v] for v in segs[:, 1]], length / 2)
+    g = (nodes[cn] - np.array(con["obstacle_point"])) @ m
+
+    # Prescribed dofs kept as rows of the identity (their columns moved to the right-hand
+    # side), so that the dofs stay in pairs and GAMG can be given the rigid-body modes.
+    free = np.isnan(fixed)
+    ub = np.where(free, 0.0, fixed)
+    b = f - k @ ub
+    keep = sp.diags(free.astype(float))
+    kb = (keep @ k @ keep + sp.diags((~free).astype(float))).tocsr()
+    b[~free] = ub[~free]
+    lower = np.full(n, PETSc.NINFINITY)
+    upper = np.full(n, PETSc.INFINITY)
+    # Bounds: sign * u_axis >= -g at each contact node.
+    cdof = 2 * cn + axis
+    if sign > 0:
+        lower[cdof] = -g
+    else:
+        upper[cdof] = g
+
+    layout = PETSc.Vec().createMPI((None, n), bsize=2, comm=comm)
+    lo, hi = layout.getOwnershipRange()
+    rows = kb[lo:hi]
+    a = PETSc.Mat().createAIJ(size=((hi - lo, n), (hi - lo, n)), bsize=2, csr=(rows.indptr, rows.indices, rows.data), comm=comm)
+    a.assemble()
+    coords = PETSc.Vec().createMPI((hi - lo, n), bsize=2, comm=comm)
+    coords.setArray(nodes.ravel()[lo:hi])
+    a.setNearNullSpace(PETSc.NullSpace().createRigidBody(coords))
+    rhs = a.createVecLeft()
+    rhs.setArray(b[lo:hi])
+    xl, xu = a.createVecLeft(), a.createVecLeft()
+    xl.setArray(lower[lo:hi])
+    xu.setArray(upper[lo:hi])
+    times["assemble"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    snes = PETSc.SNES().create(comm=comm)
+    snes.setType("vinewtonrsls")
+    res = a.createVecLeft()
+
+    def residual(snes, x, r):
+        a.mult(x, r)
+        r.axpy(-1.0, rhs)
+
+    snes.setFunction(residual, res)
+    snes.setJacobian(lambda snes, x, j, p: None, a, a)
+    snes.setVariableBounds(xl, xu)
+    snes.setTolerances(rtol=args.rtol, atol=1e-50, max_it=200)
+    ksp = snes.getKSP()
+    if args.pc == "gamg":
+        ksp.setType("cg")
+        ksp.setTolerances(rtol=1e-10)
+    else:
+        ksp.setType("preonly")
+
+    # The reduced space changes size when the active set does, and PETSc 3.18's
+    # preconditioners refuse to set up again on other sizes: built anew before every
+    # Newton step.
+    def fresh_pc(snes, step):
+        pc = snes.getKSP().getPC()
+        pc.setType("jacobi")
+        if args.pc == "gamg":
+            pc.setType("gamg")
+        else:
+            pc.setType("lu")
+            pc.setFactorSolverType("mumps")
+
+    fresh_pc(snes, 0)
+    snes.setUpdate(fresh_pc)
+    snes.setFromOptions()
+    x = a.createVecRight()
+    x.setArray(ub[lo:hi])
+    x.pointwiseMax(x, xl)
+    x.pointwiseMin(x, xu)
+    snes.solve(None, x)
+    times["solve"] = time.perf_counter() - t
+    newton = snes.getIterationNumber()
+    linear = snes.getLinearSolveIterations()
+    reason = snes.getConvergedReason()
+
+    t = time.perf_counter()
+    residual(snes, x, res)
+    u = np.concatenate(comm.tompi4py().allgather(x.getArray()))
+    r_full = np.concatenate(comm.tompi4py().allgather(res.getArray()))
+    times["output"] = time.perf_counter() - t
+    times["total"] = time.perf_counter() - t0
+    if rank == 0:
+        os.makedirs(args.out, exist_ok=True)
+        # The reaction of an active row, K u - f, is the contact force along m.
+        force = sign * r_full[cdof]
+        p_n = np.where(np.abs(force) > 0, force, 0.0) / w
+        # contact-par's signs: u_n = -m.u (positive into the obstacle), u_t = t.u with
+        # t = (m_y, -m_x).
+        un = -sign * u[2 * cn + axis]
+        ut = m[1] * u[2 * cn] - m[0] * u[2 * cn + 1]
+        order = np.lexsort((nodes[cn, 1], nodes[cn, 0]))
+        with open(os.path.join(args.out, "contact.csv"), "w") as fh:
+            fh.write("x,y,u_n,u_t,p_n,p_t,gap,contact\n")
+            for i in order:
+                row = [nodes[cn[i], 0], nodes[cn[i], 1], un[i], ut[i], p_n[i], 0.0, g[i]]
+                fh.write(",".join(repr(float(v)) for v in row) + ",0\n")
+        out = {
+            "newton_steps": newton,
+            "ksp_iterations": linear,
+            "converged_reason": reason,
+            "ranks": comm.getSize(),
+            "dofs": int(free.sum()),
+            "total_normal_force": float(np.sum(force)),
+            "timings_s": times,
+        }
+        json.dump(out, open(os.path.join(args.out, "petsc.json"), "w"), indent=1)
+        print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
