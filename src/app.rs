@@ -23,7 +23,7 @@ use crate::linear::Ordering;
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::plot::{Foundation, ALONG_OBSTACLES};
 use crate::output::{
-    self, blocks, Gathered, PieceRows, PlotFacts, RankStats, RunFacts, SharedFile,
+    self, blocks, BodySummary, Gathered, PieceRows, PlotFacts, RankStats, RunFacts, SharedFile,
     SubdomainSolution, Written,
 };
 use crate::problem::{self, contact_modulus, Problem};
@@ -1167,6 +1167,14 @@ fn run_facts(ctx: &Subdomain) -> RunFacts {
         friction: friction_name(&case.friction()),
         pairs: (case.contacts.iter())
             .map(|c| (c.group.clone(), c.obstacle.kind()))
+            .collect(),
+        bodies: (case.materials.iter().enumerate())
+            .map(|(i, b)| BodySummary {
+                group: b.group.clone(),
+                young: b.material.young,
+                poisson: b.material.poisson,
+                at_contact: setup.facts.contact_bodies.contains(&(i as u32)),
+            })
             .collect(),
         r: setup.r,
         tol: case.solver.tol,

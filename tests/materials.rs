@@ -100,6 +100,16 @@ fn bimaterial_patch_test_is_exact() {
     // as much per unit height as the upper one.
     let top = nodes.iter().find(|n| n[1] == 2.0).unwrap();
     assert!((top[3] - (-p / e1 - p / e2)).abs() <= 1e-11 * scale);
+    // summary.json lists the bodies in the case's order; only the lower one touches
+    // the contact nodes (the scale of r is its E_eff).
+    let bodies = r.summary()["bodies"].clone();
+    assert_eq!(
+        bodies,
+        serde_json::json!([
+            {"group": "lower", "young": e1, "poisson": nu1, "at_contact": true},
+            {"group": "upper", "young": e2, "poisson": nu2, "at_contact": false}
+        ])
+    );
     // Every bottom node presses with p.
     for row in r.contact() {
         assert!((row.p_n - p).abs() <= 1e-9 * p, "{row:?}");

@@ -976,6 +976,7 @@ mod tests {
             .collect();
         o.von_mises = (0..m).map(|i| i as f64 / 3.0).collect();
         o.rank = vec![5; m];
+        o.body = (0..m).map(|i| (i % 2) as i32).collect();
         o.contact_pressure = (0..n).map(|i| i as f64 / 11.0).collect();
         o.tangential_traction = (0..n).map(|i| -(i as f64) / 13.0).collect();
         o.contact_status = (0..n).map(|i| (i % 4) as i32 - 1).collect();
@@ -1161,6 +1162,7 @@ mod tests {
             }
             assert_eq!(cells, 2);
             assert_eq!(array(&a, "CellData", "rank").i32s(), vec![r as i32; 2]);
+            assert_eq!(array(&a, "CellData", "body").i32s(), owned[r].body);
             assert_eq!(
                 array(&a, "PointData", "contact_pressure").f64_bits(),
                 bits(owned[r].contact_pressure.clone())
