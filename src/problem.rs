@@ -587,3 +587,71 @@ pub fn check_held(
     };
     Err(Error::Input(msg))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::case::{builtin_case, BodyMaterial};
+
+    /// Two triangles of the unit square, "lower" (0, 1, 2) and "upper" (0, 2, 3).
+    fn square() -> Mesh {
+        let mut mesh = Mesh {
+            nodes: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Mesh::default()
+        };
+        mesh.surface_groups.insert("lower".into(), vec![0]);
+        mesh.surface_groups.insert("upper".into(), vec![1]);
+        mesh
+    }
+
+    fn two_bodies(young: [f64; 2], hypothesis: Hypothesis) -> Case {
+        let mut case = builtin_case("block", 0).unwrap();
+        case.materials = (["upper", "lower"].into_iter().zip(young))
+            .map(|(g, young)| BodyMaterial {
+                group: Some(g.into()),
+                material: Material {
+                    young,
+                    poisson: 0.5f64.sqrt(),
+                    hypothesis,
+                },
+            })
+            .collect();
+        case
+    }
+
+    #[test]
+    fn each_triangle_gets_the_entry_of_its_group() {
+        let case = two_bodies([1.0, 2.0], Hypothesis::PlaneStrain);
+        assert_eq!(bodies(&case, &square()).unwrap(), [1, 0]);
+        let lone = builtin_case("block", 0).unwrap();
+        assert_eq!(bodies(&lone, &square()).unwrap(), [0, 0]);
+        let mut unlisted = case.clone();
+        unlisted.materials.pop();
+        let e = bodies(&unlisted, &square()).unwrap_err().to_string();
+        assert!(e.contains("with group = \"lower\""), "{e}");
+    }
+
+    #[test]
+    fn the_scale_of_r_is_the_stiffest_body_at_the_contact() {
+        // Node 1 is in "lower" only, node 3 in "upper" only, node 0 in both.
+        let mesh = square();
+        let body = [1, 0];
+        assert_eq!(touching(&mesh, &body, &[1]), [1]);
+        assert_eq!(touching(&mesh, &body, &[3]), [0]);
+        assert_eq!(touching(&mesh, &body, &[0, 1]), [0, 1]);
+        // E_eff = E / (1 - nu^2) = 2 E in plane strain with nu^2 = 1/2; E in plane stress.
+        let case = two_bodies([10.0, 30.0], Hypothesis::PlaneStrain);
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b;
+        assert!(close(contact_modulus(&case, &[0]), 20.0));
+        assert!(close(contact_modulus(&case, &[1]), 60.0));
+        assert!(close(contact_modulus(&case, &[0, 1]), 60.0));
+        assert!(close(contact_modulus(&case, &[]), 60.0));
+        let stress = two_bodies([10.0, 30.0], Hypothesis::PlaneStress);
+        assert_eq!(contact_modulus(&stress, &[0]), 10.0);
+        // One material: its own E_eff, bit for bit.
+        let lone = builtin_case("block", 0).unwrap();
+        let m = lone.materials[0].material;
+        assert_eq!(contact_modulus(&lone, &[0]), effective_modulus(&m));
+    }
+}

@@ -1373,13 +1373,14 @@ mod tests {
     use super::*;
 
     /// An ASCII MSH 4.1 grid of (n + 1)^2 nodes and 2 n^2 triangles, its node tags
-    /// scrambled, with a line group: large enough to be read in parallel.
+    /// scrambled, with a line group and a surface group: large enough to be read in
+    /// parallel.
     fn big_ascii(n: usize) -> String {
         let nodes = (n + 1) * (n + 1);
         let tag = |i: usize| (i * 7919) % nodes + 1;
         let mut t = String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n");
-        t += "$PhysicalNames\n1\n1 1 \"bottom\"\n$EndPhysicalNames\n";
-        t += "$Entities\n0 1 1 0\n1 0 0 0 1 0 0 1 1 0\n1 0 0 0 1 1 0 0 0\n$EndEntities\n";
+        t += "$PhysicalNames\n2\n1 1 \"bottom\"\n2 2 \"body\"\n$EndPhysicalNames\n";
+        t += "$Entities\n0 1 1 0\n1 0 0 0 1 0 0 1 1 0\n1 0 0 0 1 1 0 1 2 0\n$EndEntities\n";
         t += &format!("$Nodes\n1 {nodes} 1 {nodes}\n2 1 0 {nodes}\n");
         for i in 0..nodes {
             t += &format!("{}\n", tag(i));
@@ -1455,6 +1456,8 @@ mod tests {
         let parallel = parse_msh_with(text.as_bytes(), "big.msh", 1000).unwrap();
         let serial = parse_msh_with(text.as_bytes(), "big.msh", usize::MAX).unwrap();
         assert_eq!(parallel.triangles.len(), 2 * 120 * 120);
+        let every: Vec<usize> = (0..2 * 120 * 120).collect();
+        assert_eq!(parallel.surface_groups["body"], every);
         assert_eq!(parallel, serial);
         assert_eq!(parse_msh(text.as_bytes(), "big.msh").unwrap(), serial);
     }
