@@ -48,7 +48,7 @@ use contact_par::dd::condense::{ContactRows, LocalResponse};
 use contact_par::dd::full::{DirectStep, DirectSystem};
 use contact_par::dd::local_factor::LocalFactor;
 use contact_par::error::Result;
-use contact_par::fem::{self, assemble, Assembled, DofMap};
+use contact_par::fem::{self, assemble, Assembled, DofMap, Materials};
 use contact_par::linear::{interior_groups, NodeGraph, SparseCholesky};
 use contact_par::problem::{self, Problem};
 use contact_par::timer::Timer;
@@ -113,7 +113,7 @@ impl Fixture {
         assemble(
             &m.nodes,
             &m.triangles,
-            &self.case.material,
+            Materials::One(&self.case.materials[0].material),
             dofs,
             &self.blocks(),
         )
@@ -122,7 +122,7 @@ impl Fixture {
 
     /// Shift of the boundary block, as the program chooses it.
     fn alpha(&self) -> f64 {
-        let m = &self.case.material;
+        let m = &self.case.materials[0].material;
         m.young / (1.0 - m.poisson * m.poisson)
     }
 
@@ -143,8 +143,14 @@ impl Fixture {
         // One rank: every boundary dof is a contact dof, none is shifted.
         let blocks = self.blocks();
         let m = &self.prob.mesh;
-        let a = assemble(&m.nodes, &m.triangles, &self.case.material, &dofs, &blocks)
-            .expect("assembly");
+        let a = assemble(
+            &m.nodes,
+            &m.triangles,
+            Materials::One(&self.case.materials[0].material),
+            &dofs,
+            &blocks,
+        )
+        .expect("assembly");
         let mut base = a.lifting.clone();
         for (dof, eq) in dofs.eq.iter().enumerate() {
             if let Some(i) = eq {
@@ -168,7 +174,7 @@ impl Fixture {
         let system = DirectSystem {
             nodes: &m.nodes,
             triangles: &m.triangles,
-            material: &self.case.material,
+            materials: Materials::One(&self.case.materials[0].material),
             fixed: &self.prob.fixed,
             load: &self.prob.load,
             contact: self.contact_dofs(),
@@ -380,7 +386,7 @@ fn budget(g: &mut Group<'_>, secs: f64) {
 
 fn element(c: &mut Criterion) {
     set_threads();
-    let d = fem::elasticity_matrix(&case::builtin_case("block", 0).unwrap().material);
+    let d = fem::elasticity_matrix(&case::builtin_case("block", 0).unwrap().materials[0].material);
     let p = [[0.0, 0.0], [0.125, 0.0], [0.0, 0.125]];
     let mut g = c.benchmark_group("element");
     g.warm_up_time(Duration::from_millis(500))

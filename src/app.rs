@@ -17,16 +17,16 @@ use crate::dd::local_factor::LocalFactor;
 use crate::dd::split::{split, SubProblem};
 use crate::dd::step::{CondensedStep, LocalSystem, StepSetup};
 use crate::error::{Error, Result};
-use crate::fem::AssemblyFigures;
+use crate::fem::{AssemblyFigures, Material, Materials};
 use crate::host;
 use crate::linear::Ordering;
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::plot::{Foundation, ALONG_OBSTACLES};
 use crate::output::{
-    self, blocks, Gathered, PieceRows, PlotFacts, RankStats, RunFacts, SharedFile,
+    self, blocks, BodySummary, Gathered, PieceRows, PlotFacts, RankStats, RunFacts, SharedFile,
     SubdomainSolution, Written,
 };
-use crate::problem::{self, Problem};
+use crate::problem::{self, contact_modulus, Problem};
 use crate::split_dir::{self, Facts, Split};
 use crate::timer::{self, Phase, Timer, Timings};
 use serde::Serialize;
@@ -548,6 +548,8 @@ impl<'a> Subdomain<'a> {
 #[derive(Serialize, serde::Deserialize)]
 struct Setup {
     case: Case,
+    /// Each body's material, by body index.
+    materials: Vec<Material>,
     r: f64,
     /// E_eff / h (`Lengths::mesh_stiffness`).
     mesh_stiffness: f64,
@@ -572,14 +574,20 @@ impl Setup {
         ranks: usize,
         per_rank: usize,
     ) -> Self {
-        let m = &case.material;
+        let e_eff = contact_modulus(&case, &facts.contact_bodies);
+        // The interface shift scales with the stiffest body: any body's elements may
+        // meet at an interface.
+        let alpha = (case.materials.iter())
+            .map(|b| b.material.young / (1.0 - b.material.poisson * b.material.poisson))
+            .fold(f64::NEG_INFINITY, f64::max);
         Setup {
             r: case
                 .solver
                 .r
-                .unwrap_or_else(|| facts.lengths.default_r(&case)),
-            mesh_stiffness: facts.lengths.mesh_stiffness(&case),
-            alpha: m.young / (1.0 - m.poisson * m.poisson),
+                .unwrap_or_else(|| facts.lengths.default_r(e_eff)),
+            mesh_stiffness: facts.lengths.mesh_stiffness(e_eff),
+            alpha,
+            materials: case.material_table(),
             facts,
             split,
             ordering: opts.ordering,
@@ -592,7 +600,7 @@ impl Setup {
     /// What every subdomain's condensed step shares.
     fn step(&self) -> StepSetup<'_> {
         StepSetup {
-            material: &self.case.material,
+            materials: &self.materials,
             r: self.r,
             alpha: self.alpha,
             frictional: Problem::is_frictional(&self.case),
@@ -607,7 +615,10 @@ impl Setup {
         DirectSystem {
             nodes: &sub.nodes,
             triangles: &sub.triangles,
-            material: &self.case.material,
+            materials: Materials::PerElement {
+                table: &self.materials,
+                body: &sub.body,
+            },
             fixed: &sub.fixed,
             load: &sub.load,
             contact: ContactDofs {
@@ -703,10 +714,7 @@ fn prepare(
         elements: triangles,
         contact_nodes: prob.contact_nodes.len(),
     };
-    let r = case
-        .solver
-        .r
-        .unwrap_or_else(|| prob.lengths().default_r(&case));
+    let r = case.solver.r.unwrap_or_else(|| prob.default_r(&case));
     print.line(header_line(&case, &size, r, layout, per_rank));
     read_line(format!(
         "{mesh_name}: {} nodes, {} triangles, {} contact nodes",
@@ -773,6 +781,7 @@ fn partition_problem(
     let (subs, map) = split(prob, &part, Problem::is_frictional(case))?;
     let facts = Facts {
         lengths: prob.lengths(),
+        contact_bodies: prob.contact_bodies.clone(),
         n_boundary: map.n_boundary,
         n_interface: map.n_interface,
         nodes: prob.mesh.num_nodes(),
@@ -1158,6 +1167,14 @@ fn run_facts(ctx: &Subdomain) -> RunFacts {
         friction: friction_name(&case.friction()),
         pairs: (case.contacts.iter())
             .map(|c| (c.group.clone(), c.obstacle.kind()))
+            .collect(),
+        bodies: (case.materials.iter().enumerate())
+            .map(|(i, b)| BodySummary {
+                group: b.group.clone(),
+                young: b.material.young,
+                poisson: b.material.poisson,
+                at_contact: setup.facts.contact_bodies.contains(&(i as u32)),
+            })
             .collect(),
         r: setup.r,
         tol: case.solver.tol,

@@ -77,7 +77,10 @@ pub struct Case {
     /// Where the case came from, for messages (a file path or "built-in case NAME").
     pub origin: String,
     pub mesh: MeshSource,
-    pub material: Material,
+    /// At least one: a lone `[material]` (no group: the whole mesh), or one per body
+    /// (`[[material]]`, each on its surface group, the same plane hypothesis in all). A
+    /// triangle's body is the index of its entry.
+    pub materials: Vec<BodyMaterial>,
     pub dirichlet: Vec<Dirichlet>,
     pub traction: Vec<Traction>,
     pub body_force: [f64; 2],
@@ -87,7 +90,25 @@ pub struct Case {
     pub solver: Solver,
 }
 
+/// The material of one body: the triangles of a physical surface group, or the whole mesh
+/// (`group` None, the lone `[material]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BodyMaterial {
+    pub group: Option<String>,
+    pub material: Material,
+}
+
 impl Case {
+    /// Each body's material, by body index.
+    pub fn material_table(&self) -> Vec<Material> {
+        self.materials.iter().map(|b| b.material).collect()
+    }
+
+    /// The plane hypothesis, one for the whole case (checked).
+    pub fn hypothesis(&self) -> Hypothesis {
+        self.materials[0].material.hypothesis
+    }
+
     /// The friction law, the same kind on every frictional contact (the first one's
     /// value; `problem::with_friction_values` gives each node its own, zero on a
     /// frictionless contact among frictional ones).
@@ -105,7 +126,7 @@ impl Case {
 struct RawCase {
     title: Option<String>,
     mesh: RawMesh,
-    material: RawMaterial,
+    material: RawMaterials,
     #[serde(default)]
     dirichlet: Vec<RawDirichlet>,
     #[serde(default)]
@@ -127,6 +148,7 @@ struct RawMesh {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawMaterial {
+    group: Option<String>,
     young: f64,
     poisson: f64,
     hypothesis: Option<String>,
@@ -192,6 +214,39 @@ struct RawObstacle {
 /// `contact` is a table (`[contact]`, the old single foundation) or an array of tables
 /// (`[[contact]]`); the deserializer is handed on, so that errors keep their place in
 /// the file.
+/// A lone `[material]` for the whole mesh, or `[[material]]` entries, one per body.
+enum RawMaterials {
+    One(RawMaterial),
+    Many(Vec<RawMaterial>),
+}
+
+impl<'de> Deserialize<'de> for RawMaterials {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = RawMaterials;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a [material] table or [[material]] entries")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                RawMaterial::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    .map(RawMaterials::One)
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                seq: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                Vec::<RawMaterial>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
+                    .map(RawMaterials::Many)
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
+}
+
 enum RawContacts {
     One(Box<RawContact>),
     Many(Vec<RawContact>),
@@ -314,7 +369,7 @@ fn explain(msg: &str, header: Option<&str>) -> String {
         }
     }
     if let Some(rest) = msg.strip_prefix("unknown field `") {
-        // "unknown field `poison`, expected one of `young`, `poisson`, `hypothesis`"
+        // "unknown field `poison`, expected one of `group`, `young`, `poisson`, `hypothesis`"
         let mut quoted = rest.split('`').step_by(2);
         let unknown = quoted.next().unwrap_or_default();
         let best = quoted
@@ -323,6 +378,17 @@ fn explain(msg: &str, header: Option<&str>) -> String {
             .min();
         if let Some((_, k)) = best.filter(|&(d, _)| d <= unknown.len().max(3) / 2 + 1) {
             return format!("{msg}; did you mean `{k}`? ({SEE})");
+        }
+    }
+    if msg.contains("duplicate key") {
+        let name = header.and_then(|h| h.strip_prefix("[[")?.strip_suffix("]]"));
+        if let Some(name) = name {
+            let fix = if name == "material" {
+                "keep a lone [material] for the whole mesh, or [[material]] entries, one per body with its group".to_string()
+            } else {
+                format!("keep a lone [{name}] or [[{name}]] entries")
+            };
+            return format!("[{name}] and [[{name}]] are both given; {fix} ({SEE})");
         }
     }
     if msg.contains("expected a sequence") {
@@ -444,28 +510,7 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
         }
     };
 
-    let m = &raw.material;
-    let young = finite(origin, "material.young", m.young)?;
-    let poisson = finite(origin, "material.poisson", m.poisson)?;
-    if young <= 0.0 {
-        return input(format!(
-            "{origin}: material.young = {young} must be positive (Young's modulus)"
-        ));
-    }
-    if !(poisson > -1.0 && poisson < 0.5) {
-        return input(format!(
-            "{origin}: material.poisson = {poisson} must lie in (-1, 0.5) (0.5 is incompressible, which P1 elements cannot represent)"
-        ));
-    }
-    let hypothesis = match m.hypothesis.as_deref().unwrap_or("plane_strain") {
-        "plane_strain" => Hypothesis::PlaneStrain,
-        "plane_stress" => Hypothesis::PlaneStress,
-        other => {
-            return input(format!(
-                "{origin}: material.hypothesis = \"{other}\" is unknown; use \"plane_strain\" or \"plane_stress\""
-            ))
-        }
-    };
+    let materials = validate_materials(raw.material, origin)?;
 
     let mut dirichlet = Vec::new();
     for d in raw.dirichlet {
@@ -555,11 +600,7 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
         title: raw.title.unwrap_or_default(),
         origin: origin.to_string(),
         mesh,
-        material: Material {
-            young,
-            poisson,
-            hypothesis,
-        },
+        materials,
         dirichlet,
         traction,
         body_force,
@@ -874,6 +915,81 @@ fn validate_friction(
     })
 }
 
+/// The bodies' materials: a lone `[material]` (no group) or `[[material]]` entries, each
+/// on its own group, all with the same plane hypothesis. Whether the groups exist and
+/// cover every triangle once is checked with the mesh (`problem::build`).
+fn validate_materials(raw: RawMaterials, origin: &str) -> Result<Vec<BodyMaterial>> {
+    let (entries, many) = match raw {
+        RawMaterials::One(m) => {
+            if let Some(g) = &m.group {
+                return input(format!(
+                    "{origin}: [material] has group = \"{g}\" but a lone [material] covers the whole mesh; write one [[material]] per body (double brackets), each with its group"
+                ));
+            }
+            (vec![m], false)
+        }
+        RawMaterials::Many(v) => (v, true),
+    };
+    let mut out: Vec<BodyMaterial> = Vec::with_capacity(entries.len());
+    for (i, m) in entries.into_iter().enumerate() {
+        let key = if many {
+            format!("material[{}]", i + 1)
+        } else {
+            "material".to_string()
+        };
+        if many && m.group.is_none() {
+            return input(format!(
+                "{origin}: [[material]] entry {} lacks group; give each body's surface group, group = \"<name>\" (or write a lone [material] for the whole mesh)",
+                i + 1
+            ));
+        }
+        if let Some(g) = &m.group {
+            if out.iter().any(|b| b.group.as_ref() == Some(g)) {
+                return input(format!(
+                    "{origin}: [[material]] group \"{g}\" is listed twice; give each body one entry"
+                ));
+            }
+        }
+        let young = finite(origin, &format!("{key}.young"), m.young)?;
+        let poisson = finite(origin, &format!("{key}.poisson"), m.poisson)?;
+        if young <= 0.0 {
+            return input(format!(
+                "{origin}: {key}.young = {young} must be positive (Young's modulus)"
+            ));
+        }
+        if !(poisson > -1.0 && poisson < 0.5) {
+            return input(format!(
+                "{origin}: {key}.poisson = {poisson} must lie in (-1, 0.5) (0.5 is incompressible, which P1 elements cannot represent)"
+            ));
+        }
+        let hypothesis = match m.hypothesis.as_deref().unwrap_or("plane_strain") {
+            "plane_strain" => Hypothesis::PlaneStrain,
+            "plane_stress" => Hypothesis::PlaneStress,
+            other => {
+                return input(format!(
+                    "{origin}: {key}.hypothesis = \"{other}\" is unknown; use \"plane_strain\" or \"plane_stress\""
+                ))
+            }
+        };
+        if let Some(first) = out.first() {
+            if first.material.hypothesis != hypothesis {
+                return input(format!(
+                    "{origin}: {key}.hypothesis differs from material[1]'s; the plane hypothesis is one for the whole model: give every [[material]] the same hypothesis"
+                ));
+            }
+        }
+        out.push(BodyMaterial {
+            group: m.group,
+            material: Material {
+                young,
+                poisson,
+                hypothesis,
+            },
+        });
+    }
+    Ok(out)
+}
+
 pub fn parse_acceleration(s: &str, memory: usize) -> Option<Acceleration> {
     match s {
         "none" => Some(Acceleration::None),
@@ -1114,11 +1230,79 @@ max_iter = 50
         parse(text).unwrap_err().to_string()
     }
 
+    /// GOOD with its [material] replaced by `materials`.
+    fn with_materials(materials: &str) -> String {
+        GOOD.replace("[material]\nyoung = 200.0\npoisson = 0.3\n", materials)
+    }
+
+    #[test]
+    fn one_material_per_body_is_typed_in_order() {
+        let c = parse(&with_materials(
+            "[[material]]\ngroup = \"upper\"\nyoung = 3.0\npoisson = 0.1\nhypothesis = \"plane_stress\"\n[[material]]\ngroup = \"lower\"\nyoung = 5.0\npoisson = 0.2\nhypothesis = \"plane_stress\"\n",
+        ))
+        .unwrap();
+        let groups: Vec<_> = c.materials.iter().map(|b| b.group.as_deref()).collect();
+        assert_eq!(groups, [Some("upper"), Some("lower")]);
+        let table = c.material_table();
+        assert_eq!(
+            table.iter().map(|m| m.young).collect::<Vec<_>>(),
+            [3.0, 5.0]
+        );
+        assert_eq!(table[1].poisson, 0.2);
+        assert_eq!(c.hypothesis(), Hypothesis::PlaneStress);
+        // The lone table is one body on the whole mesh.
+        let lone = parse(GOOD).unwrap();
+        assert_eq!(lone.materials.len(), 1);
+        assert_eq!(lone.materials[0].group, None);
+        assert_eq!(lone.materials[0].material.young, 200.0);
+    }
+
+    #[test]
+    fn materials_are_refused_with_their_fix() {
+        let entry = |g: &str, h: &str| {
+            format!(
+                "[[material]]\ngroup = \"{g}\"\nyoung = 1.0\npoisson = 0.3\nhypothesis = \"{h}\"\n"
+            )
+        };
+        let e = err(&with_materials(
+            &(entry("a", "plane_strain") + &entry("a", "plane_strain")),
+        ));
+        assert!(e.contains("group \"a\" is listed twice"), "{e}");
+        let e = err(&with_materials(
+            &(entry("a", "plane_strain") + &entry("b", "plane_stress")),
+        ));
+        assert!(e.contains("material[2].hypothesis differs"), "{e}");
+        let e = err(&with_materials(
+            "[[material]]\nyoung = 1.0\npoisson = 0.3\n",
+        ));
+        assert!(e.contains("entry 1 lacks group"), "{e}");
+        let e = err(&with_materials(
+            "[material]\ngroup = \"a\"\nyoung = 1.0\npoisson = 0.3\n",
+        ));
+        assert!(e.contains("a lone [material] covers the whole mesh"), "{e}");
+        let both =
+            "[material]\nyoung = 1.0\npoisson = 0.3\n".to_string() + &entry("a", "plane_strain");
+        let e = err(&with_materials(&both));
+        assert!(
+            e.contains("[material] and [[material]] are both given"),
+            "{e}"
+        );
+        let e = err(&with_materials(
+            &(entry("a", "plane_strain") + "young = -1.0\n"),
+        ));
+        assert!(e.starts_with("case.toml: "), "{e}");
+        let bad = entry("a", "plane_strain").replace("young = 1.0", "young = -1.0");
+        let e = err(&with_materials(&(entry("b", "plane_strain") + &bad)));
+        assert!(e.contains("material[2].young = -1 must be positive"), "{e}");
+    }
+
     #[test]
     fn good_case_is_typed() {
         let c = parse(GOOD).unwrap();
         assert_eq!(c.mesh, MeshSource::File(Path::new("dir").join("m.msh")));
-        assert_eq!(c.material.hypothesis, Hypothesis::PlaneStrain);
+        assert_eq!(c.hypothesis(), Hypothesis::PlaneStrain);
+        assert_eq!(c.materials.len(), 1);
+        assert_eq!(c.materials[0].group, None);
         assert_eq!(c.dirichlet[0].ux, None);
         assert_eq!(c.dirichlet[0].uy, Some(-0.01));
         assert_eq!(c.friction(), Friction::Coulomb { coefficient: 0.3 });

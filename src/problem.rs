@@ -7,7 +7,7 @@ use crate::contact::obstacle::Obstacle;
 use crate::contact::{tangent_of, ContactNodes, Friction};
 use crate::error::{input, Error, Result};
 use crate::fem::assembly::{add_body_force, add_edge_traction, edge_length};
-use crate::fem::Hypothesis;
+use crate::fem::{Hypothesis, Material};
 use crate::mesh::validate::{self, Free, Holds};
 use crate::mesh::{renumber, Mesh};
 use serde::{Deserialize, Serialize};
@@ -30,6 +30,11 @@ pub struct Problem {
     /// The mesh file's index of each node (the row of `nodes.csv`): the nodes are
     /// numbered along a Hilbert curve once the problem is built ([`renumber`]).
     pub file_node: Vec<usize>,
+    /// Each triangle's body: the index of its entry in `Case::materials`.
+    pub body: Vec<u32>,
+    /// The bodies of the triangles that touch a contact node, increasing: the scales of
+    /// r are theirs ([`contact_modulus`]).
+    pub contact_bodies: Vec<u32>,
 }
 
 impl Problem {
@@ -43,7 +48,7 @@ impl Problem {
     /// (r = E/h) or worse. Measured on the built-in cases at four levels: within 1.3x of
     /// the best r of a sweep over two decades (see the note of the core issue).
     pub fn default_r(&self, case: &Case) -> f64 {
-        self.lengths().default_r(case)
+        (self.lengths()).default_r(contact_modulus(case, &self.contact_bodies))
     }
 
     /// The mesh's two lengths behind r: h, and L the smaller side of the bounding box.
@@ -97,32 +102,136 @@ pub struct Lengths {
 }
 
 impl Lengths {
-    /// See [`Problem::default_r`].
-    pub fn default_r(&self, case: &Case) -> f64 {
-        (self.mesh_stiffness(case) * self.compact_stiffness(case)).sqrt()
+    /// See [`Problem::default_r`]; `e_eff` from [`contact_modulus`].
+    pub fn default_r(&self, e_eff: f64) -> f64 {
+        (self.mesh_stiffness(e_eff) * self.compact_stiffness(e_eff)).sqrt()
     }
 
     /// E_eff / h: how stiff the body is, seen from the contact boundary, for modes at the
     /// scale of the mesh (the stiffest).
-    pub fn mesh_stiffness(&self, case: &Case) -> f64 {
-        effective_modulus(case) / self.contact_h
+    pub fn mesh_stiffness(&self, e_eff: f64) -> f64 {
+        e_eff / self.contact_h
     }
 
     /// E_eff / L: how stiff a compact body is for smooth modes (the softest). A slender
     /// body is far softer (it bends): the loop measures that and lowers r (see
     /// `contact::probe`).
-    pub fn compact_stiffness(&self, case: &Case) -> f64 {
-        effective_modulus(case) / self.compact
+    pub fn compact_stiffness(&self, e_eff: f64) -> f64 {
+        e_eff / self.compact
     }
 }
 
 /// The modulus of a plane problem: E / (1 - nu^2) in plane strain, E in plane stress.
-fn effective_modulus(case: &Case) -> f64 {
-    let m = &case.material;
+pub fn effective_modulus(m: &Material) -> f64 {
     match m.hypothesis {
         Hypothesis::PlaneStrain => m.young / (1.0 - m.poisson * m.poisson),
         Hypothesis::PlaneStress => m.young,
     }
+}
+
+/// The E_eff behind r and its floors: the largest among `bodies`, those touching the
+/// contact nodes (every body's when none is given).
+///
+/// Why the largest: r sits between the stiffnesses the contact boundary shows (see
+/// [`Problem::default_r`]), and the retune floors (E_eff / h) keep a held node's r above
+/// its local stiffness. A node on the interface of a soft and a stiff body is held by
+/// the stiff one's elements, and an r below that stiffness lets the iteration crawl,
+/// while one a material ratio too high only costs sweeps in proportion. Only the bodies
+/// at the contact count: a stiff body away from it does not change what the contact
+/// sees. One material gives the one-material value, bit for bit.
+pub fn contact_modulus(case: &Case, bodies: &[u32]) -> f64 {
+    let all: Vec<u32> = (0..case.materials.len() as u32).collect();
+    let bodies = if bodies.is_empty() { &all[..] } else { bodies };
+    (bodies.iter())
+        .map(|&b| effective_modulus(&case.materials[b as usize].material))
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// Each triangle's body (its `[[material]]` entry), every triangle in exactly one; a lone
+/// `[material]` is body 0 everywhere.
+fn bodies(case: &Case, mesh: &Mesh) -> Result<Vec<u32>> {
+    const NONE: u32 = u32::MAX;
+    let nt = mesh.triangles.len();
+    if case.materials.iter().all(|b| b.group.is_none()) {
+        return Ok(vec![0; nt]);
+    }
+    let origin = &case.origin;
+    let surfaces = || -> String {
+        let names: Vec<&str> = mesh.surface_groups.keys().map(String::as_str).collect();
+        if names.is_empty() {
+            "the mesh has no physical surface groups; put each body's surface in a physical group in Gmsh".into()
+        } else {
+            format!("surface groups in the mesh: {}", names.join(", "))
+        }
+    };
+    let centroid = |t: usize| {
+        let p = mesh.triangles[t].map(|v| mesh.nodes[v]);
+        [0, 1].map(|c| (p[0][c] + p[1][c] + p[2][c]) / 3.0)
+    };
+    let mut body = vec![NONE; nt];
+    for (i, b) in case.materials.iter().enumerate() {
+        let g = b.group.as_deref().unwrap_or_default();
+        let Some(tris) = mesh.surface_groups.get(g) else {
+            let what = if mesh.line_groups.contains_key(g) || mesh.point_groups.contains_key(g) {
+                "is a line or point group; a material needs a surface group".to_string()
+            } else {
+                "is not a surface group of the mesh".to_string()
+            };
+            return input(format!(
+                "{origin}: [[material]] group \"{g}\" {what}; {}",
+                surfaces()
+            ));
+        };
+        for &t in tris {
+            if body[t] != NONE {
+                let x = centroid(t);
+                let other = case.materials[body[t] as usize]
+                    .group
+                    .as_deref()
+                    .unwrap_or_default();
+                return input(format!(
+                    "{origin}: the triangle at ({}, {}) is in both [[material]] groups \"{other}\" and \"{g}\"; each triangle takes one material: give the bodies disjoint physical surfaces",
+                    x[0], x[1]
+                ));
+            }
+            body[t] = i as u32;
+        }
+    }
+    if let Some(t) = body.iter().position(|&b| b == NONE) {
+        let missing = body.iter().filter(|&&b| b == NONE).count();
+        let x = centroid(t);
+        let theirs: Vec<&str> = (mesh.surface_groups.iter())
+            .filter(|(_, tris)| tris.binary_search(&t).is_ok())
+            .map(|(k, _)| k.as_str())
+            .collect();
+        let fix = match theirs.first() {
+            Some(g) => format!("add a [[material]] with group = \"{g}\""),
+            None => {
+                "put it in a physical surface group of the mesh and give that group a [[material]]"
+                    .to_string()
+            }
+        };
+        return input(format!(
+            "{origin}: {missing} triangle(s), one at ({}, {}), are in no [[material]] group; every triangle needs a material: {fix}",
+            x[0], x[1]
+        ));
+    }
+    Ok(body)
+}
+
+/// The bodies of the triangles that touch `nodes`, increasing and without repeats.
+fn touching(mesh: &Mesh, body: &[u32], nodes: &[usize]) -> Vec<u32> {
+    let mut is_node = vec![false; mesh.num_nodes()];
+    for &v in nodes {
+        is_node[v] = true;
+    }
+    let mut out: Vec<u32> = (mesh.triangles.iter().zip(body))
+        .filter(|(t, _)| t.iter().any(|&v| is_node[v]))
+        .map(|(_, &b)| b)
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
 }
 
 /// The closest existing group name, for "did you mean" hints.
@@ -203,6 +312,9 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
     let (contact_nodes, contact, contact_h) = contact_geometry(case, &mesh, &boundary)?;
 
     check_held(case, &mesh, &fixed, &contact_nodes, &contact)?;
+    // Checked here so that every fault of the input is reported before any work; the
+    // bodies are found again in the new numbering below.
+    bodies(case, &mesh)?;
 
     let n = mesh.num_nodes();
     let prob = Problem {
@@ -213,8 +325,12 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         contact,
         contact_h,
         file_node: (0..n).collect(),
+        body: Vec::new(),
+        contact_bodies: Vec::new(),
     };
     let mut prob = in_locality_order(prob);
+    prob.body = bodies(case, &prob.mesh)?;
+    prob.contact_bodies = touching(&prob.mesh, &prob.body, &prob.contact_nodes);
     // Summed in the new numbering's triangle order: a node's share of the body force
     // comes from several triangles, and summed in the file's order the load (and the
     // answer, by a rounding) would depend on the order the mesher wrote them in.
@@ -470,4 +586,72 @@ pub fn check_held(
         ),
     };
     Err(Error::Input(msg))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::case::{builtin_case, BodyMaterial};
+
+    /// Two triangles of the unit square, "lower" (0, 1, 2) and "upper" (0, 2, 3).
+    fn square() -> Mesh {
+        let mut mesh = Mesh {
+            nodes: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Mesh::default()
+        };
+        mesh.surface_groups.insert("lower".into(), vec![0]);
+        mesh.surface_groups.insert("upper".into(), vec![1]);
+        mesh
+    }
+
+    fn two_bodies(young: [f64; 2], hypothesis: Hypothesis) -> Case {
+        let mut case = builtin_case("block", 0).unwrap();
+        case.materials = (["upper", "lower"].into_iter().zip(young))
+            .map(|(g, young)| BodyMaterial {
+                group: Some(g.into()),
+                material: Material {
+                    young,
+                    poisson: 0.5f64.sqrt(),
+                    hypothesis,
+                },
+            })
+            .collect();
+        case
+    }
+
+    #[test]
+    fn each_triangle_gets_the_entry_of_its_group() {
+        let case = two_bodies([1.0, 2.0], Hypothesis::PlaneStrain);
+        assert_eq!(bodies(&case, &square()).unwrap(), [1, 0]);
+        let lone = builtin_case("block", 0).unwrap();
+        assert_eq!(bodies(&lone, &square()).unwrap(), [0, 0]);
+        let mut unlisted = case.clone();
+        unlisted.materials.pop();
+        let e = bodies(&unlisted, &square()).unwrap_err().to_string();
+        assert!(e.contains("with group = \"lower\""), "{e}");
+    }
+
+    #[test]
+    fn the_scale_of_r_is_the_stiffest_body_at_the_contact() {
+        // Node 1 is in "lower" only, node 3 in "upper" only, node 0 in both.
+        let mesh = square();
+        let body = [1, 0];
+        assert_eq!(touching(&mesh, &body, &[1]), [1]);
+        assert_eq!(touching(&mesh, &body, &[3]), [0]);
+        assert_eq!(touching(&mesh, &body, &[0, 1]), [0, 1]);
+        // E_eff = E / (1 - nu^2) = 2 E in plane strain with nu^2 = 1/2; E in plane stress.
+        let case = two_bodies([10.0, 30.0], Hypothesis::PlaneStrain);
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b;
+        assert!(close(contact_modulus(&case, &[0]), 20.0));
+        assert!(close(contact_modulus(&case, &[1]), 60.0));
+        assert!(close(contact_modulus(&case, &[0, 1]), 60.0));
+        assert!(close(contact_modulus(&case, &[]), 60.0));
+        let stress = two_bodies([10.0, 30.0], Hypothesis::PlaneStress);
+        assert_eq!(contact_modulus(&stress, &[0]), 10.0);
+        // One material: its own E_eff, bit for bit.
+        let lone = builtin_case("block", 0).unwrap();
+        let m = lone.materials[0].material;
+        assert_eq!(contact_modulus(&lone, &[0]), effective_modulus(&m));
+    }
 }

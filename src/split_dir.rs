@@ -9,9 +9,10 @@
 //!
 //! A run reads the case file again. Only what the parts are made of must be unchanged:
 //! the mesh, the Dirichlet conditions, the tractions, the body force, the contact groups,
-//! their obstacles (the nodes' normals and gaps) and whether there is friction (which
-//! decides the boundary dofs and the nodes turned into their frames). The
-//! material, the friction coefficient or threshold and the solver settings may change
+//! their obstacles (the nodes' normals and gaps), whether there is friction (which
+//! decides the boundary dofs and the nodes turned into their frames) and the bodies'
+//! groups (`[[material]] group`, each triangle's body is in its part). The materials'
+//! values, the friction coefficient or threshold and the solver settings may change
 //! between runs of one split: the split keeps the mesh's lengths, not the default r.
 
 use crate::case::{Case, MeshSource};
@@ -29,7 +30,7 @@ use std::path::{Path, PathBuf};
 /// The manifest's file name in a split directory.
 pub const MANIFEST: &str = "split.json";
 /// Bumped whenever the part files or the manifest change layout.
-const FORMAT: u32 = 2;
+const FORMAT: u32 = 3;
 const MAGIC: &[u8; 8] = b"CPSPLIT\x01";
 
 /// What partitioning and splitting a case fixes, whoever did it (the first rank of a run,
@@ -38,6 +39,9 @@ const MAGIC: &[u8; 8] = b"CPSPLIT\x01";
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Facts {
     pub lengths: Lengths,
+    /// The bodies touching the contact nodes (`Problem::contact_bodies`): their materials
+    /// set r's scale, whatever the materials of the run.
+    pub contact_bodies: Vec<u32>,
     pub n_boundary: usize,
     pub n_interface: usize,
     pub nodes: usize,
@@ -127,6 +131,16 @@ fn fingerprint(case: &Case) -> BTreeMap<String, String> {
         ("dirichlet", json(&case.dirichlet)),
         ("traction", json(&case.traction)),
         ("body_force", json(&case.body_force)),
+        // Which group each body is (each part's triangles carry their body), not what
+        // it is made of: the values may change between runs.
+        (
+            "material",
+            json(
+                &(case.materials.iter())
+                    .map(|b| &b.group)
+                    .collect::<Vec<_>>(),
+            ),
+        ),
         ("contact", contact),
     ]
     .into_iter()

@@ -7,7 +7,9 @@
 //! 2. a manufactured solution on the unit square with measured convergence rates in the
 //!    L2 norm (about 2) and the energy norm / H1 seminorm (about 1).
 
-use contact_par::fem::{assemble, elasticity_matrix, element_stress, DofMap, Hypothesis, Material};
+use contact_par::fem::{
+    assemble, elasticity_matrix, element_stress, DofMap, Hypothesis, Material, Materials,
+};
 use contact_par::linear::SparseCholesky;
 use contact_par::mesh::{builtin, gmsh, Mesh};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
@@ -43,7 +45,14 @@ fn boundary_nodes(mesh: &Mesh) -> Vec<bool> {
 /// Solves K u = F on the free dofs with `fixed` prescribed; returns the full u.
 fn solve(mesh: &Mesh, mat: &Material, fixed: &[Option<f64>], load: &[f64]) -> Vec<f64> {
     let dofs = DofMap::new(fixed);
-    let a = assemble(&mesh.nodes, &mesh.triangles, mat, &dofs, &[]).unwrap();
+    let a = assemble(
+        &mesh.nodes,
+        &mesh.triangles,
+        Materials::One(mat),
+        &dofs,
+        &[],
+    )
+    .unwrap();
     let mut rhs = Mat::<f64>::zeros(dofs.n_free, 1);
     for (i, v) in a.lifting.iter().enumerate() {
         rhs[(i, 0)] = *v;

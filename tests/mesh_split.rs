@@ -325,3 +325,46 @@ fn split_itself_refuses_bad_requests() {
     names.sort();
     assert_eq!(names, ["part-00000.bin", "part-00001.bin", "split.json"]);
 }
+
+/// Two bodies: a split keeps each triangle's body, so a run from it with new values of
+/// the materials gives the unsplit run's files, and a case that assigns the bodies
+/// otherwise (one lone [material]) is refused.
+#[test]
+fn bodies_are_in_the_parts_and_their_values_may_change() {
+    let dir = TempDir::new().unwrap();
+    let p = dir.path();
+    let mesh = "bimaterial_v41_ascii.msh";
+    std::fs::copy(common::gmsh_dir().join(mesh), p.join(mesh)).unwrap();
+    let case = |lower: f64, upper: f64| {
+        format!(
+            "[mesh]\nfile = \"{mesh}\"\n[[material]]\ngroup = \"lower\"\nyoung = {lower:?}\npoisson = 0.3\n[[material]]\ngroup = \"upper\"\nyoung = {upper:?}\npoisson = 0.4\n[[dirichlet]]\ngroup = \"top\"\nux = 0.005\nuy = -0.02\n[contact]\ngroup = \"bottom\"\nobstacle_point = [0.0, 0.0]\nobstacle_normal = [0.0, 1.0]\nfriction = \"coulomb\"\ncoefficient = 0.3\n"
+        )
+    };
+    std::fs::write(p.join("case.toml"), case(1000.0, 300.0)).unwrap();
+    ok(
+        &split(p, &["case.toml", "--parts", "2", "--out", "parts"]),
+        "split",
+    );
+    std::fs::write(p.join("case.toml"), case(2000.0, 100.0)).unwrap();
+    let args = ["case.toml", "--nodes-csv"];
+    ok(
+        &mpirun(2, p, &[&args[..], &["--out", "plain"]].concat()),
+        "unsplit",
+    );
+    let from_split = [&args[..], &["--mesh-split", "parts", "--out", "split"]].concat();
+    ok(&mpirun(2, p, &from_split), "from the split");
+    assert_same_files(&p.join("plain"), &p.join("split"), "new material values");
+    let lone = std::fs::read_to_string(p.join("case.toml"))
+        .unwrap()
+        .replace(
+            "[[material]]\ngroup = \"lower\"\nyoung = 2000.0\npoisson = 0.3\n[[material]]\ngroup = \"upper\"\nyoung = 100.0\npoisson = 0.4\n",
+            "[material]\nyoung = 2000.0\npoisson = 0.3\n",
+        );
+    std::fs::write(p.join("lone.toml"), lone).unwrap();
+    refused(
+        p,
+        2,
+        &["lone.toml", "--mesh-split", "parts"],
+        "material section differs",
+    );
+}

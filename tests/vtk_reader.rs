@@ -167,7 +167,10 @@ fn vtk_reads_what_the_csv_files_say() {
                 "contact_status"
             ]
         );
-        assert_eq!(names(&grid["cell_data"]), ["stress", "von_mises", "rank"]);
+        assert_eq!(
+            names(&grid["cell_data"]),
+            ["stress", "von_mises", "rank", "body"]
+        );
         let stress = named(&grid["cell_data"], "stress");
         assert_eq!(stress["components"], 4);
         let labels = serde_json::json!(["xx", "yy", "xy", "zz"]);
@@ -214,6 +217,8 @@ fn vtk_reads_what_the_csv_files_say() {
         assert!(tris.iter().flatten().all(|&v| v < xyz.len()));
         let rank = i32s(named(cd, "rank"));
         assert_eq!(rank, vec![r as i32; tris.len()]);
+        // One [material]: one body.
+        assert_eq!(i32s(named(cd, "body")), vec![0; tris.len()]);
         let (s, vm) = (f64s(named(cd, "stress")), f64s(named(cd, "von_mises")));
         assert_eq!((s.len(), vm.len()), (4 * tris.len(), tris.len()));
         for (s, vm) in s.chunks(4).zip(&vm) {
@@ -324,4 +329,45 @@ fn split_piece_written_by_several_threads_is_complete() {
     }
     assert_eq!(all.len(), 204_800);
     assert_eq!(count(&vtk["index"], "cells"), 204_800);
+}
+
+/// Two bodies on 2 ranks: each cell's `body`, in the pieces and through the index, is
+/// the index of its [[material]] entry, listed here in the reverse of the mesh's order
+/// of groups ("upper" first, body 0: the triangles above y = 1).
+#[test]
+fn body_of_each_cell_is_its_material() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = "bimaterial_v41_ascii.msh";
+    std::fs::copy(common::gmsh_dir().join(mesh), dir.path().join(mesh)).unwrap();
+    let case = format!(
+        "[mesh]\nfile = \"{mesh}\"\n[[material]]\ngroup = \"upper\"\nyoung = 200.0\npoisson = 0.3\n[[material]]\ngroup = \"lower\"\nyoung = 1000.0\npoisson = 0.3\n[[dirichlet]]\ngroup = \"top\"\nux = 0.0\nuy = -0.01\n[contact]\ngroup = \"bottom\"\nobstacle_point = [0.0, 0.0]\nobstacle_normal = [0.0, 1.0]\n"
+    );
+    std::fs::write(dir.path().join("case.toml"), case).unwrap();
+    let session = session_dir();
+    let o = mpirun(2, dir.path())
+        .args(["case.toml", "--out", "out", "--quiet", "--no-plots"])
+        .env("TMPDIR", session.path())
+        .env("RAYON_NUM_THREADS", "1")
+        .output()
+        .expect("mpirun must be installed (openmpi-bin)");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let Some(vtk) = read_with_vtk(&dir.path().join("out")) else {
+        return;
+    };
+    let mut counts = [0usize; 2];
+    let grids = vtk["pieces"].as_array().unwrap().iter();
+    for (k, grid) in std::iter::once(&vtk["index"]).chain(grids).enumerate() {
+        let xyz = points(grid);
+        let body = i32s(named(&grid["cell_data"], "body"));
+        let tris = triangles(grid);
+        assert_eq!(body.len(), tris.len());
+        for (t, b) in tris.iter().zip(&body) {
+            let y = t.iter().map(|&v| xyz[v][1]).sum::<f64>() / 3.0;
+            assert_eq!(*b, if y > 1.0 { 0 } else { 1 }, "a cell at y = {y}");
+            if k == 0 {
+                counts[*b as usize] += 1;
+            }
+        }
+    }
+    assert!(counts[0] > 0 && counts[1] > 0, "{counts:?}");
 }

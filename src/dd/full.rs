@@ -5,18 +5,18 @@
 use crate::contact::operators::{add_contact_forces, contact_blocks, ContactDofs, NodalForces};
 use crate::contact::{tangent_of, LinearStep};
 use crate::error::Result;
-use crate::fem::{assemble, AssemblyFigures, DofMap, Material};
+use crate::fem::{assemble, AssemblyFigures, DofMap, Materials};
 use crate::linear::SparseCholesky;
 use crate::timer::{Phase, Timer};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
 use faer::Mat;
 
-/// What [`DirectStep::new`] assembles: the mesh, its material, the prescribed dofs
+/// What [`DirectStep::new`] assembles: the mesh, its materials, the prescribed dofs
 /// (`fixed`), the load per dof, the contact nodes and the augmentation `r` on them.
 pub struct DirectSystem<'a> {
     pub nodes: &'a [[f64; 2]],
     pub triangles: &'a [[usize; 3]],
-    pub material: &'a Material,
+    pub materials: Materials<'a>,
     pub fixed: &'a [Option<f64>],
     pub load: &'a [f64],
     pub contact: ContactDofs<'a>,
@@ -71,7 +71,7 @@ impl DirectStep {
             let assembled = assemble(
                 system.nodes,
                 system.triangles,
-                system.material,
+                system.materials,
                 &dofs,
                 &blocks,
             )?;

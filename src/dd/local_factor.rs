@@ -555,7 +555,7 @@ fn lower_gram(l: faer::MatRef<'_, f64>) -> Mat<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fem::{assemble, DofMap, Material};
+    use crate::fem::{assemble, DofMap, Material, Materials};
     use crate::linear::interior_groups;
     use crate::mesh::builtin;
     use faer::prelude::Solve;
@@ -611,12 +611,26 @@ mod tests {
         let nb = last_dofs.len();
         let ng = nb - nc;
         let alpha = 1000.0;
-        let plain = assemble(&mesh.nodes, &mesh.triangles, &material, &dofs, &[]).unwrap();
+        let plain = assemble(
+            &mesh.nodes,
+            &mesh.triangles,
+            Materials::One(&material),
+            &dofs,
+            &[],
+        )
+        .unwrap();
         let shift: Vec<(usize, [[f64; 2]; 2])> = right
             .iter()
             .map(|&v| (v, [[alpha, 0.0], [0.0, alpha]]))
             .collect();
-        let shifted = assemble(&mesh.nodes, &mesh.triangles, &material, &dofs, &shift).unwrap();
+        let shifted = assemble(
+            &mesh.nodes,
+            &mesh.triangles,
+            Materials::One(&material),
+            &dofs,
+            &shift,
+        )
+        .unwrap();
         let groups = interior_groups(&dofs);
         let nd = LocalFactor::with_ordering(
             shifted.matrix.as_ref(),
@@ -831,7 +845,14 @@ mod tests {
         let last: Vec<usize> = top.iter().flat_map(|&v| [2 * v, 2 * v + 1]).collect();
         let nb = last.len();
         let dofs = DofMap::with_last(&fixed, &last);
-        let a = assemble(&mesh.nodes, &mesh.triangles, &material, &dofs, &[]).unwrap();
+        let a = assemble(
+            &mesh.nodes,
+            &mesh.triangles,
+            Materials::One(&material),
+            &dofs,
+            &[],
+        )
+        .unwrap();
         let groups = interior_groups(&dofs);
         let factor = || LocalFactor::new(a.matrix.as_ref(), nb, nb, 0.0, &groups).unwrap();
         let all: Vec<(usize, usize, f64)> = (0..nb).map(|k| (k, k, 5e4)).collect();
@@ -880,7 +901,14 @@ mod tests {
         let last: Vec<usize> = top.iter().flat_map(|&v| [2 * v, 2 * v + 1]).collect();
         let (nb, nc) = (last.len(), last.len() / 2);
         let dofs = DofMap::with_last(&fixed, &last);
-        let a = assemble(&mesh.nodes, &mesh.triangles, &material, &dofs, &[]).unwrap();
+        let a = assemble(
+            &mesh.nodes,
+            &mesh.triangles,
+            Materials::One(&material),
+            &dofs,
+            &[],
+        )
+        .unwrap();
         let groups = interior_groups(&dofs);
         let mut lf = LocalFactor::new(a.matrix.as_ref(), nb, nc, 0.0, &groups).unwrap();
         let all: Vec<(usize, usize, f64)> = (0..nc).map(|k| (k, k, 5e4)).collect();

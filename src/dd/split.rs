@@ -29,6 +29,8 @@ pub struct SubProblem {
     pub nodes: Vec<[f64; 2]>,
     /// Triangles in local node numbering.
     pub triangles: Vec<[usize; 3]>,
+    /// Each triangle's body (its index in `Case::materials`).
+    pub body: Vec<u32>,
     /// Whether this rank owns each local node (writes it in nodes.csv).
     pub owned: Vec<bool>,
     /// Prescribed values per local dof.
@@ -198,6 +200,7 @@ pub fn split(
             global_nodes: p.nodes.iter().map(|&g| prob.file_node[g]).collect(),
             nodes: p.nodes.iter().map(|&g| prob.mesh.nodes[g]).collect(),
             triangles,
+            body: p.elements.iter().map(|&e| prob.body[e]).collect(),
             owned,
             fixed,
             load,

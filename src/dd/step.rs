@@ -12,7 +12,9 @@ use crate::dd::interface_mumps::{self, MumpsInterface};
 use crate::dd::local_factor::{InteriorForward, LocalFactor, SchurChange};
 use crate::dd::split::SubProblem;
 use crate::error::Result;
-use crate::fem::{assemble_in_frames, from_frame, to_frame, AssemblyFigures, DofMap, Material};
+use crate::fem::{
+    assemble_in_frames, from_frame, to_frame, AssemblyFigures, DofMap, Material, Materials,
+};
 use crate::host;
 use crate::linear::{interior_groups, Ordering};
 use crate::timer::{Phase, Timer};
@@ -21,7 +23,8 @@ use faer::Mat;
 /// What every subdomain's step shares, from the set-up of the run.
 #[derive(Clone, Copy)]
 pub struct StepSetup<'a> {
-    pub material: &'a Material,
+    /// Each body's material (a subdomain's triangles carry their body).
+    pub materials: &'a [Material],
     /// The augmentation every contact direction is assembled with.
     pub r: f64,
     /// Shift of the interface block of every local matrix (see `LocalFactor`).
@@ -78,7 +81,10 @@ impl LocalSystem {
             let assembled = assemble_in_frames(
                 &sub.nodes,
                 &sub.triangles,
-                s.material,
+                Materials::PerElement {
+                    table: s.materials,
+                    body: &sub.body,
+                },
                 &dofs,
                 &blocks,
                 &frames,

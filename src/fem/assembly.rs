@@ -1,7 +1,7 @@
 //! Assembly of the factor-once matrix A = K + (contact blocks) on the free dofs, with the
 //! Dirichlet values lifted to the right-hand side once.
 
-use super::Material;
+use super::Materials;
 use super::{elasticity_matrix, element_stiffness_row};
 use crate::error::{Error, Result};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
@@ -109,11 +109,11 @@ impl Assembled {
 pub fn assemble(
     nodes: &[[f64; 2]],
     triangles: &[[usize; 3]],
-    material: &Material,
+    materials: Materials<'_>,
     dofs: &DofMap,
     node_blocks: &[(usize, [[f64; 2]; 2])],
 ) -> Result<Assembled> {
-    assemble_in_frames(nodes, triangles, material, dofs, node_blocks, &[])
+    assemble_in_frames(nodes, triangles, materials, dofs, node_blocks, &[])
 }
 
 /// The dofs (u'_0, u'_1) of a node turned into the frame of the unit vector m: u = Q u'
@@ -134,12 +134,13 @@ pub fn from_frame(m: [f64; 2], v: [f64; 2]) -> [f64; 2] {
 pub fn assemble_in_frames(
     nodes: &[[f64; 2]],
     triangles: &[[usize; 3]],
-    material: &Material,
+    materials: Materials<'_>,
     dofs: &DofMap,
     node_blocks: &[(usize, [[f64; 2]; 2])],
     frames: &[Option<[f64; 2]>],
 ) -> Result<Assembled> {
-    let d = elasticity_matrix(material);
+    // One elasticity matrix per body, not per element: a handful for any mesh.
+    let d: Vec<_> = materials.table().iter().map(elasticity_matrix).collect();
     let n = dofs.n_free;
     let stars = Stars::new(nodes.len(), triangles)
         .map_err(|e| Error::Numerical(format!("cannot assemble the stiffness matrix: {e}")))?;
@@ -153,6 +154,7 @@ pub fn assemble_in_frames(
         nodes,
         triangles,
         d: &d,
+        materials,
         dofs,
         stars: &stars,
         frames,
@@ -215,7 +217,9 @@ pub fn assemble_in_frames(
 struct ColumnSource<'a> {
     nodes: &'a [[f64; 2]],
     triangles: &'a [[usize; 3]],
-    d: &'a nalgebra::Matrix3<f64>,
+    /// The elasticity matrix of each entry of `materials`' table.
+    d: &'a [nalgebra::Matrix3<f64>],
+    materials: Materials<'a>,
     dofs: &'a DofMap,
     stars: &'a Stars,
     /// See [`assemble_in_frames`].
@@ -283,6 +287,7 @@ impl Columns {
             let t = triangles[e as usize];
             let a = t.iter().position(|&u| u == v).unwrap_or(0);
             let p = [nodes[t[0]], nodes[t[1]], nodes[t[2]]];
+            let d = &d[mesh.materials.index(e as usize)];
             let mut k = match mesh.frame(v) {
                 None => element_stiffness_row(&p, d, 2 * a + c),
                 Some(m) => {
@@ -357,7 +362,7 @@ pub fn edge_length(nodes: &[[f64; 2]], a: usize, b: usize) -> f64 {
 mod tests {
     use super::*;
     use crate::fem::element_stiffness;
-    use crate::fem::Hypothesis;
+    use crate::fem::{Hypothesis, Material};
 
     #[test]
     fn dofmap_numbers_free_dofs_in_order() {
@@ -383,11 +388,11 @@ mod tests {
     }
 
     /// Dense K of a small mesh, the reference for the compressed assembly.
-    fn dense_k(nodes: &[[f64; 2]], tris: &[[usize; 3]], mat: &Material) -> Vec<Vec<f64>> {
-        let d = elasticity_matrix(mat);
+    fn dense_k(nodes: &[[f64; 2]], tris: &[[usize; 3]], mat: Materials) -> Vec<Vec<f64>> {
         let n = 2 * nodes.len();
         let mut k = vec![vec![0.0; n]; n];
-        for t in tris {
+        for (e, t) in tris.iter().enumerate() {
+            let d = elasticity_matrix(mat.of(e));
             let ke = element_stiffness(&[nodes[t[0]], nodes[t[1]], nodes[t[2]]], &d);
             for a in 0..6 {
                 for b in 0..6 {
@@ -442,9 +447,10 @@ mod tests {
         frames[1] = Some(m1);
         frames[3] = Some(m3);
         let blocks = [(3usize, [[2.0, 0.0], [0.0, 0.0]])];
-        let a = assemble_in_frames(&nodes, &tris, &mat, &dofs, &blocks, &frames).unwrap();
+        let a = assemble_in_frames(&nodes, &tris, Materials::One(&mat), &dofs, &blocks, &frames)
+            .unwrap();
         // Q' K Q with the dense K, Q block-diagonal.
-        let k = dense_k(&nodes, &tris, &mat);
+        let k = dense_k(&nodes, &tris, Materials::One(&mat));
         let mut q = vec![vec![0.0; 10]; 10];
         for v in 0..5 {
             for c in 0..2 {
@@ -492,8 +498,8 @@ mod tests {
         fixed[0] = Some(0.5);
         fixed[5] = Some(-0.25);
         let dofs = DofMap::new(&fixed);
-        let a = assemble(&nodes, &tris, &mat, &dofs, &[]).unwrap();
-        let k = dense_k(&nodes, &tris, &mat);
+        let a = assemble(&nodes, &tris, Materials::One(&mat), &dofs, &[]).unwrap();
+        let k = dense_k(&nodes, &tris, Materials::One(&mat));
         assert_matches_dense(&a, &dofs, &k);
         for i in 0..8 {
             let Some(ei) = dofs.eq[i] else { continue };
@@ -543,8 +549,8 @@ mod tests {
             (2, [[1.5, 0.0], [0.0, 1.5]]),
             (8, [[1.0, 0.25], [0.25, 2.0]]),
         ];
-        let a = assemble(&nodes, &tris, &mat, &dofs, &blocks).unwrap();
-        let mut k = dense_k(&nodes, &tris, &mat);
+        let a = assemble(&nodes, &tris, Materials::One(&mat), &dofs, &blocks).unwrap();
+        let mut k = dense_k(&nodes, &tris, Materials::One(&mat));
         for (v, b) in blocks {
             for r in 0..2 {
                 for c in 0..2 {
@@ -567,5 +573,64 @@ mod tests {
                 "lifting of dof {di}"
             );
         }
+    }
+
+    /// Each element with its own material: the compressed matrix (nodes in frames too)
+    /// matches the dense sum of each element's own matrix, and a table of two equal
+    /// materials assembles bit for bit as one material.
+    #[test]
+    fn each_element_has_its_own_material() {
+        let nodes = [[0.0, 0.0], [1.0, 0.1], [0.1, 1.0], [1.2, 1.1], [2.0, 0.4]];
+        let tris = [[0, 1, 2], [1, 3, 2], [1, 4, 3]];
+        let soft = Material {
+            young: 7.0,
+            poisson: 0.3,
+            hypothesis: Hypothesis::PlaneStrain,
+        };
+        let stiff = Material {
+            young: 700.0,
+            poisson: 0.2,
+            ..soft
+        };
+        let table = [soft, stiff];
+        let body = [1u32, 0, 1];
+        let two = Materials::PerElement {
+            table: &table,
+            body: &body,
+        };
+        let mut fixed = vec![None; 10];
+        fixed[0] = Some(0.5);
+        fixed[1] = Some(0.0);
+        let dofs = DofMap::new(&fixed);
+        let a = assemble(&nodes, &tris, two, &dofs, &[]).unwrap();
+        let k = dense_k(&nodes, &tris, two);
+        assert_matches_dense(&a, &dofs, &k);
+        // Not the matrix of either material alone.
+        for one in [&soft, &stiff] {
+            let k1 = dense_k(&nodes, &tris, Materials::One(one));
+            assert!(k
+                .iter()
+                .flatten()
+                .zip(k1.iter().flatten())
+                .any(|(x, y)| (x - y).abs() > 1.0));
+        }
+        let frames = [None, Some([0.6, 0.8]), None, None, None];
+        let same = [soft, soft];
+        let per = Materials::PerElement {
+            table: &same,
+            body: &body,
+        };
+        let a1 =
+            assemble_in_frames(&nodes, &tris, Materials::One(&soft), &dofs, &[], &frames).unwrap();
+        let a2 = assemble_in_frames(&nodes, &tris, per, &dofs, &[], &frames).unwrap();
+        let bits = |a: &Assembled| -> Vec<u64> {
+            let m = a.matrix.as_ref();
+            (0..dofs.n_free)
+                .flat_map(|j| (j..dofs.n_free).map(move |i| (i, j)))
+                .map(|(i, j)| m.get(i, j).copied().unwrap_or(0.0).to_bits())
+                .chain(a.lifting.iter().map(|v| v.to_bits()))
+                .collect()
+        };
+        assert_eq!(bits(&a1), bits(&a2));
     }
 }

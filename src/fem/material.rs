@@ -19,6 +19,40 @@ pub struct Material {
     pub hypothesis: Hypothesis,
 }
 
+/// The material of each element of a mesh: one for all, or a table of the bodies'
+/// materials and each element's body (its index in the table).
+#[derive(Debug, Clone, Copy)]
+pub enum Materials<'a> {
+    One(&'a Material),
+    PerElement {
+        table: &'a [Material],
+        body: &'a [u32],
+    },
+}
+
+impl<'a> Materials<'a> {
+    /// The distinct materials: the table, or the one.
+    pub fn table(&self) -> &'a [Material] {
+        match *self {
+            Materials::One(m) => std::slice::from_ref(m),
+            Materials::PerElement { table, .. } => table,
+        }
+    }
+
+    /// Element `e`'s index in [`Materials::table`].
+    pub fn index(&self, e: usize) -> usize {
+        match *self {
+            Materials::One(_) => 0,
+            Materials::PerElement { body, .. } => body[e] as usize,
+        }
+    }
+
+    /// Element `e`'s material.
+    pub fn of(&self, e: usize) -> &'a Material {
+        &self.table()[self.index(e)]
+    }
+}
+
 #[cfg(test)]
 impl Material {
     /// A plane-strain material of the solver's unit tests (E = 1000, nu = 0.3).

@@ -8,7 +8,7 @@ mod material;
 pub use assembly::{
     assemble, assemble_in_frames, from_frame, to_frame, Assembled, AssemblyFigures, DofMap,
 };
-pub use material::{Hypothesis, Material};
+pub use material::{Hypothesis, Material, Materials};
 
 use nalgebra::{Matrix3, SMatrix, Vector3};
 

@@ -289,7 +289,7 @@ fn for_each_trailing_entry(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fem::{assemble, DofMap, Material};
+    use crate::fem::{assemble, DofMap, Material, Materials};
     use crate::mesh::builtin;
 
     #[test]
@@ -338,7 +338,14 @@ mod tests {
                 fixed[2 * node + 1] = Some(0.0);
             }
             let dofs = DofMap::new(&fixed);
-            let k = assemble(&mesh.nodes, &mesh.triangles, &material, &dofs, &[]).unwrap();
+            let k = assemble(
+                &mesh.nodes,
+                &mesh.triangles,
+                Materials::One(&material),
+                &dofs,
+                &[],
+            )
+            .unwrap();
             let chol = SparseCholesky::factor(k.matrix.as_ref(), SymmetricOrdering::Amd).unwrap();
             let counts = column_counts(&chol);
             let expected: f64 = counts.iter().map(|&c| (c * c) as f64).sum();

@@ -4,6 +4,8 @@
 use super::Mesh;
 use std::f64::consts::{FRAC_PI_2, PI};
 
+/// The surface group of every built-in mesh: one body, all its triangles.
+pub const BODY_GROUP: &str = "body";
 /// Cells over the height of [`block_for_level`] at level 0.
 const BLOCK_NY0: usize = 10;
 /// Cells across [`quarter_disc_for_level`] at level 0: 1244 nodes, and level 5 is the
@@ -101,6 +103,8 @@ pub fn block(width: f64, height: f64, nx: usize, ny: usize) -> Mesh {
     let points = &mut mesh.point_groups;
     points.insert("bottom_left".into(), vec![grid.id(0, 0)]);
     points.insert("bottom_right".into(), vec![grid.id(nx, 0)]);
+    let all = (0..mesh.triangles.len()).collect();
+    mesh.surface_groups.insert(BODY_GROUP.into(), all);
     mesh
 }
 
@@ -477,6 +481,8 @@ fn disc(radius: f64, n: usize, m: usize) -> Mesh {
     mesh.line_groups.insert("top".into(), path(&top));
     mesh.line_groups.insert("contact".into(), path(&arc));
     mesh.point_groups.insert("origin".into(), vec![origin]);
+    let all = (0..mesh.triangles.len()).collect();
+    mesh.surface_groups.insert(BODY_GROUP.into(), all);
     mesh
 }
 

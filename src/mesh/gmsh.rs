@@ -892,7 +892,11 @@ fn read_element_block_v41(r: &mut Reader, b: &mut Builder) -> Result<usize> {
     if r.binary.is_none() && kind == Kind::Triangle && count >= r.parallel_from {
         let start = r.pos;
         if let Some(triangles) = ascii_triangles(r, b, count) {
+            let first = b.triangles.len();
             b.triangles.extend(triangles);
+            for &p in &physicals {
+                (b.surfaces.entry(p).or_default()).extend(first..b.triangles.len());
+            }
             return Ok(count);
         }
         r.pos = start;
@@ -1058,6 +1062,8 @@ struct Builder {
     triangles: Vec<[usize; 3]>,
     lines: BTreeMap<i32, Vec<[usize; 2]>>,
     points: BTreeMap<i32, Vec<usize>>,
+    /// Indices into `triangles` (as read, repeats included) of each physical surface.
+    surfaces: BTreeMap<i32, Vec<usize>>,
 }
 
 impl Builder {
@@ -1136,7 +1142,12 @@ impl Builder {
     fn add_element(&mut self, kind: Kind, nodes: [usize; 3], physicals: &[i32]) {
         let [a, b, _] = nodes;
         match kind {
-            Kind::Triangle => self.triangles.push(nodes),
+            Kind::Triangle => {
+                for &p in physicals {
+                    (self.surfaces.entry(p).or_default()).push(self.triangles.len());
+                }
+                self.triangles.push(nodes);
+            }
             Kind::Line => {
                 for &p in physicals {
                     self.lines.entry(p).or_default().push([a, b]);
@@ -1179,7 +1190,20 @@ impl Builder {
     }
 
     fn finish(mut self, name: &str) -> Result<Mesh> {
-        drop_repeated_triangles(self.nodes.len(), &mut self.triangles);
+        let kept = drop_repeated_triangles(self.nodes.len(), &mut self.triangles);
+        // A repeat's groups go to the triangle kept in its place (MSH 2.2 writes a
+        // triangle of two physical surfaces twice, once with each tag).
+        let surfaces = (std::mem::take(&mut self.surfaces).into_iter())
+            .map(|(tag, tris)| {
+                let mut t: Vec<usize> = match &kept {
+                    Some(kept) => tris.iter().map(|&t| kept[t]).collect(),
+                    None => tris,
+                };
+                t.sort_unstable();
+                t.dedup();
+                (tag, t)
+            })
+            .collect();
         if self.triangles.is_empty() {
             return input(format!(
                 "{name}: the mesh has no triangles (3-node, element type 2); mesh the surface \
@@ -1193,6 +1217,7 @@ impl Builder {
             triangles: self.triangles,
             line_groups: named(self.lines, 1, &self.names),
             point_groups: named(self.points, 0, &self.names),
+            surface_groups: named(surfaces, 2, &self.names),
         })
     }
 }
@@ -1258,7 +1283,13 @@ impl TagIndex {
 ///
 /// Repeats share their smallest node, so triangles are bucketed by it (a counting sort:
 /// a couple of triangles per node) and each bucket is sorted on its own.
-fn drop_repeated_triangles(num_nodes: usize, triangles: &mut Vec<[usize; 3]>) {
+///
+/// Returns, when any was dropped, the new index of each triangle as read (a repeat's is
+/// that of the triangle kept in its place).
+fn drop_repeated_triangles(
+    num_nodes: usize,
+    triangles: &mut Vec<[usize; 3]>,
+) -> Option<Vec<usize>> {
     let key = |t: &[usize; 3]| {
         let mut k = *t;
         k.sort_unstable();
@@ -1279,7 +1310,8 @@ fn drop_repeated_triangles(num_nodes: usize, triangles: &mut Vec<[usize; 3]>) {
         next[k[0]] += 1;
     }
     drop(next);
-    let mut repeated = vec![false; triangles.len()];
+    // The triangle as read that each one repeats (itself when it is kept).
+    let mut first_of: Vec<usize> = (0..triangles.len()).collect();
     let mut any = false;
     for w in start.windows(2) {
         let bucket = &mut bucketed[w[0]..w[1]];
@@ -1288,20 +1320,35 @@ fn drop_repeated_triangles(num_nodes: usize, triangles: &mut Vec<[usize; 3]>) {
         }
         // By key, then by position in the file: the first of equal keys is the one kept.
         bucket.sort_unstable();
-        for pair in bucket.windows(2) {
-            if pair[0].0 == pair[1].0 {
-                repeated[pair[1].1] = true;
+        let mut kept = bucket[0];
+        for &t in &bucket[1..] {
+            if t.0 == kept.0 {
+                first_of[t.1] = kept.1;
                 any = true;
+            } else {
+                kept = t;
             }
         }
     }
-    if any {
-        let mut k = 0;
-        triangles.retain(|_| {
-            k += 1;
-            !repeated[k - 1]
-        });
+    if !any {
+        return None;
     }
+    let mut new_index = vec![usize::MAX; triangles.len()];
+    let mut next = 0;
+    for i in 0..triangles.len() {
+        if first_of[i] == i {
+            new_index[i] = next;
+            next += 1;
+        } else {
+            new_index[i] = new_index[first_of[i]];
+        }
+    }
+    let mut k = 0;
+    triangles.retain(|_| {
+        k += 1;
+        first_of[k - 1] == k - 1
+    });
+    Some(new_index)
 }
 
 /// Keys groups by their physical name, or by their tag when they have none.
@@ -1326,13 +1373,14 @@ mod tests {
     use super::*;
 
     /// An ASCII MSH 4.1 grid of (n + 1)^2 nodes and 2 n^2 triangles, its node tags
-    /// scrambled, with a line group: large enough to be read in parallel.
+    /// scrambled, with a line group and a surface group: large enough to be read in
+    /// parallel.
     fn big_ascii(n: usize) -> String {
         let nodes = (n + 1) * (n + 1);
         let tag = |i: usize| (i * 7919) % nodes + 1;
         let mut t = String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n");
-        t += "$PhysicalNames\n1\n1 1 \"bottom\"\n$EndPhysicalNames\n";
-        t += "$Entities\n0 1 1 0\n1 0 0 0 1 0 0 1 1 0\n1 0 0 0 1 1 0 0 0\n$EndEntities\n";
+        t += "$PhysicalNames\n2\n1 1 \"bottom\"\n2 2 \"body\"\n$EndPhysicalNames\n";
+        t += "$Entities\n0 1 1 0\n1 0 0 0 1 0 0 1 1 0\n1 0 0 0 1 1 0 1 2 0\n$EndEntities\n";
         t += &format!("$Nodes\n1 {nodes} 1 {nodes}\n2 1 0 {nodes}\n");
         for i in 0..nodes {
             t += &format!("{}\n", tag(i));
@@ -1408,6 +1456,8 @@ mod tests {
         let parallel = parse_msh_with(text.as_bytes(), "big.msh", 1000).unwrap();
         let serial = parse_msh_with(text.as_bytes(), "big.msh", usize::MAX).unwrap();
         assert_eq!(parallel.triangles.len(), 2 * 120 * 120);
+        let every: Vec<usize> = (0..2 * 120 * 120).collect();
+        assert_eq!(parallel.surface_groups["body"], every);
         assert_eq!(parallel, serial);
         assert_eq!(parse_msh(text.as_bytes(), "big.msh").unwrap(), serial);
     }
@@ -1765,10 +1815,42 @@ mod tests {
             line_groups: BTreeMap::from([("bottom side".to_string(), vec![[0, 1]])]),
             // Group 2 has no name: its tag names it.
             point_groups: BTreeMap::from([("2".to_string(), vec![2])]),
+            surface_groups: BTreeMap::from([("body".to_string(), vec![0, 1])]),
         };
         for (label, bytes) in all_variants(&square()) {
             let mesh = parse_msh(&bytes, "square.msh").unwrap_or_else(|e| panic!("{label}: {e}"));
             assert_eq!(mesh, expected, "{label}");
+        }
+    }
+
+    /// Two bodies, one triangle also in a third group (written twice, once per group, as
+    /// MSH 2.2 does): each triangle once, in every group it was given.
+    #[test]
+    fn surface_groups_keep_their_triangles_through_repeats() {
+        const ELEMENTS: [(i32, i32, &[i32]); 5] = [
+            (1, 1, &[40, 7]),
+            (2, 3, &[40, 7, 1000]),
+            (2, 4, &[40, 1000, 3]),
+            (2, 5, &[1000, 3, 40]),
+            (2, 3, &[7, 1000, 40]),
+        ];
+        const NAMES: [(i32, i32, &str); 3] = [(2, 3, "lower"), (2, 4, "upper"), (2, 5, "tip")];
+        let spec = Spec {
+            nodes: &SQUARE_NODES,
+            elements: &ELEMENTS,
+            names: &NAMES,
+        };
+        for (label, bytes) in all_variants(&spec) {
+            let mesh = parse(&bytes);
+            assert_eq!(mesh.triangles, vec![[0, 1, 2], [0, 2, 3]], "{label}");
+            let groups: Vec<(&str, &[usize])> = (mesh.surface_groups.iter())
+                .map(|(k, v)| (k.as_str(), v.as_slice()))
+                .collect();
+            assert_eq!(
+                groups,
+                [("lower", &[0][..]), ("tip", &[1]), ("upper", &[1])],
+                "{label}"
+            );
         }
     }
 
@@ -1942,8 +2024,20 @@ mod tests {
                 .copied()
                 .collect();
             let mut kept = triangles.clone();
-            drop_repeated_triangles(nodes as usize, &mut kept);
+            let new_index = drop_repeated_triangles(nodes as usize, &mut kept)
+                .unwrap_or_else(|| (0..count).collect());
             assert_eq!(kept, expected, "{nodes} nodes, {count} triangles");
+            let sorted = |mut t: [usize; 3]| {
+                t.sort_unstable();
+                t
+            };
+            for (t, &i) in triangles.iter().zip(&new_index) {
+                assert_eq!(
+                    sorted(kept[i]),
+                    sorted(*t),
+                    "{nodes} nodes, {count} triangles"
+                );
+            }
         }
     }
 

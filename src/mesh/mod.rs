@@ -12,13 +12,16 @@ use std::collections::BTreeMap;
 /// Node indices are 0-based and contiguous. Triangles are counter-clockwise once
 /// [`validate::check`] has oriented them (see [`validate::orient`]). Groups keep the names of the Gmsh physical groups: line groups hold
 /// 2-node edges (boundary conditions, contact), point groups hold single nodes (e.g. a
-/// pinned point).
+/// pinned point). Surface groups hold triangle indices: the bodies, each of which can
+/// be given its own material.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Mesh {
     pub nodes: Vec<[f64; 2]>,
     pub triangles: Vec<[usize; 3]>,
     pub line_groups: BTreeMap<String, Vec<[usize; 2]>>,
     pub point_groups: BTreeMap<String, Vec<usize>>,
+    /// Triangles (indices into `triangles`, increasing) of each physical surface group.
+    pub surface_groups: BTreeMap<String, Vec<usize>>,
 }
 
 /// Twice the signed area of the triangle on `nodes` (positive when counter-clockwise).

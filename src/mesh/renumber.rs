@@ -110,6 +110,16 @@ pub fn by_hilbert_curve(mesh: Mesh) -> (Mesh, Vec<usize>) {
         .collect();
     let tri_order = order_by_nodes(&renamed, nodes.len());
     let triangles = tri_order.par_iter().map(|&t| renamed[t]).collect();
+    let new_tri = inverse(&tri_order);
+    let surface_groups = mesh
+        .surface_groups
+        .into_iter()
+        .map(|(name, tris)| {
+            let mut t: Vec<usize> = tris.iter().map(|&t| new_tri[t]).collect();
+            t.sort_unstable();
+            (name, t)
+        })
+        .collect();
     let line_groups = mesh
         .line_groups
         .into_iter()
@@ -125,6 +135,7 @@ pub fn by_hilbert_curve(mesh: Mesh) -> (Mesh, Vec<usize>) {
         triangles,
         line_groups,
         point_groups,
+        surface_groups,
     };
     (mesh, old_of)
 }
@@ -199,8 +210,21 @@ mod tests {
                 .map(|(k, e)| (k.clone(), e.iter().map(|e| e.map(|v| new_of[v])).collect()))
                 .collect(),
             point_groups: Default::default(),
+            surface_groups: Default::default(),
         };
+        // A body: the triangles left of x = 20 (in the scrambled, reversed order).
+        let mut scrambled = scrambled;
+        let left = |m: &Mesh, t: usize| m.triangles[t].iter().all(|&v| m.nodes[v][0] < 20.0);
+        let body: Vec<usize> = (0..scrambled.triangles.len())
+            .filter(|&t| left(&scrambled, t))
+            .collect();
+        assert!(!body.is_empty() && body.len() < scrambled.triangles.len());
+        scrambled.surface_groups.insert("left".into(), body.clone());
         let (re, old_of) = by_hilbert_curve(scrambled.clone());
+        let carried = &re.surface_groups["left"];
+        assert_eq!(carried.len(), body.len());
+        assert!(carried.windows(2).all(|w| w[0] < w[1]));
+        assert!(carried.iter().all(|&t| left(&re, t)));
         assert_eq!(re.nodes.len(), n);
         for (i, &o) in old_of.iter().enumerate() {
             assert_eq!(re.nodes[i], scrambled.nodes[o]);

@@ -26,5 +26,5 @@ mod vtk;
 pub use atomic::{write_atomic, SharedFile, Written};
 pub use csv::{contact_csv, history_csv, nodes_csv, ContactRow};
 pub use piece::{create_output_dir, element_stresses, vtu_file_name, PieceRows, SubdomainSolution};
-pub use summary::{Gathered, PlotFacts, RankStats, RunFacts, PLOT_FILES};
+pub use summary::{BodySummary, Gathered, PlotFacts, RankStats, RunFacts, PLOT_FILES};
 pub use vtk::{file_ranges, pvtu_bytes, vtu_bytes, Piece, SubPiece, MAX_TRIANGLES_PER_FILE};

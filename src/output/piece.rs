@@ -7,7 +7,7 @@ use crate::case::Case;
 use crate::contact::Outcome;
 use crate::dd::split::SubProblem;
 use crate::error::{Error, Result};
-use crate::fem;
+use crate::fem::{self, Materials};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -48,18 +48,28 @@ pub fn create_output_dir(dir: &Path) -> Result<()> {
 }
 
 /// Element stresses (sxx, syy, sxy, szz) and von Mises, in parallel.
-pub fn element_stresses(case: &Case, mesh: &Mesh, u: &[[f64; 2]]) -> (Vec<[f64; 4]>, Vec<f64>) {
-    let d = fem::elasticity_matrix(&case.material);
+pub fn element_stresses(
+    materials: Materials<'_>,
+    mesh: &Mesh,
+    u: &[[f64; 2]],
+) -> (Vec<[f64; 4]>, Vec<f64>) {
+    let d: Vec<_> = materials
+        .table()
+        .iter()
+        .map(fem::elasticity_matrix)
+        .collect();
     let stress: Vec<[f64; 4]> = mesh
         .triangles
         .par_iter()
-        .map(|t| {
+        .enumerate()
+        .map(|(e, t)| {
+            let (d, m) = (&d[materials.index(e)], materials.of(e));
             let p = [mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]]];
             let ue = [
                 u[t[0]][0], u[t[0]][1], u[t[1]][0], u[t[1]][1], u[t[2]][0], u[t[2]][1],
             ];
-            let [sxx, syy, sxy] = fem::element_stress(&p, &d, &ue);
-            [sxx, syy, sxy, fem::stress_zz(&case.material, sxx, syy)]
+            let [sxx, syy, sxy] = fem::element_stress(&p, d, &ue);
+            [sxx, syy, sxy, fem::stress_zz(m, sxx, syy)]
         })
         .collect();
     let vm = stress.par_iter().map(fem::von_mises).collect();
@@ -75,7 +85,13 @@ impl SubdomainSolution<'_> {
             triangles: sub.triangles.clone(),
             ..Default::default()
         };
-        let (stress, vm) = element_stresses(self.case, &mesh, self.u);
+        let table = self.case.material_table();
+        let materials = Materials::PerElement {
+            table: &table,
+            body: &sub.body,
+        };
+        let (stress, vm) = element_stresses(materials, &mesh, self.u);
+        let body: Vec<i32> = sub.body.iter().map(|&b| b as i32).collect();
         let n = sub.nodes.len();
         let mut pressure = vec![0.0; n];
         let mut traction = vec![0.0; n];
@@ -93,6 +109,7 @@ impl SubdomainSolution<'_> {
             stress: &stress,
             von_mises: &vm,
             rank: &rank_field,
+            body: &body,
             contact_pressure: &pressure,
             tangential_traction: &traction,
             contact_status: &status,

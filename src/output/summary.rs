@@ -84,6 +84,20 @@ pub struct RunFacts {
     /// `pair`): summed per contact into `contacts`.
     #[serde(skip)]
     pub pairs: Vec<(String, &'static str)>,
+    /// Each body (its `[[material]]` entry, or the one `[material]`), by body index: the
+    /// `body` cell array of the .vtu pieces.
+    pub bodies: Vec<BodySummary>,
+}
+
+/// One body in summary.json.
+#[derive(Debug, Clone, Serialize)]
+pub struct BodySummary {
+    /// Its surface group; null for a lone `[material]` (the whole mesh).
+    pub group: Option<String>,
+    pub young: f64,
+    pub poisson: f64,
+    /// Whether its triangles touch contact nodes (their E_eff sets r's scale).
+    pub at_contact: bool,
 }
 
 /// One contact's figures in summary.json.

@@ -24,6 +24,7 @@
 //! | cell  | `stress`              | Float64 | 4     | components named xx, yy, xy, zz          |
 //! | cell  | `von_mises`           | Float64 | 1     |                                          |
 //! | cell  | `rank`                | Int32   | 1     | MPI rank that owns the triangle          |
+//! | cell  | `body`                | Int32   | 1     | the triangle's body: its material's index (0 with one `[material]`) |
 
 use crate::error::{Error, Result};
 
@@ -42,6 +43,8 @@ pub struct Piece<'a> {
     pub von_mises: &'a [f64],
     /// Per cell: the owning rank.
     pub rank: &'a [i32],
+    /// Per cell: the body (index of its material in the case).
+    pub body: &'a [i32],
     /// Per node, 0 off the contact boundary.
     pub contact_pressure: &'a [f64],
     /// Per node, 0 off the contact boundary.
@@ -127,7 +130,8 @@ impl<'a> SubPiece<'a> {
             displacement: &self.displacement,
             stress: &self.whole.stress[r.clone()],
             von_mises: &self.whole.von_mises[r.clone()],
-            rank: &self.whole.rank[r],
+            rank: &self.whole.rank[r.clone()],
+            body: &self.whole.body[r],
             contact_pressure: &self.contact_pressure,
             tangential_traction: &self.tangential_traction,
             contact_status: &self.contact_status,
@@ -269,7 +273,7 @@ const POINT_ARRAYS: [ArraySpec; 4] = [
     },
 ];
 
-const CELL_ARRAYS: [ArraySpec; 3] = [
+const CELL_ARRAYS: [ArraySpec; 4] = [
     ArraySpec {
         name: "stress",
         kind: Kind::F64,
@@ -299,6 +303,16 @@ const CELL_ARRAYS: [ArraySpec; 3] = [
         on: On::Triangles,
         per_item: 1,
         fill: |p, out| fill(out, p.rank.iter().map(|v| v.to_le_bytes())),
+    },
+    ArraySpec {
+        name: "body",
+        kind: Kind::I32,
+        components: 1,
+        role: Role::Other,
+        component_names: &[],
+        on: On::Triangles,
+        per_item: 1,
+        fill: |p, out| fill(out, p.body.iter().map(|v| v.to_le_bytes())),
     },
 ];
 
@@ -508,6 +522,7 @@ fn check_piece(p: &Piece) -> Result<()> {
         ("stress", p.stress.len(), n_cells, "triangles"),
         ("von_mises", p.von_mises.len(), n_cells, "triangles"),
         ("rank", p.rank.len(), n_cells, "triangles"),
+        ("body", p.body.len(), n_cells, "triangles"),
     ];
     for (name, len, want, what) in lengths {
         if len != want {
@@ -590,6 +605,7 @@ mod tests {
         stress: Vec<[f64; 4]>,
         von_mises: Vec<f64>,
         rank: Vec<i32>,
+        body: Vec<i32>,
         contact_pressure: Vec<f64>,
         tangential_traction: Vec<f64>,
         contact_status: Vec<i32>,
@@ -615,6 +631,7 @@ mod tests {
                 stress: vec![[1.0, -2.0, 0.1 + 0.2, -0.0], [1e-300, 7.25, -1e10, 3.0]],
                 von_mises: vec![2.6457513110645907, f64::MIN_POSITIVE],
                 rank: vec![rank, rank],
+                body: vec![1, 0],
                 contact_pressure: vec![0.1 + 0.2, 1e-300, -0.0, 0.0],
                 tangential_traction: vec![-0.5, 0.0, 1.0 / 3.0, 0.0],
                 contact_status: vec![1, 2, 0, -1],
@@ -629,6 +646,7 @@ mod tests {
                 stress: &self.stress,
                 von_mises: &self.von_mises,
                 rank: &self.rank,
+                body: &self.body,
                 contact_pressure: &self.contact_pressure,
                 tangential_traction: &self.tangential_traction,
                 contact_status: &self.contact_status,
@@ -813,7 +831,7 @@ mod tests {
                 "contact_status"
             ]
         );
-        assert_eq!(names("CellData"), ["stress", "von_mises", "rank"]);
+        assert_eq!(names("CellData"), ["stress", "von_mises", "rank", "body"]);
 
         let d = array(&a, "PointData", "displacement");
         assert_eq!(d.attr("NumberOfComponents"), "3");
@@ -837,6 +855,7 @@ mod tests {
         assert_eq!(s.f64_bits(), bits(o.stress.iter().flatten().copied()));
         assert_eq!(cell("von_mises").f64_bits(), bits(o.von_mises.clone()));
         assert_eq!(cell("rank").i32s(), vec![3, 3]);
+        assert_eq!(cell("body").i32s(), vec![1, 0]);
         for x in a.iter().filter(|x| x.section.ends_with("Data")) {
             assert_eq!(
                 x.attr("NumberOfComponents") == "1",
@@ -881,6 +900,7 @@ mod tests {
             stress: (0..n).map(|t| [value(t), 1.0, -value(t), 0.5]).collect(),
             von_mises: (0..n).map(value).collect(),
             rank: vec![7; n],
+            body: (0..n).map(|t| (t % 3) as i32).collect(),
             nodes,
             triangles,
         }
@@ -910,13 +930,14 @@ mod tests {
             stress: &[],
             von_mises: &[],
             rank: &[],
+            body: &[],
             contact_pressure: &[],
             tangential_traction: &[],
             contact_status: &[],
         };
         let (points, cells, a) = read_vtu(&vtu_bytes(&piece).unwrap());
         assert_eq!((points, cells), (0, 0));
-        assert_eq!(a.len(), 11);
+        assert_eq!(a.len(), 12);
         assert!(a.iter().all(|x| x.bytes.is_empty()));
     }
     #[test]
@@ -955,6 +976,7 @@ mod tests {
             .collect();
         o.von_mises = (0..m).map(|i| i as f64 / 3.0).collect();
         o.rank = vec![5; m];
+        o.body = (0..m).map(|i| (i % 2) as i32).collect();
         o.contact_pressure = (0..n).map(|i| i as f64 / 11.0).collect();
         o.tangential_traction = (0..n).map(|i| -(i as f64) / 13.0).collect();
         o.contact_status = (0..n).map(|i| (i % 4) as i32 - 1).collect();
@@ -988,6 +1010,7 @@ mod tests {
             assert_eq!(p.stress, &whole.stress[range.clone()]);
             assert_eq!(p.von_mises, &whole.von_mises[range.clone()]);
             assert_eq!(p.rank, &whole.rank[range.clone()]);
+            assert_eq!(p.body, &whole.body[range.clone()]);
             seen += p.triangles.len();
         }
         assert_eq!(seen, whole.triangles.len());
@@ -1065,7 +1088,7 @@ mod tests {
             })
             .collect();
         assert_eq!(declared, in_piece);
-        assert_eq!(declared.len(), 8);
+        assert_eq!(declared.len(), 9);
         let piece_head = head_of(&vtu_bytes(&o.piece()).unwrap());
         for tag in ["PointData", "CellData"] {
             let open = |text: &str, t: &str| {
@@ -1139,6 +1162,7 @@ mod tests {
             }
             assert_eq!(cells, 2);
             assert_eq!(array(&a, "CellData", "rank").i32s(), vec![r as i32; 2]);
+            assert_eq!(array(&a, "CellData", "body").i32s(), owned[r].body);
             assert_eq!(
                 array(&a, "PointData", "contact_pressure").f64_bits(),
                 bits(owned[r].contact_pressure.clone())

@@ -2,7 +2,8 @@
 
 Documentation of how the files were made; CI does not run it. Needs the Gmsh SDK:
     pip install gmsh
-    python3 tests/data/gmsh/make_fixtures.py
+    python3 tests/data/gmsh/make_fixtures.py [NAME ...]
+(NAME: a function below, e.g. bimaterial; none: all of them.)
 Writes next to this script. The files are committed so that tests need no Gmsh.
 """
 
@@ -109,10 +110,43 @@ def quarter_disc():
     write("quarter_disc_v41_ascii.msh", 4.1, 0)
 
 
+def bimaterial():
+    """2 x 2 square of two bodies stacked along y: "lower" (y < 1) and "upper" (y > 1),
+    sharing the interface y = 1 (one set of nodes there). Lines "bottom", "top",
+    "left" (both halves), "right"; unstructured triangles, finer in the lower body so
+    that the two meshes differ."""
+    gmsh.model.add("bimaterial")
+    geo = gmsh.model.geo
+    pts = [(0, 0, 0.2), (2, 0, 0.2), (2, 1, 0.25), (0, 1, 0.25), (2, 2, 0.35), (0, 2, 0.35)]
+    p = [geo.addPoint(x, y, 0, lc) for x, y, lc in pts]
+    bottom = geo.addLine(p[0], p[1])
+    right_low = geo.addLine(p[1], p[2])
+    interface = geo.addLine(p[2], p[3])
+    left_low = geo.addLine(p[3], p[0])
+    right_up = geo.addLine(p[2], p[4])
+    top = geo.addLine(p[4], p[5])
+    left_up = geo.addLine(p[5], p[3])
+    lower = geo.addPlaneSurface([geo.addCurveLoop([bottom, right_low, interface, left_low])])
+    upper = geo.addPlaneSurface([geo.addCurveLoop([-interface, right_up, top, left_up])])
+    geo.synchronize()
+    gmsh.model.addPhysicalGroup(1, [bottom], name="bottom")
+    gmsh.model.addPhysicalGroup(1, [top], name="top")
+    gmsh.model.addPhysicalGroup(1, [left_low, left_up], name="left")
+    gmsh.model.addPhysicalGroup(1, [right_low, right_up], name="right")
+    gmsh.model.addPhysicalGroup(2, [lower], name="lower")
+    gmsh.model.addPhysicalGroup(2, [upper], name="upper")
+    gmsh.model.mesh.generate(2)
+    write("bimaterial_v41_ascii.msh", 4.1, 0)
+
+
 def main():
+    import sys
+
     gmsh.initialize()
     gmsh.option.setNumber("General.Terminal", 0)
-    for make in (rectangle, overlap, no_groups, quarter_disc):
+    makers = (rectangle, overlap, no_groups, quarter_disc, bimaterial)
+    chosen = [m for m in makers if len(sys.argv) < 2 or m.__name__ in sys.argv[1:]]
+    for make in chosen:
         make()
         gmsh.model.remove()
     gmsh.finalize()
