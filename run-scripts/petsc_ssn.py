@@ -32,7 +32,7 @@ from mpi4py import MPI  # noqa: F401  (petsc4py needs MPI initialised through it
 from petsc4py import PETSc
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plain_alg2 import read_mesh, stiffness, group_nodes  # noqa: E402
+from plain_alg2 import loads_and_prescribed, read_mesh, stiffness  # noqa: E402
 
 
 def main():
@@ -56,22 +56,7 @@ def main():
     mat = case["material"]
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], mat.get("hypothesis", "plane_strain"))
     n = 2 * len(nodes)
-    f = np.zeros(n)
-    bf = case.get("body_force", {}).get("f", [0.0, 0.0])
-    for c in range(2):
-        np.add.at(f, 2 * tri.ravel() + c, np.repeat(area / 3 * bf[c], 3))
-    for tr in case.get("traction", []):
-        segs = groups[tr["group"]][1]
-        length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
-        for c in range(2):
-            np.add.at(f, 2 * segs.ravel() + c, np.repeat(length / 2 * tr["t"][c], 2))
-    fixed = np.full(n, np.nan)
-    for d in case.get("dirichlet", []):
-        v = group_nodes(groups, d["group"])
-        if "ux" in d:
-            fixed[2 * v] = d["ux"]
-        if "uy" in d:
-            fixed[2 * v + 1] = d["uy"]
+    f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
     con = case["contact"]
     if con.get("friction", "none") != "none":
         sys.exit("petsc_ssn.py: frictionless contact only")

@@ -108,6 +108,28 @@ def stiffness(nodes, tri, young, poisson, hypothesis):
     return sp.csc_matrix((ke.ravel(), (rows, cols)), shape=(n, n)), area
 
 
+def loads_and_prescribed(case, nodes, tri, groups, area):
+    """The load vector (body force, tractions) and the prescribed dofs (NaN where free)."""
+    n = 2 * len(nodes)
+    f = np.zeros(n)
+    bf = case.get("body_force", {}).get("f", [0.0, 0.0])
+    for c in range(2):
+        np.add.at(f, 2 * tri.ravel() + c, np.repeat(area / 3 * bf[c], 3))
+    for tr in case.get("traction", []):
+        segs = groups[tr["group"]][1]
+        length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
+        for c in range(2):
+            np.add.at(f, 2 * segs.ravel() + c, np.repeat(length / 2 * tr["t"][c], 2))
+    fixed = np.full(n, np.nan)
+    for d in case.get("dirichlet", []):
+        v = group_nodes(groups, d["group"])
+        if "ux" in d:
+            fixed[2 * v] = d["ux"]
+        if "uy" in d:
+            fixed[2 * v + 1] = d["uy"]
+    return f, fixed
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("case")
@@ -128,22 +150,7 @@ def main():
     hyp = mat.get("hypothesis", "plane_strain")
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
     n = 2 * len(nodes)
-    f = np.zeros(n)
-    bf = case.get("body_force", {}).get("f", [0.0, 0.0])
-    for c in range(2):
-        np.add.at(f, 2 * tri.ravel() + c, np.repeat(area / 3 * bf[c], 3))
-    for tr in case.get("traction", []):
-        segs = groups[tr["group"]][1]
-        length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
-        for c in range(2):
-            np.add.at(f, 2 * segs.ravel() + c, np.repeat(length / 2 * tr["t"][c], 2))
-    fixed = np.full(n, np.nan)
-    for d in case.get("dirichlet", []):
-        v = group_nodes(groups, d["group"])
-        if "ux" in d:
-            fixed[2 * v] = d["ux"]
-        if "uy" in d:
-            fixed[2 * v + 1] = d["uy"]
+    f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
     con = case["contact"]
     segs = groups[con["group"]][1]
     cn = np.unique(segs.ravel())

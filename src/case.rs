@@ -126,13 +126,13 @@ impl Case {
 struct RawCase {
     title: Option<String>,
     mesh: RawMesh,
-    material: RawMaterials,
+    material: OneOrMany<RawMaterial>,
     #[serde(default)]
     dirichlet: Vec<RawDirichlet>,
     #[serde(default)]
     traction: Vec<RawTraction>,
     body_force: Option<RawBodyForce>,
-    contact: RawContacts,
+    contact: OneOrMany<RawContact>,
     #[serde(default)]
     solver: RawSolver,
 }
@@ -211,71 +211,52 @@ struct RawObstacle {
     points: Option<Vec<[f64; 2]>>,
 }
 
-/// `contact` is a table (`[contact]`, the old single foundation) or an array of tables
-/// (`[[contact]]`); the deserializer is handed on, so that errors keep their place in
-/// the file.
-/// A lone `[material]` for the whole mesh, or `[[material]]` entries, one per body.
-enum RawMaterials {
-    One(RawMaterial),
-    Many(Vec<RawMaterial>),
+/// A section written as one table (`[material]`, `[contact]`: the form of the first
+/// versions, for the whole mesh or the single foundation) or as an array of tables
+/// (`[[material]]` per body, `[[contact]]` per contact); the deserializer is handed on,
+/// so that errors keep their place in the file.
+enum OneOrMany<T> {
+    One(Box<T>),
+    Many(Vec<T>),
 }
 
-impl<'de> Deserialize<'de> for RawMaterials {
+/// The name of a section that may come as one table or as several.
+trait Section {
+    const NAME: &'static str;
+}
+
+impl Section for RawMaterial {
+    const NAME: &'static str = "material";
+}
+
+impl Section for RawContact {
+    const NAME: &'static str = "contact";
+}
+
+impl<'de, T: Deserialize<'de> + Section> Deserialize<'de> for OneOrMany<T> {
     fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        struct Visitor;
-        impl<'de> serde::de::Visitor<'de> for Visitor {
-            type Value = RawMaterials;
+        struct Visitor<T>(std::marker::PhantomData<T>);
+        impl<'de, T: Deserialize<'de> + Section> serde::de::Visitor<'de> for Visitor<T> {
+            type Value = OneOrMany<T>;
             fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-                f.write_str("a [material] table or [[material]] entries")
+                write!(f, "a [{0}] table or [[{0}]] entries", T::NAME)
             }
             fn visit_map<A: serde::de::MapAccess<'de>>(
                 self,
                 map: A,
             ) -> std::result::Result<Self::Value, A::Error> {
-                RawMaterial::deserialize(serde::de::value::MapAccessDeserializer::new(map))
-                    .map(RawMaterials::One)
+                T::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    .map(|one| OneOrMany::One(Box::new(one)))
             }
             fn visit_seq<A: serde::de::SeqAccess<'de>>(
                 self,
                 seq: A,
             ) -> std::result::Result<Self::Value, A::Error> {
-                Vec::<RawMaterial>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
-                    .map(RawMaterials::Many)
+                Vec::<T>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
+                    .map(OneOrMany::Many)
             }
         }
-        d.deserialize_any(Visitor)
-    }
-}
-
-enum RawContacts {
-    One(Box<RawContact>),
-    Many(Vec<RawContact>),
-}
-
-impl<'de> Deserialize<'de> for RawContacts {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        struct Visitor;
-        impl<'de> serde::de::Visitor<'de> for Visitor {
-            type Value = RawContacts;
-            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-                f.write_str("a [contact] table or [[contact]] entries")
-            }
-            fn visit_map<A: serde::de::MapAccess<'de>>(
-                self,
-                map: A,
-            ) -> std::result::Result<Self::Value, A::Error> {
-                RawContact::deserialize(serde::de::value::MapAccessDeserializer::new(map))
-                    .map(|c| RawContacts::One(Box::new(c)))
-            }
-            fn visit_seq<A: serde::de::SeqAccess<'de>>(
-                self,
-                seq: A,
-            ) -> std::result::Result<Self::Value, A::Error> {
-                Vec::<RawContact>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
-                    .map(RawContacts::Many)
-            }
-        }
-        d.deserialize_any(Visitor)
+        d.deserialize_any(Visitor(std::marker::PhantomData))
     }
 }
 
@@ -611,10 +592,10 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
 
 /// The contact entries, each mapped onto a [`Contact`]; `[contact]` (one straight
 /// foundation) is the line obstacle of one entry.
-fn validate_contacts(raw: RawContacts, origin: &str) -> Result<Vec<Contact>> {
+fn validate_contacts(raw: OneOrMany<RawContact>, origin: &str) -> Result<Vec<Contact>> {
     let (entries, single_table) = match raw {
-        RawContacts::One(c) => (vec![*c], true),
-        RawContacts::Many(v) => (v, false),
+        OneOrMany::One(c) => (vec![*c], true),
+        OneOrMany::Many(v) => (v, false),
     };
     if entries.is_empty() {
         return input(format!(
@@ -918,17 +899,17 @@ fn validate_friction(
 /// The bodies' materials: a lone `[material]` (no group) or `[[material]]` entries, each
 /// on its own group, all with the same plane hypothesis. Whether the groups exist and
 /// cover every triangle once is checked with the mesh (`problem::build`).
-fn validate_materials(raw: RawMaterials, origin: &str) -> Result<Vec<BodyMaterial>> {
+fn validate_materials(raw: OneOrMany<RawMaterial>, origin: &str) -> Result<Vec<BodyMaterial>> {
     let (entries, many) = match raw {
-        RawMaterials::One(m) => {
+        OneOrMany::One(m) => {
             if let Some(g) = &m.group {
                 return input(format!(
                     "{origin}: [material] has group = \"{g}\" but a lone [material] covers the whole mesh; write one [[material]] per body (double brackets), each with its group"
                 ));
             }
-            (vec![m], false)
+            (vec![*m], false)
         }
-        RawMaterials::Many(v) => (v, true),
+        OneOrMany::Many(v) => (v, true),
     };
     let mut out: Vec<BodyMaterial> = Vec::with_capacity(entries.len());
     for (i, m) in entries.into_iter().enumerate() {
