@@ -27,26 +27,8 @@ fn run(toml: &str, np: usize, extra: &[&str]) -> Run {
     std::fs::write(dir.path().join("case.toml"), toml).unwrap();
     let mut args = vec!["case.toml", "--out", "out", "--quiet", "--nodes-csv"];
     args.extend_from_slice(extra);
-    let (code, stdout, stderr) = if np == 1 {
-        common::run_in(dir.path(), &args)
-    } else {
-        let o = common::mpirun(np, dir.path())
-            .args(&args)
-            .output()
-            .expect("mpirun must be installed (openmpi-bin)");
-        (
-            o.status.code().unwrap_or(-1),
-            String::from_utf8_lossy(&o.stdout).into_owned(),
-            String::from_utf8_lossy(&o.stderr).into_owned(),
-        )
-    };
-    Run {
-        code,
-        stdout,
-        stderr,
-        out: dir.path().join("out"),
-        dir,
-    }
+    let result = common::run_on_ranks(dir.path(), np, &args);
+    Run::kept(dir, result)
 }
 
 fn material(group: &str, young: f64, poisson: f64, hypothesis: &str) -> String {

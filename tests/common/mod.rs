@@ -60,6 +60,17 @@ impl Run {
         read_summary(&self.out.join("summary.json"))
     }
 
+    /// A finished run in `dir` (its outputs in `dir/out`), which it keeps alive.
+    pub fn kept(dir: TempDir, (code, stdout, stderr): (i32, String, String)) -> Run {
+        Run {
+            code,
+            stdout,
+            stderr,
+            out: dir.path().join("out"),
+            dir,
+        }
+    }
+
     /// Panics with the run's output unless it exited with `code`.
     pub fn expect_code(&self, code: i32) -> &Self {
         assert_eq!(
@@ -111,14 +122,24 @@ pub fn run_case(toml: &str, extra: &[&str]) -> Run {
 fn run_fresh(dir: TempDir, args: &[&str]) -> Run {
     let mut all: Vec<&str> = args.to_vec();
     all.extend(["--out", "out", "--quiet"]);
-    let (code, stdout, stderr) = run_in(dir.path(), &all);
-    Run {
-        code,
-        stdout,
-        stderr,
-        out: dir.path().join("out"),
-        dir,
+    let result = run_in(dir.path(), &all);
+    Run::kept(dir, result)
+}
+
+/// Runs the binary with `args` inside `dir` on `np` ranks (1: without mpirun).
+pub fn run_on_ranks(dir: &Path, np: usize, args: &[&str]) -> (i32, String, String) {
+    if np == 1 {
+        return run_in(dir, args);
     }
+    let o = mpirun(np, dir)
+        .args(args)
+        .output()
+        .expect("mpirun must be installed (openmpi-bin)");
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
 }
 
 /// Runs a built-in case at `level` with `extra` arguments.

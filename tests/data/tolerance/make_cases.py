@@ -164,26 +164,6 @@ def beams(scale, out):
                 f.write(text)
 
 
-SLENDER_CASE = """# {what}
-# Made by make_cases.py --slender (a held-out check of the loop's sweep counts on
-# slender bodies: not used to choose any of its rules).
-title = "{title}"
-
-[mesh]
-file = "{mesh}"
-
-[material]
-young = {young}
-poisson = {poisson}
-hypothesis = "{hyp}"
-{dirichlet}
-{loads}
-[contact]
-group = "under"
-obstacle_point = [0.0, {gap:.6e}]
-obstacle_normal = [{nx:.12f}, {ny:.12f}]
-{friction}
-"""
 
 
 def strip_mesh(length, depth, lc, name):
@@ -248,10 +228,11 @@ def slender(scale, out):
             write(out, mesh)
             gmsh.model.remove()
             done.add(mesh)
-        text = SLENDER_CASE.format(what=c["what"], title=c["title"], mesh=mesh, young=c["young"],
-                                   poisson=c["poisson"], hyp=c["hyp"], dirichlet=c["dirichlet"],
-                                   loads=c["loads"], gap=c["gap"], nx=c["n"][0], ny=c["n"][1],
-                                   friction=c["friction"])
+        text = HELD_OUT_CASE.format(what=c["what"], flag="slender", title=c["title"], mesh=mesh,
+                                    young=c["young"], poisson=c["poisson"], hyp=c["hyp"],
+                                    dirichlet=c["dirichlet"], loads=c["loads"], px="0.0",
+                                    py=f"{c['gap']:.6e}", nx=c["n"][0], ny=c["n"][1],
+                                    friction=c["friction"])
         with open(os.path.join(out, c["name"] + ".toml"), "w") as f:
             f.write(text)
 
@@ -370,7 +351,7 @@ def heldout(scale, out):
                   '[[traction]]\ngroup = "foot"\nt = [0.0, -0.2]\n\n[[traction]]\ngroup = "head"\nt = [0.5, 0.0]\n\n[body_force]\nf = [0.0, -2.65e-5]\n',
                   (0.0, 0.0), (0.0, 1.0), 'friction = "coulomb"\ncoefficient = 0.6'))
     for name, what, young, nu, hyp, dirichlet, loads, p0, normal, friction in cases:
-        text = HELDOUT_CASE.format(what=what, title=name, mesh=name + ".msh", young=young,
+        text = HELD_OUT_CASE.format(what=what, flag="heldout", title=name, mesh=name + ".msh", young=young,
                                    poisson=nu, hyp=hyp, dirichlet=dirichlet, loads=loads,
                                    px=p0[0], py=p0[1], nx=normal[0], ny=normal[1],
                                    friction=friction)
@@ -378,8 +359,8 @@ def heldout(scale, out):
             f.write(text)
 
 
-HELDOUT_CASE = """# {what}
-# Made by make_cases.py --heldout (a held-out check of the loop's sweep counts: not used
+HELD_OUT_CASE = """# {what}
+# Made by make_cases.py --{flag} (a held-out check of the loop's sweep counts: not used
 # to choose any of its rules).
 title = "{title}"
 
