@@ -192,6 +192,7 @@ impl Fixture {
             &self.prob.fixed,
             &self.boundary_dofs(),
             &self.prob.contact.normal,
+            &self.prob.contact_masters,
             self.frictional,
         )
         .expect("contact rows");

@@ -376,7 +376,7 @@ fn plot_facts<'a>(ctx: &Subdomain<'a>) -> PlotFacts<'a> {
         pairs: case.contacts.iter().map(|c| c.group.clone()).collect(),
         abscissa: match &case.contacts[..] {
             [c] => match c.obstacle {
-                Obstacle::Line { point, normal } => Foundation {
+                Some(Obstacle::Line { point, normal }) => Foundation {
                     point,
                     tangent: tangent_of(normal),
                 }
@@ -675,6 +675,7 @@ fn prepare(
     if let Some(dir) = &opts.mesh_split {
         let (case, split) = timer.time(Phase::Read, || -> Result<_> {
             let case = load_case(opts)?;
+            check_linear(opts, &case)?;
             let split = split_dir::open(dir, &case)?;
             Ok((case, split))
         })?;
@@ -701,6 +702,7 @@ fn prepare(
     }
     // 1. Read and validate the case and the mesh.
     let (case, prob, mesh_name) = timer.time(Phase::Read, || read(opts))?;
+    check_linear(opts, &case)?;
     let triangles = prob.mesh.triangles.len();
     let per_rank = match opts.subdomains_per_rank {
         Some(k) => k.max(1),
@@ -761,6 +763,18 @@ fn split_per_rank(opts: &Options, split: &Split, ranks: usize) -> Result<usize> 
             "{dir}: --linear full runs on one subdomain, the split has {parts} parts; use the default (condensed) or a split with --parts 1"
         ))),
         _ => Ok(per_rank),
+    }
+}
+
+/// The uncondensed step assembles node-wise contact blocks only: it refuses a contact
+/// with a master line (whose rows couple nodes of two bodies).
+fn check_linear(opts: &Options, case: &Case) -> Result<()> {
+    match case.contacts.iter().find(|c| c.master.is_some()) {
+        Some(c) if opts.linear == LinearMode::Full => Err(Error::Input(format!(
+            "command line: --linear full does not take a contact with a master line ({}: slave \"{}\"); drop --linear full (the default condensed step solves two bodies in contact)",
+            case.origin, c.group
+        ))),
+        _ => Ok(()),
     }
 }
 
@@ -894,6 +908,11 @@ pub fn load_mesh(case: &Case) -> Result<(Mesh, String)> {
                 BuiltinMesh::Block => {
                     builtin::block_for_level(case::BLOCK_WIDTH, case::BLOCK_HEIGHT, *level)
                 }
+                BuiltinMesh::Cylinders => builtin::cylinders_for_level(
+                    case::HERTZ_RADIUS,
+                    case::LOWER_CYLINDER_RADIUS,
+                    *level,
+                ),
             };
             Ok((mesh, format!("built-in mesh (level {level})")))
         }
@@ -1014,7 +1033,7 @@ struct Solved {
 
 impl Solved {
     /// Reports u_n and u_t of the recovered field `u` in `outcome` (frictionless sweeps
-    /// do not compute u_t).
+    /// do not compute u_t); for a mortar row, of the slave node relative to its masters.
     fn new(
         sub: &SubProblem,
         mut outcome: Outcome,
@@ -1022,7 +1041,11 @@ impl Solved {
         factors: FactorFigures,
     ) -> Self {
         for (k, &node) in sub.contact_nodes.iter().enumerate() {
-            let u = u[node];
+            let mut rel = u[node];
+            for &(v, c) in sub.contact_masters.get(k).map_or(&[][..], |m| &m[..]) {
+                rel = [rel[0] - c * u[v][0], rel[1] - c * u[v][1]];
+            }
+            let u = rel;
             let (m, t) = (sub.contact.normal[k], tangent_of(sub.contact.normal[k]));
             outcome.un[k] = -(m[0] * u[0] + m[1] * u[1]);
             outcome.ut[k] = t[0] * u[0] + t[1] * u[1];
@@ -1166,7 +1189,7 @@ fn run_facts(ctx: &Subdomain) -> RunFacts {
         contact_nodes: setup.facts.contact_nodes,
         friction: friction_name(&case.friction()),
         pairs: (case.contacts.iter())
-            .map(|c| (c.group.clone(), c.obstacle.kind()))
+            .map(|c| (c.group.clone(), c.kind(), c.master.clone()))
             .collect(),
         bodies: (case.materials.iter().enumerate())
             .map(|(i, b)| BodySummary {

@@ -21,14 +21,24 @@ pub struct Traction {
     pub t: [f64; 2],
 }
 
-/// One contact: a boundary group of the body against a rigid obstacle, and its friction
-/// law.
+/// One contact: a boundary group of a body against a rigid obstacle or against a line
+/// group of another body (its master), and its friction law.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Contact {
-    /// The body's candidate contact boundary (a line group).
+    /// The slave body's candidate contact boundary (a line group).
     pub group: String,
-    pub obstacle: Obstacle,
+    /// The rigid obstacle; `None` for a contact with a master line.
+    pub obstacle: Option<Obstacle>,
+    /// The master line group of another body (mortar coupling, `contact::mortar`).
+    pub master: Option<String>,
     pub friction: Friction,
+}
+
+impl Contact {
+    /// What the slave group presses on, as the case file names it.
+    pub fn kind(&self) -> &'static str {
+        self.obstacle.as_ref().map_or("master", Obstacle::kind)
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -68,7 +78,13 @@ pub enum BuiltinMesh {
     QuarterDisc,
     /// Rectangle `BLOCK_WIDTH` x `BLOCK_HEIGHT` on y = 0.
     Block,
+    /// Two quarter cylinders meshed on their own, of radii `HERTZ_RADIUS` (above) and
+    /// `LOWER_CYLINDER_RADIUS` (below, one level finer), touching at the origin.
+    Cylinders,
 }
+
+/// Radius of the lower cylinder of the built-in `cylinders` case (mm).
+pub const LOWER_CYLINDER_RADIUS: f64 = 90.0;
 
 /// A validated case. Group names are checked against the mesh later, once it is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -189,6 +205,7 @@ struct RawContact {
     #[serde(default, deserialize_with = "opt_pair")]
     obstacle_normal: Option<[f64; 2]>,
     obstacle: Option<RawObstacle>,
+    master: Option<String>,
     friction: Option<String>,
     threshold: Option<f64>,
     coefficient: Option<f64>,
@@ -455,7 +472,7 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
         (Some(file), None) => {
             if raw.mesh.level.is_some() {
                 return input(format!(
-                    "{origin}: [mesh] level applies to built-in meshes only; remove it or use builtin = \"block\" | \"quarter_disc\""
+                    "{origin}: [mesh] level applies to built-in meshes only; remove it or use builtin = \"block\" | \"quarter_disc\" | \"cylinders\""
                 ));
             }
             MeshSource::File(dir.join(file))
@@ -472,9 +489,10 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
             name: match name.as_str() {
                 "block" => BuiltinMesh::Block,
                 "quarter_disc" => BuiltinMesh::QuarterDisc,
+                "cylinders" => BuiltinMesh::Cylinders,
                 other => {
                     return input(format!(
-                        "{origin}: [mesh] builtin = \"{other}\" is unknown; use \"block\" or \"quarter_disc\""
+                        "{origin}: [mesh] builtin = \"{other}\" is unknown; use \"block\", \"quarter_disc\" or \"cylinders\""
                     ))
                 }
             },
@@ -486,7 +504,7 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
         }
         (None, None) => {
             return input(format!(
-                "{origin}: [mesh] needs file = \"mesh.msh\" (or builtin = \"block\" | \"quarter_disc\")"
+                "{origin}: [mesh] needs file = \"mesh.msh\" (or builtin = \"block\" | \"quarter_disc\" | \"cylinders\")"
             ))
         }
     };
@@ -623,7 +641,7 @@ fn validate_contacts(raw: OneOrMany<RawContact>, origin: &str) -> Result<Vec<Con
                 if several { format!(" #{}", i + 1) } else { String::new() }
             ))
         };
-        let (group, obstacle) = if c.obstacle.is_some() || c.slave.is_some() {
+        let (group, obstacle) = if c.obstacle.is_some() || c.slave.is_some() || c.master.is_some() {
             for (k, given) in [
                 ("group", c.group.is_some()),
                 ("obstacle_point", c.obstacle_point.is_some()),
@@ -636,20 +654,34 @@ fn validate_contacts(raw: OneOrMany<RawContact>, origin: &str) -> Result<Vec<Con
                 }
             }
             let slave = c.slave.ok_or_else(|| lacks("slave"))?;
-            let obstacle = c.obstacle.ok_or_else(|| lacks("obstacle"))?;
-            (slave, validate_obstacle(obstacle, origin, &key)?)
+            match (c.obstacle, &c.master) {
+                (Some(_), Some(_)) => {
+                    return input(format!(
+                        "{origin}: {key} has both obstacle and master; a contact presses its slave on one of them: keep obstacle for a rigid one, master = \"<line group of the other body>\" for an elastic one"
+                    ))
+                }
+                (None, None) => return Err(lacks("obstacle")),
+                (None, Some(m)) if *m == slave => {
+                    return input(format!(
+                        "{origin}: {key} has master = slave = \"{slave}\"; the master must be a line group of the other body"
+                    ))
+                }
+                (None, Some(_)) => (slave, None),
+                (Some(o), None) => (slave, Some(validate_obstacle(o, origin, &key)?)),
+            }
         } else {
             let group = c.group.ok_or_else(|| lacks("group"))?;
             let point = c.obstacle_point.ok_or_else(|| lacks("obstacle_point"))?;
             let normal = c.obstacle_normal.ok_or_else(|| lacks("obstacle_normal"))?;
             let point = finite_pair(origin, &format!("{key}.obstacle_point"), point)?;
             let normal = unit_normal(origin, &format!("{key}.obstacle_normal"), normal)?;
-            (group, Obstacle::Line { point, normal })
+            (group, Some(Obstacle::Line { point, normal }))
         };
         let friction = validate_friction(&c.friction, c.threshold, c.coefficient, origin, &key)?;
         contacts.push(Contact {
             group,
             obstacle,
+            master: c.master,
             friction,
         });
     }
@@ -1054,7 +1086,7 @@ pub const BLOCK_WIDTH: f64 = 40.0;
 pub const BLOCK_HEIGHT: f64 = 10.0;
 
 /// Names of the built-in cases, the first being the default.
-pub const BUILTIN_CASES: [&str; 4] = ["hertz", "block", "block_flat", "punch"];
+pub const BUILTIN_CASES: [&str; 5] = ["hertz", "block", "block_flat", "punch", "cylinders"];
 
 /// Radius of the built-in punch (mm).
 pub const PUNCH_RADIUS: f64 = 100.0;
@@ -1157,6 +1189,40 @@ coefficient = 0.3
 "#,
             cx = BLOCK_WIDTH / 2.0,
             cy = BLOCK_HEIGHT + PUNCH_RADIUS,
+        ),
+        // Two elastic cylinders in line contact (Hertz), steel on aluminium, each
+        // meshed on its own: the upper one pressed down by a rigid frictionless platen,
+        // the lower one on a rigid base; symmetry at x = 0.
+        "cylinders" => format!(
+            r#"title = "Hertz line contact of two elastic cylinders, steel on aluminium (symmetry at x = 0)"
+[mesh]
+builtin = "cylinders"      # radii {HERTZ_RADIUS} (upper, centre (0, {HERTZ_RADIUS})) and {LOWER_CYLINDER_RADIUS} mm (lower, centre (0, -{LOWER_CYLINDER_RADIUS}), one level finer)
+level = {level}
+[[material]]
+group = "upper"
+young = 210000.0           # MPa, steel
+poisson = 0.3
+[[material]]
+group = "lower"
+young = 70000.0            # MPa, aluminium
+poisson = 0.33
+[[dirichlet]]              # symmetry
+group = "upper_axis"
+ux = 0.0
+[[dirichlet]]
+group = "lower_axis"
+ux = 0.0
+[[dirichlet]]              # rigid frictionless platen pushed down
+group = "upper_top"
+uy = -0.4
+[[dirichlet]]              # rigid base
+group = "lower_bottom"
+uy = 0.0
+[[contact]]
+slave = "upper_contact"    # the finer side
+master = "lower_contact"
+friction = "none"
+"#
         ),
         _ => return None,
     };
@@ -1372,18 +1438,18 @@ coefficient = 0.1
         assert_eq!(c.contacts.len(), 2);
         assert_eq!(
             c.contacts[0].obstacle,
-            Obstacle::Circle {
+            Some(Obstacle::Circle {
                 centre: [1.0, -2.0],
                 radius: 2.0,
                 body: Side::Inside
-            }
+            })
         );
         // The body on the right: walked the other way, the kernel keeps it on the left.
         assert_eq!(
             c.contacts[1].obstacle,
-            Obstacle::Polyline {
+            Some(Obstacle::Polyline {
                 points: vec![[2.0, 1.0], [1.0, 0.0], [0.0, 0.0]]
-            }
+            })
         );
         assert_eq!(
             c.contacts[1].friction,
@@ -1393,10 +1459,10 @@ coefficient = 0.1
         let old = parse(GOOD).unwrap();
         assert_eq!(
             old.contacts[0].obstacle,
-            Obstacle::Line {
+            Some(Obstacle::Line {
                 point: [0.0, -0.001],
                 normal: [0.0, 1.0]
-            }
+            })
         );
         assert_eq!(old.contacts[0].group, "bottom");
         // An empty list, and a missing slave.

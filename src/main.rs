@@ -86,7 +86,7 @@ struct Cli {
     /// or final table.
     #[arg(long)]
     quiet: bool,
-    /// Built-in case to run when no case file is given: hertz, block, block_flat, punch.
+    /// Built-in case to run when no case file is given: hertz, block, block_flat, punch, cylinders.
     #[arg(long, default_value = "hertz")]
     builtin: String,
     /// Refinement level of the built-in case (each level halves the mesh size).
@@ -169,7 +169,7 @@ struct SplitArgs {
     /// Directory of the part files and their manifest (split.json).
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
-    /// Built-in case when no case file is given: hertz, block, block_flat, punch.
+    /// Built-in case when no case file is given: hertz, block, block_flat, punch, cylinders.
     #[arg(long, default_value = "hertz")]
     builtin: String,
     /// Refinement level of the built-in case.

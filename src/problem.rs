@@ -3,7 +3,8 @@
 //! needs the whole mesh happens here, once, on the reading rank.
 
 use crate::case::Case;
-use crate::contact::obstacle::Obstacle;
+use crate::contact::mortar::{mortar_rows, MortarRow, Segment};
+use crate::contact::obstacle::{NodeGeometry, Obstacle};
 use crate::contact::{tangent_of, ContactNodes, Friction};
 use crate::error::{input, Error, Result};
 use crate::fem::assembly::{add_body_force, add_edge_traction, edge_length};
@@ -25,6 +26,9 @@ pub struct Problem {
     pub contact_nodes: Vec<usize>,
     /// Weights, normals and gaps of `contact_nodes`, same order.
     pub contact: ContactNodes,
+    /// The master nodes and coefficients of each contact node's mortar row
+    /// (`contact::mortar`), same order; empty for a node against an obstacle.
+    pub contact_masters: Vec<Vec<(usize, f64)>>,
     /// Mean length of the contact edges.
     pub contact_h: f64,
     /// The mesh file's index of each node (the row of `nodes.csv`): the nodes are
@@ -309,9 +313,21 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         line_group(case, &mesh, "traction", &t.group)?;
     }
 
-    let (contact_nodes, contact, contact_h) = contact_geometry(case, &mesh, &boundary)?;
+    let ContactGeometry {
+        nodes: contact_nodes,
+        contact,
+        h: contact_h,
+        masters: contact_masters,
+    } = contact_geometry(case, &mesh, &boundary)?;
 
-    check_held(case, &mesh, &fixed, &contact_nodes, &contact)?;
+    check_held(
+        case,
+        &mesh,
+        &fixed,
+        &contact_nodes,
+        &contact,
+        &contact_masters,
+    )?;
     // Checked here so that every fault of the input is reported before any work; the
     // bodies are found again in the new numbering below.
     bodies(case, &mesh)?;
@@ -323,6 +339,7 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         load: Vec::new(),
         contact_nodes,
         contact,
+        contact_masters,
         contact_h,
         file_node: (0..n).collect(),
         body: Vec::new(),
@@ -330,7 +347,9 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
     };
     let mut prob = in_locality_order(prob);
     prob.body = bodies(case, &prob.mesh)?;
-    prob.contact_bodies = touching(&prob.mesh, &prob.body, &prob.contact_nodes);
+    let mut at_contact = prob.contact_nodes.clone();
+    at_contact.extend(prob.contact_masters.iter().flatten().map(|m| m.0));
+    prob.contact_bodies = touching(&prob.mesh, &prob.body, &at_contact);
     // Summed in the new numbering's triangle order: a node's share of the body force
     // comes from several triangles, and summed in the file's order the load (and the
     // answer, by a rounding) would depend on the order the mesher wrote them in.
@@ -350,30 +369,40 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
 }
 
 /// The contact nodes of every contact (global ids, increasing), their weights and
-/// geometry against their obstacles, and the mean contact edge length. Refuses a group
-/// off the boundary and a node already through its obstacle.
+/// geometry against their obstacles or master lines, the master nodes and coefficients of
+/// each node's mortar row (empty against an obstacle), and the mean contact edge length.
+/// Refuses a group off the boundary and a node already through its obstacle or master.
 fn contact_geometry(
     case: &Case,
     mesh: &Mesh,
     boundary: &std::collections::HashSet<(usize, usize)>,
-) -> Result<(Vec<usize>, ContactNodes, f64)> {
-    // Per node: its weight in each contact whose group holds it.
+) -> Result<ContactGeometry> {
+    // Per node: its weight in each obstacle contact whose group holds it.
     let mut weight: HashMap<usize, Vec<(usize, f64)>> = HashMap::new();
     let mut lengths = Vec::new();
     for (i, c) in case.contacts.iter().enumerate() {
         let lines = line_group(case, mesh, "contact", &c.group)?;
-        if let Some(&[a, b]) = lines
-            .iter()
-            .find(|&&[a, b]| !boundary.contains(&(a.min(b), a.max(b))))
-        {
-            return input(format!(
-                "{}: contact group \"{}\" has the edge ({}, {}) - ({}, {}) that is not on the boundary of the body; the contact group must be a boundary line",
-                case.origin, c.group, mesh.nodes[a][0], mesh.nodes[a][1], mesh.nodes[b][0], mesh.nodes[b][1]
-            ));
+        let mut groups = vec![("slave", &c.group, lines)];
+        if let Some(m) = &c.master {
+            groups.push(("master", m, line_group(case, mesh, "contact master", m)?));
+        }
+        for (what, name, lines) in groups {
+            if let Some(&[a, b]) = lines
+                .iter()
+                .find(|&&[a, b]| !boundary.contains(&(a.min(b), a.max(b))))
+            {
+                return input(format!(
+                    "{}: contact {what} group \"{name}\" has the edge ({}, {}) - ({}, {}) that is not on the boundary of a body; the contact groups must be boundary lines",
+                    case.origin, mesh.nodes[a][0], mesh.nodes[a][1], mesh.nodes[b][0], mesh.nodes[b][1]
+                ));
+            }
         }
         for &[a, b] in lines {
             let len = edge_length(&mesh.nodes, a, b);
             lengths.push(len);
+            if c.obstacle.is_none() {
+                continue;
+            }
             for v in [a, b] {
                 let per = weight.entry(v).or_default();
                 match per.iter_mut().find(|(j, _)| *j == i) {
@@ -383,67 +412,223 @@ fn contact_geometry(
             }
         }
     }
+    let obstacle = |i: usize| {
+        case.contacts[i]
+            .obstacle
+            .as_ref()
+            .expect("weights are kept for obstacle contacts only")
+    };
     // A node in several groups (the corner between two sides) is one node of the contact
     // whose obstacle is nearest (the first on a tie), with its weight in that group: one
     // normal per node, the other obstacle's pressure there left to its neighbours.
     let owner: HashMap<usize, (usize, f64)> = (weight.iter())
         .map(|(&v, per)| {
-            let gap = |i: usize| case.contacts[i].obstacle.geometry(mesh.nodes[v]).gap;
+            let gap = |i: usize| obstacle(i).geometry(mesh.nodes[v]).gap;
             let best = (per.iter().copied())
                 .min_by(|a, b| gap(a.0).total_cmp(&gap(b.0)).then(a.0.cmp(&b.0)))
                 .expect("a contact node has a contact");
             (v, best)
         })
         .collect();
+    let rows = mortar_contacts(case, mesh, &owner)?;
     // Summed in a fixed order, so that r does not depend on the order of the file's
     // edges by a rounding (the loop's retunes can turn that into a sweep more or less).
     lengths.sort_unstable_by(f64::total_cmp);
     let total_len: f64 = lengths.iter().sum();
     let contact_h = total_len / lengths.len() as f64;
-    let mut contact_nodes: Vec<usize> = owner.keys().copied().collect();
+    let mut contact_nodes: Vec<usize> = owner.keys().chain(rows.keys()).copied().collect();
     contact_nodes.sort_unstable();
-    let geometry: Vec<_> = (contact_nodes.iter())
-        .map(|v| case.contacts[owner[v].0].obstacle.geometry(mesh.nodes[*v]))
+    let geometry: Vec<NodeGeometry> = (contact_nodes.iter())
+        .map(|v| match (owner.get(v), rows.get(v)) {
+            (Some(&(i, _)), _) => obstacle(i).geometry(mesh.nodes[*v]),
+            (None, Some((_, row, s))) => NodeGeometry {
+                normal: row.normal,
+                gap: row.gap,
+                s: *s,
+            },
+            (None, None) => unreachable!("a contact node is in a contact"),
+        })
         .collect();
     let mut s: Vec<f64> = geometry.iter().map(|g| g.s).collect();
+    let contact_of = |v: &usize| owner.get(v).map_or_else(|| rows[v].0, |o| o.0);
     for (i, c) in case.contacts.iter().enumerate() {
+        let Some(obstacle) = &c.obstacle else {
+            continue;
+        };
         let mine: Vec<usize> = (0..contact_nodes.len())
-            .filter(|&k| owner[&contact_nodes[k]].0 == i)
+            .filter(|&k| contact_of(&contact_nodes[k]) == i)
             .collect();
         let xs: Vec<[f64; 2]> = mine.iter().map(|&k| mesh.nodes[contact_nodes[k]]).collect();
-        if let Some(arc) = c.obstacle.arc_positions(&xs) {
+        if let Some(arc) = obstacle.arc_positions(&xs) {
             for (&k, a) in mine.iter().zip(arc) {
                 s[k] = a;
             }
         }
     }
     let contact = ContactNodes {
-        w: contact_nodes.iter().map(|v| owner[v].1).collect(),
+        w: (contact_nodes.iter())
+            .map(|v| owner.get(v).map_or_else(|| rows[v].1.w, |o| o.1))
+            .collect(),
         g: geometry.iter().map(|g| g.gap).collect(),
         s,
         normal: geometry.iter().map(|g| g.normal).collect(),
-        pair: contact_nodes.iter().map(|v| owner[v].0 as u32).collect(),
+        pair: contact_nodes.iter().map(|v| contact_of(v) as u32).collect(),
         friction: Vec::new(),
     };
+    let masters: Vec<Vec<(usize, f64)>> = (contact_nodes.iter())
+        .map(|v| rows.get(v).map_or_else(Vec::new, |r| r.1.masters.clone()))
+        .collect();
     // Round-off in mesh coordinates can put a touching node a hair below the line.
     // (A gap that is not a number, from an obstacle far beyond the mesh's scale, is
-    // refused alike.)
-    if let Some(k) = (0..contact_nodes.len())
-        .find(|&k| contact.g[k].is_nan() || contact.g[k] < -1e-9 * contact_h)
+    // refused alike.) A mortar row's gap is a weighted mean over the slave segments
+    // (`contact::mortar`) between two polygons: where curved bodies touch, the chords'
+    // sag makes it slightly negative (about h^2 / R), which is the discrete geometry,
+    // not an overlap; one of a twentieth of the contact edges is refused.
+    let allowed = |k: usize| {
+        let mortar = !masters[k].is_empty();
+        if mortar {
+            MORTAR_OVERLAP * contact_h
+        } else {
+            1e-9 * contact_h
+        }
+    };
+    if let Some(k) =
+        (0..contact_nodes.len()).find(|&k| contact.g[k].is_nan() || contact.g[k] < -allowed(k))
     {
         let x = mesh.nodes[contact_nodes[k]];
         let c = &case.contacts[contact.pair[k] as usize];
-        let fix = match c.obstacle {
-            Obstacle::Line { .. } => "move obstacle_point or check that obstacle_normal points from the foundation into the body (obstacle.point and obstacle.normal in a [[contact]] entry)",
-            Obstacle::Circle { .. } => "check the centre and the radius, and body = \"outside\" (the body outside the disc) or \"inside\" (in the hole)",
-            Obstacle::Polyline { .. } => "check the points, and body = \"left\" or \"right\" (the body's side walking from the first point to the last)",
+        let fix = match (&c.obstacle, &c.master) {
+            (Some(Obstacle::Line { .. }), _) => "move obstacle_point or check that obstacle_normal points from the foundation into the body (obstacle.point and obstacle.normal in a [[contact]] entry)".to_string(),
+            (Some(Obstacle::Circle { .. }), _) => "check the centre and the radius, and body = \"outside\" (the body outside the disc) or \"inside\" (in the hole)".to_string(),
+            (Some(Obstacle::Polyline { .. }), _) => "check the points, and body = \"left\" or \"right\" (the body's side walking from the first point to the last)".to_string(),
+            (None, m) => format!("the two bodies overlap there: mesh them apart or touching (master \"{}\")", m.as_deref().unwrap_or_default()),
         };
         return input(format!(
-            "{}: contact node at ({}, {}) already penetrates the foundation by {} (contact \"{}\", obstacle type {}); {fix}",
-            case.origin, x[0], x[1], -contact.g[k], c.group, c.obstacle.kind()
+            "{}: contact node at ({}, {}) already penetrates the {} by {} (contact \"{}\", {} {}); {fix}",
+            case.origin,
+            x[0],
+            x[1],
+            if c.obstacle.is_some() { "foundation" } else { "master body" },
+            -contact.g[k],
+            c.group,
+            if c.obstacle.is_some() { "obstacle type" } else { "against" },
+            c.obstacle.as_ref().map_or("a master line", Obstacle::kind)
         ));
     }
-    Ok((contact_nodes, contact, contact_h))
+    Ok(ContactGeometry {
+        nodes: contact_nodes,
+        contact,
+        h: contact_h,
+        masters,
+    })
+}
+
+/// The weighted overlap of a mortar row accepted at the start, as a share of the mean
+/// contact edge (see [`contact_geometry`]).
+const MORTAR_OVERLAP: f64 = 0.05;
+
+/// What [`contact_geometry`] finds.
+struct ContactGeometry {
+    nodes: Vec<usize>,
+    contact: ContactNodes,
+    h: f64,
+    masters: Vec<Vec<(usize, f64)>>,
+}
+
+/// Each segment of a line group with the unit normal out of the triangle it bounds.
+fn outward_segments(mesh: &Mesh, lines: &[[usize; 2]]) -> Vec<Segment> {
+    let wanted: std::collections::HashSet<(usize, usize)> =
+        lines.iter().map(|&[a, b]| (a.min(b), a.max(b))).collect();
+    let mut third: HashMap<(usize, usize), usize> = HashMap::with_capacity(lines.len());
+    for t in &mesh.triangles {
+        for e in 0..3 {
+            let (a, b, c) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
+            let key = (a.min(b), a.max(b));
+            if wanted.contains(&key) {
+                third.insert(key, c);
+            }
+        }
+    }
+    (lines.iter())
+        .map(|&[a, b]| {
+            let (xa, xb) = (mesh.nodes[a], mesh.nodes[b]);
+            let xc = mesh.nodes[third[&(a.min(b), a.max(b))]];
+            let len = edge_length(&mesh.nodes, a, b);
+            let mut n = [(xb[1] - xa[1]) / len, -(xb[0] - xa[0]) / len];
+            if n[0] * (xc[0] - xa[0]) + n[1] * (xc[1] - xa[1]) > 0.0 {
+                n = [-n[0], -n[1]];
+            }
+            Segment {
+                nodes: [a, b],
+                outward: n,
+            }
+        })
+        .collect()
+}
+
+/// The mortar row of every slave node of every contact with a master line, by node: its
+/// contact, the row and its position along the contact (for pictures). Refuses a slave
+/// node that is also a node of an obstacle contact or of another master contact, a slave
+/// line that shares nodes with its master, and a slave line that faces no master.
+#[allow(clippy::type_complexity)]
+fn mortar_contacts(
+    case: &Case,
+    mesh: &Mesh,
+    obstacle_nodes: &HashMap<usize, (usize, f64)>,
+) -> Result<HashMap<usize, (usize, MortarRow, f64)>> {
+    let origin = &case.origin;
+    let mut rows: HashMap<usize, (usize, MortarRow, f64)> = HashMap::new();
+    for (i, c) in case.contacts.iter().enumerate() {
+        let Some(master) = &c.master else {
+            continue;
+        };
+        let slave_lines = line_group(case, mesh, "contact", &c.group)?;
+        let master_lines = line_group(case, mesh, "contact master", master)?;
+        let on_master: std::collections::HashSet<usize> =
+            master_lines.iter().flatten().copied().collect();
+        if let Some(&v) = slave_lines.iter().flatten().find(|v| on_master.contains(v)) {
+            let x = mesh.nodes[v];
+            return input(format!(
+                "{origin}: contact \"{}\" and its master \"{master}\" share the node at ({}, {}); the master must be a line of another body, meshed on its own",
+                c.group, x[0], x[1]
+            ));
+        }
+        let found = mortar_rows(
+            &mesh.nodes,
+            &outward_segments(mesh, slave_lines),
+            &outward_segments(mesh, master_lines),
+        );
+        if found.is_empty() {
+            return input(format!(
+                "{origin}: contact \"{}\" faces no segment of its master \"{master}\"; the master must lie across from the slave line, its outward normal against the slave's",
+                c.group
+            ));
+        }
+        // Positions along the contact: across the mean normal.
+        let mut mean = [0.0; 2];
+        for r in &found {
+            mean[0] += r.w * r.normal[0];
+            mean[1] += r.w * r.normal[1];
+        }
+        let t = tangent_of(mean);
+        for row in found {
+            let v = row.node;
+            let x = mesh.nodes[v];
+            let other = obstacle_nodes
+                .get(&v)
+                .map(|o| o.0)
+                .or_else(|| rows.get(&v).map(|r| r.0));
+            if let Some(j) = other {
+                return input(format!(
+                    "{origin}: the node at ({}, {}) is a slave node of both contact \"{}\" and contact \"{}\"; a node presses on one obstacle or master: give the groups no common node",
+                    x[0], x[1], case.contacts[j].group, c.group
+                ));
+            }
+            let s = (x[0] * t[0] + x[1] * t[1]) / t[0].hypot(t[1]);
+            rows.insert(v, (i, row, s));
+        }
+    }
+    Ok(rows)
 }
 
 /// `v` (two values per node) in the node order `old_of` (new -> old).
@@ -469,8 +654,18 @@ fn in_locality_order(prob: Problem) -> Problem {
         .collect();
     by_new.sort_unstable();
     let keep: Vec<usize> = by_new.iter().map(|&(_, k)| k).collect();
+    let contact_masters = (keep.iter())
+        .map(|&k| {
+            let mut m: Vec<(usize, f64)> = (prob.contact_masters[k].iter())
+                .map(|&(v, c)| (new_of[v], c))
+                .collect();
+            m.sort_unstable_by_key(|e| e.0);
+            m
+        })
+        .collect();
     Problem {
         contact: prob.contact.select(&keep),
+        contact_masters,
         contact_nodes: by_new.iter().map(|&(v, _)| v).collect(),
         file_node: old_of.iter().map(|&o| prob.file_node[o]).collect(),
         mesh,
@@ -507,6 +702,7 @@ pub fn check_held(
     fixed: &[Option<f64>],
     contact_nodes: &[usize],
     contact: &ContactNodes,
+    masters: &[Vec<(usize, f64)>],
 ) -> Result<()> {
     let (part, count) = validate::parts(mesh);
     let tol = validate::SAME_LINE * validate::size(mesh);
@@ -520,15 +716,50 @@ pub fn check_held(
         kinds[part[node]][c] = true;
     }
     let frictional = Problem::is_frictional(case);
-    for (k, &node) in contact_nodes.iter().enumerate() {
-        let (m, pair) = (contact.normal[k], contact.pair[k] as usize);
-        let t = tangent_of(m);
-        holds[part[node]].add(mesh.nodes[node], m);
-        kinds[part[node]][2] = true;
+    // Per part: whether another body holds it (a contact with a master line).
+    let mut on_body = vec![false; count];
+    let mut hold = |holds: &mut [Holds], p: usize, k: usize| {
+        let (node, m, pair) = (
+            contact_nodes[k],
+            contact.normal[k],
+            contact.pair[k] as usize,
+        );
+        on_body[p] |= case.contacts[pair].master.is_some();
+        holds[p].add(mesh.nodes[node], m);
+        kinds[p][2] = true;
         // A frictionless contact among frictional ones holds along its normals only.
         if case.contacts[pair].friction != Friction::None {
-            holds[part[node]].add(mesh.nodes[node], t);
-            kinds[part[node]][3] = true;
+            holds[p].add(mesh.nodes[node], tangent_of(m));
+            kinds[p][3] = true;
+        }
+    };
+    for (k, &node) in contact_nodes.iter().enumerate() {
+        if masters.get(k).is_none_or(Vec::is_empty) {
+            hold(&mut holds, part[node], k);
+        }
+    }
+    // A contact between two parts holds one of them once the other is held (along the
+    // same lines of action): repeated until nothing changes, so that a chain of bodies
+    // resting on each other is held from its held end, and two bodies that only hold
+    // each other are not.
+    let mut done = vec![[false; 2]; contact_nodes.len()];
+    loop {
+        let mut changed = false;
+        for (k, row) in masters.iter().enumerate() {
+            let Some(&(first, _)) = row.first() else {
+                continue;
+            };
+            let (ps, pm) = (part[contact_nodes[k]], part[first]);
+            for (side, (from, to)) in [(pm, ps), (ps, pm)].into_iter().enumerate() {
+                if from != to && !done[k][side] && holds[from].free().is_none() {
+                    hold(&mut holds, to, k);
+                    done[k][side] = true;
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            break;
         }
     }
     let Some((p, free)) = holds
@@ -564,6 +795,12 @@ pub fn check_held(
         Free::Everything => format!(
             "{origin}: {body} has no [[dirichlet]] condition and no contact node, so nothing holds it (singular problem); fix ux and uy on one of its groups with [[dirichlet]] ({groups})"
         ),
+        Free::Slide { along } if kinds[p][2] && !frictional && on_body[p] => {
+            let comp = component(along);
+            format!(
+                "{origin}: nothing stops {body} from sliding on the body it rests on (singular problem): frictionless contact holds it only along the contact normals and no [[dirichlet]] fixes {comp}; add a [[dirichlet]] with {comp} = 0.0 on a symmetry line or on one node (a point group), or use friction = \"tresca\" or \"coulomb\" ({groups})"
+            )
+        }
         Free::Slide { along } if kinds[p][2] && !frictional => {
             let comp = component(along);
             format!(

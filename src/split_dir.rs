@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 /// The manifest's file name in a split directory.
 pub const MANIFEST: &str = "split.json";
 /// Bumped whenever the part files or the manifest change layout.
-const FORMAT: u32 = 3;
+const FORMAT: u32 = 4;
 const MAGIC: &[u8; 8] = b"CPSPLIT\x01";
 
 /// What partitioning and splitting a case fixes, whoever did it (the first rank of a run,

@@ -4,6 +4,7 @@
 mod anderson;
 pub mod kernels;
 mod law;
+pub mod mortar;
 pub mod obstacle;
 pub mod operators;
 pub mod probe;

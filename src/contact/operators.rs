@@ -51,6 +51,70 @@ pub fn contact_blocks(
         .collect()
 }
 
+/// The nodes of a contact row and the factor each enters it with: the node itself (1),
+/// then each master node of a mortar row (-c_k, `contact::mortar`): the row reads
+/// u_n = -m . (sum of factor x u), u_t = t . (the same sum).
+pub fn row_nodes(node: usize, masters: &[(usize, f64)]) -> Vec<(usize, f64)> {
+    std::iter::once((node, 1.0))
+        .chain(masters.iter().map(|&(v, c)| (v, -c)))
+        .collect()
+}
+
+/// A subdomain's contact rows as the augmentation sees them.
+#[derive(Clone, Copy)]
+pub struct ContactRowsGeometry<'a> {
+    /// Each row's node.
+    pub nodes: &'a [usize],
+    /// Each row's master nodes and coefficients (empty against an obstacle).
+    pub masters: &'a [Vec<(usize, f64)>],
+    pub w: &'a [f64],
+    pub normals: &'a [[f64; 2]],
+    /// Whether the tangential augmentation is part of A.
+    pub frictional: bool,
+}
+
+/// The augmentation w (r_n b_n b_n' + r_t b_t b_t') of mortar rows (`masters[k]` not
+/// empty; other rows are [`contact_blocks`]'), as 2 x 2 blocks between the row's nodes:
+/// those on one node (a, a), which the assembly adds (they hold each body on its own),
+/// and those between two nodes (a, b), each pair once, which couple the slave with its
+/// masters and the masters with each other.
+#[allow(clippy::type_complexity)]
+pub fn mortar_blocks(
+    rows: &ContactRowsGeometry,
+    r_n: &[f64],
+    r_t: &[f64],
+) -> (
+    Vec<(usize, [[f64; 2]; 2])>,
+    Vec<(usize, usize, [[f64; 2]; 2])>,
+) {
+    let ContactRowsGeometry {
+        nodes,
+        masters,
+        w,
+        normals,
+        frictional,
+    } = *rows;
+    let (mut same, mut cross) = (Vec::new(), Vec::new());
+    for (k, &node) in nodes.iter().enumerate() {
+        let Some(row) = masters.get(k).filter(|m| !m.is_empty()) else {
+            continue;
+        };
+        let (m, t) = (normals[k], tangent_of(normals[k]));
+        let (a, b) = (w[k] * r_n[k], if frictional { w[k] * r_t[k] } else { 0.0 });
+        let unit: [[f64; 2]; 2] =
+            std::array::from_fn(|i| std::array::from_fn(|j| a * m[i] * m[j] + b * t[i] * t[j]));
+        let scaled = |f: f64| unit.map(|r| r.map(|v| f * v));
+        let on = row_nodes(node, row);
+        for (i, &(p, fp)) in on.iter().enumerate() {
+            same.push((p, scaled(fp * fp)));
+            for &(q, fq) in &on[..i] {
+                cross.push((p, q, scaled(fp * fq)));
+            }
+        }
+    }
+    (same, cross)
+}
+
 /// The forces a sweep puts on the contact nodes, per node: w (r p - lambda) along the
 /// normal and w (r q - mu) along the tangent.
 pub(crate) struct NodalForces<'a> {
@@ -119,6 +183,43 @@ mod tests {
             for j in 0..2 {
                 assert!((plain[0].1[i][j] - want[i][j]).abs() < 1e-12);
             }
+        }
+    }
+
+    #[test]
+    fn mortar_blocks_are_the_outer_product_of_the_row() {
+        // Slave node 4 over master nodes 1 (0.25) and 2 (0.75), normal (0, 1).
+        let masters = vec![vec![], vec![(1, 0.25), (2, 0.75)]];
+        let rows = ContactRowsGeometry {
+            nodes: &[3, 4],
+            masters: &masters,
+            w: &[1.0, 2.0],
+            normals: &[[0.0, 1.0], [0.0, 1.0]],
+            frictional: true,
+        };
+        let (same, cross) = mortar_blocks(&rows, &[5.0, 5.0], &[1.0, 1.0]);
+        // Row: u_n = -(u4 - 0.25 u1 - 0.75 u2)_y, u_t = (u4 - 0.25 u1 - 0.75 u2)_x; the
+        // obstacle row of node 3 is not a mortar row.
+        let full = |p: usize, q: usize| -> [[f64; 2]; 2] {
+            let f = |v: usize| match v {
+                4 => 1.0,
+                1 => -0.25,
+                2 => -0.75,
+                _ => 0.0,
+            };
+            [
+                [2.0 * 1.0 * f(p) * f(q), 0.0],
+                [0.0, 2.0 * 5.0 * f(p) * f(q)],
+            ]
+        };
+        assert_eq!(same.iter().map(|b| b.0).collect::<Vec<_>>(), [4, 1, 2]);
+        for (p, blk) in same {
+            assert_eq!(blk, full(p, p));
+        }
+        assert_eq!(cross.len(), 3);
+        for (p, q, blk) in cross {
+            assert_ne!(p, q);
+            assert_eq!(blk, full(p, q));
         }
     }
 }

@@ -19,6 +19,7 @@
 //! the trailing block of the sparse factor. The first rank's dense work is set by the
 //! interface alone (n_G^3 / 3 once, 2 n_G^2 a sweep), not by the contact boundary.
 
+use crate::contact::operators::row_nodes;
 use crate::contact::tangent_of;
 use crate::dd::local_factor::LocalFactor;
 use crate::error::{Error, Result};
@@ -44,6 +45,7 @@ impl ContactRows {
         fixed: &[Option<f64>],
         boundary_dofs: &[usize],
         normals: &[[f64; 2]],
+        masters: &[Vec<(usize, f64)>],
         frictional: bool,
     ) -> Result<Self> {
         let mut position = std::collections::HashMap::with_capacity(boundary_dofs.len());
@@ -62,22 +64,26 @@ impl ContactRows {
             } else {
                 &[(k, [-normal[0], -normal[1]])]
             };
+            let on = row_nodes(v, masters.get(k).map_or(&[][..], |m| &m[..]));
             for &(row, coef) in kinds {
-                for comp in 0..2 {
-                    let dof = 2 * v + comp;
-                    if coef[comp] == 0.0 {
-                        // Not read (and maybe not in B: see `split::contact_components`).
-                        continue;
-                    }
-                    match fixed[dof] {
-                        Some(value) => c0[row] += coef[comp] * value,
-                        None => {
-                            let b = *position.get(&dof).ok_or_else(|| {
-                                Error::Numerical(format!(
-                                    "internal: contact dof {dof} is not a boundary dof"
-                                ))
-                            })?;
-                            entries.push((row, b, coef[comp]));
+                for &(node, factor) in &on {
+                    for comp in 0..2 {
+                        let dof = 2 * node + comp;
+                        if coef[comp] == 0.0 {
+                            // Not read (and maybe not in B: see `split::contact_components`).
+                            continue;
+                        }
+                        let coef = factor * coef[comp];
+                        match fixed[dof] {
+                            Some(value) => c0[row] += coef * value,
+                            None => {
+                                let b = *position.get(&dof).ok_or_else(|| {
+                                    Error::Numerical(format!(
+                                        "internal: contact dof {dof} is not a boundary dof"
+                                    ))
+                                })?;
+                                entries.push((row, b, coef));
+                            }
                         }
                     }
                 }
@@ -487,7 +493,7 @@ mod tests {
         let fixed = vec![None, None, Some(0.5), None];
         let boundary = vec![3, 0, 1];
         let m = [0.0, 1.0];
-        let rows = ContactRows::new(&[0, 1], &fixed, &boundary, &[m, m], true).unwrap();
+        let rows = ContactRows::new(&[0, 1], &fixed, &boundary, &[m, m], &[], true).unwrap();
         assert_eq!(rows.len(), 4);
         // u_n = -m.u = -u_y, u_t = t.u = u_x.
         let mut e = rows.entries.clone();
@@ -497,7 +503,7 @@ mod tests {
         assert_eq!(nonzero, expected);
         assert_eq!(rows.c0, vec![0.0, 0.0, 0.0, 0.5]);
         // A contact dof that is not in B is an internal error, not a panic.
-        assert!(ContactRows::new(&[0], &fixed, &[3], &[m], false).is_err());
+        assert!(ContactRows::new(&[0], &fixed, &[3], &[m], &[], false).is_err());
     }
 
     #[test]

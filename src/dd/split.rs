@@ -53,6 +53,15 @@ pub struct SubProblem {
     /// Local nodes whose dofs are in their contact frame ([`in_frame`]), with their
     /// normal m, increasing; every subdomain holding such a node turns it alike.
     pub frames: Vec<(usize, [f64; 2])>,
+    /// The master nodes (local ids) and coefficients of each own contact node's mortar
+    /// row, same order as `contact_nodes`; empty against an obstacle.
+    #[serde(default)]
+    pub contact_masters: Vec<Vec<(usize, f64)>>,
+    /// The last `ghosts` local nodes are master nodes of this subdomain's mortar rows
+    /// that none of its triangles touch: interface nodes with no stiffness here, so that
+    /// the rows' augmentation and forces are assembled where the rows are.
+    #[serde(default)]
+    pub ghosts: usize,
 }
 
 impl SubProblem {
@@ -122,15 +131,32 @@ pub fn split(
     // node's frame where it has one.
     let mut read = vec![[false; 2]; n];
     let mut frame: Vec<Option<[f64; 2]>> = vec![None; n];
+    let masters = |k: usize| prob.contact_masters.get(k).map_or(&[][..], |m| &m[..]);
+    let mut is_master = vec![false; n];
+    for k in 0..prob.contact_nodes.len() {
+        for &(v, _) in masters(k) {
+            is_master[v] = true;
+        }
+    }
     for (k, &c) in prob.contact_nodes.iter().enumerate() {
         is_contact[c] = true;
         let m = prob.contact.normal[k];
         let fixed = [0, 1].map(|i| prob.fixed[2 * c + i].is_some());
-        if in_frame(frictional, m, fixed) {
+        // A mortar row reads its master nodes in x, y: neither end of it turns.
+        let mortar = !masters(k).is_empty() || is_master[c];
+        if !mortar && in_frame(frictional, m, fixed) {
             frame[c] = Some(m);
             read[c] = [true, false];
         } else {
             read[c] = contact_components(frictional, m);
+        }
+    }
+    // A master node is read like the slave node of its row.
+    for k in 0..prob.contact_nodes.len() {
+        let comps = contact_components(frictional, prob.contact.normal[k]);
+        for &(v, _) in masters(k) {
+            is_contact[v] = true;
+            read[v] = [read[v][0] || comps[0], read[v][1] || comps[1]];
         }
     }
     let mut on_interface = vec![false; n];
@@ -138,6 +164,29 @@ pub fn split(
         for &v in &p.interface {
             on_interface[v] = true;
         }
+    }
+    // A master node held by another part than its slave's owner is a ghost there
+    // (`SubProblem::ghosts`), and an interface node everywhere.
+    let owner = |v: usize| part.node_owner[v] as usize;
+    let mut holders: std::collections::HashMap<usize, Vec<usize>> = Default::default();
+    for (r, p) in part.parts.iter().enumerate() {
+        for &v in p.nodes.iter().filter(|&&v| is_master[v]) {
+            holders.entry(v).or_default().push(r);
+        }
+    }
+    let mut ghosts: Vec<Vec<usize>> = vec![Vec::new(); nparts];
+    for (k, &c) in prob.contact_nodes.iter().enumerate() {
+        let r = owner(c);
+        for &(v, _) in masters(k) {
+            if !holders[&v].contains(&r) {
+                ghosts[r].push(v);
+                on_interface[v] = true;
+            }
+        }
+    }
+    for g in &mut ghosts {
+        g.sort_unstable();
+        g.dedup();
     }
     let mut interface_index: Vec<[Option<usize>; 2]> = vec![[None; 2]; n];
     let mut n_interface = 0;
@@ -157,7 +206,6 @@ pub fn split(
         }
     }
 
-    let owner = |v: usize| part.node_owner[v] as usize;
     let mut contact_by_rank: Vec<Vec<usize>> = vec![Vec::new(); nparts];
     for (k, &c) in prob.contact_nodes.iter().enumerate() {
         contact_by_rank[owner(c)].push(k);
@@ -166,7 +214,8 @@ pub fn split(
     let mut local_of = vec![usize::MAX; n];
     let mut subs = Vec::with_capacity(nparts);
     for (r, p) in part.parts.iter().enumerate() {
-        for (l, &g) in p.nodes.iter().enumerate() {
+        let all_nodes: Vec<usize> = p.nodes.iter().chain(&ghosts[r]).copied().collect();
+        for (l, &g) in all_nodes.iter().enumerate() {
             local_of[g] = l;
         }
         let triangles: Vec<[usize; 3]> = p
@@ -174,31 +223,35 @@ pub fn split(
             .iter()
             .map(|&e| prob.mesh.triangles[e].map(|g| local_of[g]))
             .collect();
-        let owned: Vec<bool> = p.nodes.iter().map(|&g| owner(g) == r).collect();
+        let owned: Vec<bool> = (all_nodes.iter().enumerate())
+            .map(|(l, &g)| l < p.nodes.len() && owner(g) == r)
+            .collect();
         let mut fixed = Vec::with_capacity(2 * p.nodes.len());
         let mut load = Vec::with_capacity(2 * p.nodes.len());
         let mut boundary_dofs = Vec::new();
-        let mut interface_dofs = Vec::new();
-        let mut interface_global = Vec::new();
-        for (l, &g) in p.nodes.iter().enumerate() {
+        let mut interface = Vec::new();
+        for (l, &g) in all_nodes.iter().enumerate() {
             for c in 0..2 {
                 fixed.push(prob.fixed[2 * g + c]);
                 load.push(if owned[l] { prob.load[2 * g + c] } else { 0.0 });
                 if let Some(b) = interface_index[g][c] {
-                    interface_dofs.push(2 * l + c);
-                    interface_global.push(b);
+                    interface.push((b, 2 * l + c));
                 } else if is_contact[g] && read[g][c] && prob.fixed[2 * g + c].is_none() {
                     boundary_dofs.push(2 * l + c);
                 }
             }
         }
+        // Ghosts come last among the nodes but take their place among the interface dofs.
+        interface.sort_unstable();
+        let (interface_global, interface_dofs): (Vec<usize>, Vec<usize>) =
+            interface.into_iter().unzip();
         let n_contact_dofs = boundary_dofs.len();
         boundary_dofs.extend(interface_dofs);
         let mine = &contact_by_rank[r];
         let sub = SubProblem {
             rank: r,
-            global_nodes: p.nodes.iter().map(|&g| prob.file_node[g]).collect(),
-            nodes: p.nodes.iter().map(|&g| prob.mesh.nodes[g]).collect(),
+            global_nodes: all_nodes.iter().map(|&g| prob.file_node[g]).collect(),
+            nodes: all_nodes.iter().map(|&g| prob.mesh.nodes[g]).collect(),
             triangles,
             body: p.elements.iter().map(|&e| prob.body[e]).collect(),
             owned,
@@ -213,9 +266,13 @@ pub fn split(
             n_contact_dofs,
             interface_global,
             interface_nodes: p.interface.len(),
-            frames: (p.nodes.iter().enumerate())
+            frames: (all_nodes.iter().enumerate())
                 .filter_map(|(l, &g)| frame[g].map(|m| (l, m)))
                 .collect(),
+            contact_masters: (mine.iter())
+                .map(|&k| masters(k).iter().map(|&(v, c)| (local_of[v], c)).collect())
+                .collect(),
+            ghosts: ghosts[r].len(),
         };
         if sub.contact_nodes.contains(&usize::MAX) {
             return Err(Error::Numerical(format!(
@@ -223,7 +280,7 @@ pub fn split(
             )));
         }
         subs.push(sub);
-        for &g in &p.nodes {
+        for &g in &all_nodes {
             local_of[g] = usize::MAX;
         }
     }

@@ -4,7 +4,7 @@
 //! [`crate::dd::interface_mumps`]), then per sweep one solve on the boundary system and,
 //! after the loop, the interior recovered. Collective calls go through [`Mpi`].
 
-use crate::contact::operators::contact_blocks;
+use crate::contact::operators::{contact_blocks, mortar_blocks, ContactRowsGeometry};
 use crate::contact::{LinearStep, Reduce};
 use crate::dd::comm::Mpi;
 use crate::dd::condense::{boundary_entries, ContactRows, InterfaceSystem, LocalResponse};
@@ -61,12 +61,15 @@ impl LocalSystem {
             let rr = vec![s.r; sub.contact_nodes.len()];
             let mut blocks = contact_blocks(
                 &sub.contact_nodes,
-                &sub.contact.w,
+                &obstacle_weights(sub),
                 &rr,
                 &rr,
                 &sub.step_normals(),
                 s.frictional,
             );
+            let normals = sub.step_normals();
+            let (same, cross) = mortar_blocks(&contact_rows(sub, &normals, s.frictional), &rr, &rr);
+            blocks.extend(same);
             let mut g_nodes: Vec<usize> = sub.boundary_dofs[sub.n_contact_dofs..]
                 .iter()
                 .map(|d| d / 2)
@@ -91,6 +94,12 @@ impl LocalSystem {
             )?;
             let figures = assembled.figures();
             let mut base = assembled.lifting;
+            let (coupling, lifting) = pair_entries(&cross, &sub.fixed);
+            for (dof, v) in lifting {
+                if let Some(i) = dofs.eq[dof] {
+                    base[i] += v;
+                }
+            }
             let mut load = sub.load.clone();
             for &(v, m) in &sub.frames {
                 [load[2 * v], load[2 * v + 1]] = to_frame(m, [load[2 * v], load[2 * v + 1]]);
@@ -100,7 +109,8 @@ impl LocalSystem {
                     base[*i] += load[dof];
                 }
             }
-            Ok((dofs, assembled.matrix, base, figures))
+            let matrix = with_pair_entries(assembled.matrix, &dofs, &coupling)?;
+            Ok((dofs, matrix, base, figures))
         });
         let (dofs, matrix, base, figures) = assembled?;
         assembled_figures(figures);
@@ -169,6 +179,7 @@ impl<'a> CondensedStep<'a> {
             &sub.fixed,
             &sub.boundary_dofs,
             &sub.step_normals(),
+            &sub.contact_masters,
             setup.frictional,
         ))?;
         drop(schur);
@@ -319,16 +330,29 @@ impl LinearStep for CondensedStep<'_> {
     /// augmentation on its contact dofs; the first rank rebuilds the interface system.
     fn set_r(&mut self, r_n: &[f64], r_t: &[f64]) -> Result<bool> {
         let shift = |r: &[f64]| r.iter().map(|r| r - self.setup.r).collect::<Vec<f64>>();
-        let blocks = contact_blocks(
+        let normals = self.sub.step_normals();
+        let mut blocks = contact_blocks(
             &self.sub.contact_nodes,
-            &self.sub.contact.w,
+            &obstacle_weights(self.sub),
             &shift(r_n),
             &shift(r_t),
-            &self.sub.step_normals(),
+            &normals,
             self.setup.frictional,
         );
-        let updated = boundary_entries(&blocks, &self.sub.fixed, &self.sub.boundary_dofs)
-            .and_then(|delta| self.local.factor.update_boundary(&delta));
+        // A mortar row's blocks were assembled with the first r, like the others.
+        let (same, cross) = mortar_blocks(
+            &contact_rows(self.sub, &normals, self.setup.frictional),
+            &shift(r_n),
+            &shift(r_t),
+        );
+        blocks.extend(same);
+        let updated = boundary_entries(&blocks, &self.sub.fixed, &self.sub.boundary_dofs).and_then(
+            |mut delta| {
+                let (coupling, _) = pair_entries(&cross, &self.sub.fixed);
+                delta.extend(at_boundary_positions(&coupling, &self.sub.boundary_dofs)?);
+                self.local.factor.update_boundary(&delta)
+            },
+        );
         let change = self.mpi.agree(updated)?;
         if self.setup.n_interface > 0 && !self.setup.interface_mumps && self.interface_dense {
             // Every subdomain's complement changed by a low-rank term (or not at all):
@@ -400,6 +424,115 @@ impl LinearStep for CondensedStep<'_> {
         }
         Ok(())
     }
+}
+
+/// The subdomain's contact rows for `mortar_blocks`, with the normals the step sees.
+fn contact_rows<'a>(
+    sub: &'a SubProblem,
+    normals: &'a [[f64; 2]],
+    frictional: bool,
+) -> ContactRowsGeometry<'a> {
+    ContactRowsGeometry {
+        nodes: &sub.contact_nodes,
+        masters: &sub.contact_masters,
+        w: &sub.contact.w,
+        normals,
+        frictional,
+    }
+}
+
+/// Each own contact node's weight in the node-wise augmentation blocks: its own for a
+/// node against an obstacle, zero for a mortar row (whose blocks are `mortar_blocks`').
+fn obstacle_weights(sub: &SubProblem) -> Vec<f64> {
+    (sub.contact.w.iter().enumerate())
+        .map(|(k, &w)| {
+            if sub.contact_masters.get(k).is_some_and(|m| !m.is_empty()) {
+                0.0
+            } else {
+                w
+            }
+        })
+        .collect()
+}
+
+/// Blocks between two different nodes as entries (dof, dof, v) between free local dofs,
+/// each pair once (the matrix holds v at both (i, j) and (j, i)), and the lifting they
+/// give a free dof where the other is prescribed: (local dof, value to add to the
+/// right-hand side).
+#[allow(clippy::type_complexity)]
+fn pair_entries(
+    cross: &[(usize, usize, [[f64; 2]; 2])],
+    fixed: &[Option<f64>],
+) -> (Vec<(usize, usize, f64)>, Vec<(usize, f64)>) {
+    let (mut entries, mut lifting) = (Vec::new(), Vec::new());
+    for &(p, q, blk) in cross {
+        for (i, row) in blk.iter().enumerate() {
+            for (j, &v) in row.iter().enumerate() {
+                if v == 0.0 {
+                    continue;
+                }
+                let (dp, dq) = (2 * p + i, 2 * q + j);
+                match (fixed[dp], fixed[dq]) {
+                    (None, None) => entries.push((dp, dq, v)),
+                    (None, Some(u)) => lifting.push((dp, -v * u)),
+                    (Some(u), None) => lifting.push((dq, -v * u)),
+                    (Some(_), Some(_)) => {}
+                }
+            }
+        }
+    }
+    (entries, lifting)
+}
+
+/// Entries between local dofs at their B positions (for `LocalFactor::update_boundary`).
+fn at_boundary_positions(
+    entries: &[(usize, usize, f64)],
+    boundary_dofs: &[usize],
+) -> Result<Vec<(usize, usize, f64)>> {
+    let position: std::collections::HashMap<usize, usize> = (boundary_dofs.iter().enumerate())
+        .map(|(k, &d)| (d, k))
+        .collect();
+    (entries.iter())
+        .map(|&(a, b, v)| match (position.get(&a), position.get(&b)) {
+            (Some(&i), Some(&j)) => Ok((i, j, v)),
+            _ => Err(crate::error::Error::Numerical(format!(
+                "internal: a mortar row's dof {a} or {b} is not a boundary dof"
+            ))),
+        })
+        .collect()
+}
+
+/// `matrix` (lower triangle, by equation) with `entries` between dofs added: a mortar
+/// row couples nodes no triangle joins, so its entries are not in the assembled
+/// pattern, and the factor's pattern (its trailing block too, which retunes rewrite in
+/// place) must hold them and their fill.
+fn with_pair_entries(
+    matrix: faer::sparse::SparseColMat<usize, f64>,
+    dofs: &DofMap,
+    entries: &[(usize, usize, f64)],
+) -> Result<faer::sparse::SparseColMat<usize, f64>> {
+    use faer::sparse::{SparseColMat, Triplet};
+    if entries.is_empty() {
+        return Ok(matrix);
+    }
+    let n = matrix.nrows();
+    let a = matrix.as_ref();
+    let mut triplets: Vec<Triplet<usize, usize, f64>> =
+        Vec::with_capacity(a.compute_nnz() + entries.len());
+    for j in 0..n {
+        for (i, &v) in a.row_idx_of_col(j).zip(a.val_of_col(j)) {
+            triplets.push(Triplet::new(i, j, v));
+        }
+    }
+    for &(p, q, v) in entries {
+        let (Some(i), Some(j)) = (dofs.eq[p], dofs.eq[q]) else {
+            continue;
+        };
+        triplets.push(Triplet::new(i.max(j), i.min(j), v));
+    }
+    SparseColMat::try_new_from_triplets(n, n, &triplets).map_err(|e| {
+        crate::error::Error::Numerical(format!("cannot assemble the mortar coupling: {e:?}"))
+    })
 }
 
 /// Every subdomain's number of interface dofs (collective; zeros without an interface).

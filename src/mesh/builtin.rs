@@ -526,6 +526,66 @@ pub fn quarter_disc_for_level(radius: f64, level: u32) -> Mesh {
     )
 }
 
+/// Two elastic quarter cylinders touching at the origin, each meshed on its own
+/// ([`quarter_disc_for_level`]): the upper one of radius `r1` centred at `(0, r1)` at
+/// `level`, the lower one of radius `r2` centred at `(0, -r2)` one level finer (the
+/// upper's mesh mirrored and scaled), so that with `r2` a little under `2 r1` the arc
+/// elements at the contact are about as long on both sides (`r2 / 2 r1` of the upper's
+/// below) and the nodes of the two arcs do not coincide (but at the origin).
+///
+/// Why about as long: the mortar coupling reads each master segment as a chord, whose
+/// sag (h^2 / 8 R) enters the slave nodes' gaps; a master twice as coarse as the slave
+/// makes the pressure alternate node by node by a few per cent (measured: 3.3% at
+/// level 2), one as fine keeps it smooth (0.3%).
+///
+/// Surface groups `upper` and `lower`; line groups `upper_axis`, `upper_top`,
+/// `upper_contact`, `lower_axis`, `lower_bottom`, `lower_contact`; point groups
+/// `upper_origin`, `lower_origin`.
+pub fn cylinders_for_level(r1: f64, r2: f64, level: u32) -> Mesh {
+    let upper = quarter_disc_for_level(r1, level);
+    let lower = quarter_disc_for_level(r2, level + 1);
+    let offset = upper.nodes.len();
+    let first_lower = upper.triangles.len();
+    let mut mesh = Mesh {
+        nodes: upper.nodes,
+        triangles: upper.triangles,
+        ..Mesh::default()
+    };
+    mesh.nodes.extend(lower.nodes.iter().map(|p| [p[0], -p[1]]));
+    // Mirrored, so listed the other way round to stay counter-clockwise.
+    mesh.triangles
+        .extend((lower.triangles.iter()).map(|t| [t[0] + offset, t[2] + offset, t[1] + offset]));
+    for (name, lines) in upper.line_groups {
+        mesh.line_groups.insert(format!("upper_{name}"), lines);
+    }
+    for (name, lines) in lower.line_groups {
+        let name = if name == "top" {
+            "bottom".to_string()
+        } else {
+            name
+        };
+        let lines = lines
+            .iter()
+            .map(|l| [l[0] + offset, l[1] + offset])
+            .collect();
+        mesh.line_groups.insert(format!("lower_{name}"), lines);
+    }
+    for (name, points) in upper.point_groups {
+        mesh.point_groups.insert(format!("upper_{name}"), points);
+    }
+    for (name, points) in lower.point_groups {
+        let points = points.iter().map(|v| v + offset).collect();
+        mesh.point_groups.insert(format!("lower_{name}"), points);
+    }
+    mesh.surface_groups
+        .insert("upper".into(), (0..first_lower).collect());
+    mesh.surface_groups.insert(
+        "lower".into(),
+        (first_lower..mesh.triangles.len()).collect(),
+    );
+    mesh
+}
+
 fn lerp(a: [f64; 2], b: [f64; 2], t: f64) -> [f64; 2] {
     [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
 }

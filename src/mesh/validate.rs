@@ -138,6 +138,9 @@ fn duplicate_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
     };
     let mut first: Option<(usize, usize)> = None;
     let mut pairs = 0usize;
+    // Two bodies meshed on their own may touch: coincident nodes of different parts of
+    // the mesh (no triangle path between them) are two bodies' nodes, not a crack.
+    let mut part: Option<Vec<usize>> = None;
     // The first entry at or after (column + 1, y - tol): that bound only grows along the
     // sorted order, so one pointer walks it for all nodes.
     let mut next = 0;
@@ -156,6 +159,10 @@ fn duplicate_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
             .take_while(|e| e.0 == column + 1 && e.1 <= y + tol);
         for &(_, _, j) in same.chain(beside) {
             if close(i, j) && (used[i] || used[j]) {
+                let part = part.get_or_insert_with(|| parts(mesh).0);
+                if used[i] && used[j] && part[i] != part[j] {
+                    continue;
+                }
                 pairs += 1;
                 let pair = (i.min(j), i.max(j));
                 if first.is_none_or(|f| pair < f) {

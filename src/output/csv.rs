@@ -32,6 +32,9 @@ pub struct ContactRow {
     pub s: f64,
     /// The node's unit normal (obstacle -> body).
     pub normal: [f64; 2],
+    /// The share of the node's contact force that its master nodes take back (the sum
+    /// of its mortar row's coefficients, `contact::mortar`: one); 0 against an obstacle.
+    pub to_master: f64,
 }
 
 /// A contact status as one byte on the wire.
@@ -155,6 +158,7 @@ mod tests {
             pair: 0,
             s: x,
             normal: [0.0, 1.0],
+            to_master: 0.0,
         }
     }
 

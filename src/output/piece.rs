@@ -80,8 +80,10 @@ impl SubdomainSolution<'_> {
     /// Writes the subdomain's `.vtu` files into `dir`; returns how many, and their bytes.
     pub fn write_vtu(&self, dir: &Path) -> Result<Written> {
         let (sub, o) = (self.sub, self.outcome);
+        // Ghost master nodes (the tail of the nodes) belong to another piece.
+        let n = sub.nodes.len() - sub.ghosts;
         let mesh = Mesh {
-            nodes: sub.nodes.clone(),
+            nodes: sub.nodes[..n].to_vec(),
             triangles: sub.triangles.clone(),
             ..Default::default()
         };
@@ -92,7 +94,6 @@ impl SubdomainSolution<'_> {
         };
         let (stress, vm) = element_stresses(materials, &mesh, self.u);
         let body: Vec<i32> = sub.body.iter().map(|&b| b as i32).collect();
-        let n = sub.nodes.len();
         let mut pressure = vec![0.0; n];
         let mut traction = vec![0.0; n];
         let mut status = vec![-1i32; n];
@@ -103,9 +104,9 @@ impl SubdomainSolution<'_> {
         }
         let rank_field = vec![self.subdomain as i32; sub.triangles.len()];
         let piece = Piece {
-            nodes: &sub.nodes,
+            nodes: &sub.nodes[..n],
             triangles: &sub.triangles,
-            displacement: self.u,
+            displacement: &self.u[..n],
             stress: &stress,
             von_mises: &vm,
             rank: &rank_field,
@@ -151,6 +152,8 @@ impl SubdomainSolution<'_> {
                     pair: sub.contact.pair[k],
                     s: sub.contact.s[k],
                     normal: sub.contact.normal[k],
+                    to_master: (sub.contact_masters.get(k))
+                        .map_or(0.0, |m| m.iter().map(|e| e.1).sum()),
                 }
             })
             .collect()
@@ -179,6 +182,7 @@ mod tests {
                 pair: 2,
                 s: -1.5,
                 normal: [0.6, -0.8],
+                to_master: 0.0,
             })
             .collect();
         let bytes = crate::dd::comm::encode(&rows).unwrap();

@@ -753,6 +753,7 @@ mod tests {
             pair: 0,
             s: x,
             normal: [0.0, 1.0],
+            to_master: 0.0,
         }
     }
 

@@ -80,10 +80,10 @@ pub struct RunFacts {
     pub partition: String,
     pub subdomains: usize,
     pub subdomains_per_rank: usize,
-    /// Each contact's boundary group and obstacle type, in the case's order (the rows'
-    /// `pair`): summed per contact into `contacts`.
+    /// Each contact's boundary group, obstacle type and master group (against another
+    /// body), in the case's order (the rows' `pair`): summed per contact into `contacts`.
     #[serde(skip)]
-    pub pairs: Vec<(String, &'static str)>,
+    pub pairs: Vec<(String, &'static str, Option<String>)>,
     /// Each body (its `[[material]]` entry, or the one `[material]`), by body index: the
     /// `body` cell array of the .vtu pieces.
     pub bodies: Vec<BodySummary>,
@@ -112,6 +112,13 @@ struct PairSums {
     tangential_force: f64,
     /// The force of the obstacle on the body (x, y): the sum of w_i (p_n m_i + p_t t_i).
     force: [f64; 2],
+    /// Against another body: its master group, and the force of the slave body on it
+    /// (the rows' forces carried to the master nodes by their mortar coefficients;
+    /// minus `force`: action and reaction).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    master: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    master_force: Option<[f64; 2]>,
 }
 
 /// Every subdomain's rows, in subdomain order.
@@ -246,8 +253,11 @@ impl Gathered {
             })
             .collect();
         let contacts = (facts.pairs.iter().enumerate())
-            .map(|(i, (slave, obstacle))| {
+            .map(|(i, (slave, obstacle, master))| {
                 let rows = || self.contact.iter().filter(move |r| r.pair == i as u32);
+                let force_of = |r: &ContactRow, c: usize| {
+                    r.w * (r.p_n * r.normal[c] + r.p_t * tangent_of(r.normal)[c])
+                };
                 PairSums {
                     slave: slave.clone(),
                     obstacle,
@@ -255,10 +265,10 @@ impl Gathered {
                     active_nodes: rows().filter(|r| r.status != Status::Free).count(),
                     normal_force: rows().map(|r| r.w * r.p_n).sum(),
                     tangential_force: rows().map(|r| r.w * r.p_t).sum(),
-                    force: [0, 1].map(|c| {
-                        rows()
-                            .map(|r| r.w * (r.p_n * r.normal[c] + r.p_t * tangent_of(r.normal)[c]))
-                            .sum()
+                    force: [0, 1].map(|c| rows().map(|r| force_of(r, c)).sum()),
+                    master: master.clone(),
+                    master_force: master.as_ref().map(|_| {
+                        [0, 1].map(|c| rows().map(|r| -r.to_master * force_of(r, c)).sum())
                     }),
                 }
             })
