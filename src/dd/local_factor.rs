@@ -185,8 +185,7 @@ impl LocalFactor {
     /// assembled matrix, b^3 / 3 flops.
     ///
     /// Returns how the interface Schur complement changed: by a low-rank term when the
-    /// update touched contact dofs only and was made in place (see [`schur_change`]),
-    /// else in full.
+    /// update was made in place (see [`schur_change`]), else in full.
     pub(crate) fn update_boundary(&mut self, delta: &[(usize, usize, f64)]) -> Result<SchurChange> {
         let target = lower_entries(delta);
         let change = entry_difference(&self.applied, &target);
@@ -202,7 +201,7 @@ impl LocalFactor {
         let terms = RankOneTerms::of(&change, n);
         // The interface Schur complement's change, from the factor before the update.
         let woodbury = match &terms {
-            Some(t) if ng > 0 && t.touched.iter().all(|&d| d < nc) => {
+            Some(t) if ng > 0 => {
                 if self.schur_g.is_none() {
                     self.schur_g = Some(self.formed_schur());
                 }
@@ -476,16 +475,19 @@ fn low_rank_update(l: &mut Mat<f64>, terms: &RankOneTerms) -> bool {
     })
 }
 
-/// The change of the interface Schur complement when the contact block S_cc of the
-/// boundary matrix S = [S_cc S_cg; S_gc S_gg] (factored as `l`, contact dofs first)
-/// changes by D = U Lambda U' (`terms`, all on contact dofs): by Woodbury's identity,
+/// The change of the interface Schur complement when the boundary matrix
+/// S = [S_cc S_cg; S_gc S_gg] (factored as `l`, contact dofs first) changes by
+/// D = U Lambda U' (`terms`; U = [U_c; U_g], on contact and interface dofs): with
+/// T = [I 0; -S_gc S_cc^-1 I], T S T' = diag(S_cc, S_g) and the Schur complement is the
+/// same for T (S + D) T', so by Woodbury's identity
 ///
-///     S_g(new) - S_g = Y M Y',   Y = L_gc Z,  Z = L_cc^-1 U,  M = (Lambda^-1 + Z'Z)^-1,
+///     S_g(new) - S_g = Y M Y',   Y = U_g - L_gc Z,  Z = L_cc^-1 U_c,  M = (Lambda^-1 + Z'Z)^-1,
 ///
-/// since S_gc S_cc^-1 = L_gc L_cc^-1 and U' S_cc^-1 U = Z'Z. Returned as rank-one terms
-/// (w, alpha) with M = Q diag(alpha) Q', w = Y Q: p (c^2 + c g + g^2) flops for p terms,
-/// where forming S_g again costs g^3 / 3. `None` when M is not finite (a downdate that
-/// cancels a pivot: the update in place fails as well).
+/// since S_gc S_cc^-1 = L_gc L_cc^-1 and U_c' S_cc^-1 U_c = Z'Z (a mortar row's
+/// retune touches interface dofs too: the master nodes of other subdomains). Returned
+/// as rank-one terms (w, alpha) with M = Q diag(alpha) Q', w = Y Q: p (c^2 + c g + g^2)
+/// flops for p terms, where forming S_g again costs g^3 / 3. `None` when M is not finite
+/// (a downdate that cancels a pivot: the update in place fails as well).
 fn schur_change(l: &Mat<f64>, nc: usize, terms: &RankOneTerms) -> Option<(Mat<f64>, Vec<f64>)> {
     let ng = l.nrows() - nc;
     let keep: Vec<usize> = (0..terms.values.len())
@@ -493,14 +495,19 @@ fn schur_change(l: &Mat<f64>, nc: usize, terms: &RankOneTerms) -> Option<(Mat<f6
         .collect();
     let p = keep.len();
     let mut z = Mat::<f64>::zeros(nc, p);
+    let mut u_g = Mat::<f64>::zeros(ng, p);
     for (j, &c) in keep.iter().enumerate() {
         for (a, &dof) in terms.touched.iter().enumerate() {
-            z[(dof, j)] = terms.vectors[(a, c)];
+            if dof < nc {
+                z[(dof, j)] = terms.vectors[(a, c)];
+            } else {
+                u_g[(dof - nc, j)] = terms.vectors[(a, c)];
+            }
         }
     }
     let par = faer::get_global_parallelism();
     solve_lower_triangular_in_place(l.submatrix(0, 0, nc, nc), z.as_mut(), par);
-    let y = l.submatrix(nc, 0, ng, nc) * &z;
+    let y = u_g - l.submatrix(nc, 0, ng, nc) * &z;
     let ztz = z.transpose() * &z;
     // M = (Lambda^-1 + Z'Z)^-1 = (I + Lambda Z'Z)^-1 Lambda: no division by a small value.
     let lambda: Vec<f64> = keep.iter().map(|&c| terms.values[c]).collect();
@@ -802,6 +809,17 @@ mod tests {
             // Lowered by half the smallest eigenvalue (spd adds n I): still positive.
             BTreeMap::from([((12, 12), -0.5 * n as f64)]),
             BTreeMap::from([((0, 0), 3.0), ((23, 23), 7.0), ((23, 0), 1.0)]),
+            // A mortar row's: a contact dof coupled with interface dofs, and an
+            // interface dof alone.
+            BTreeMap::from([
+                ((3, 3), 4.0),
+                ((30, 3), -2.0),
+                ((30, 30), 1.0),
+                ((41, 3), -2.0),
+                ((41, 30), 1.0),
+                ((41, 41), 1.0),
+            ]),
+            BTreeMap::from([((50, 50), 9.0), ((55, 50), 3.0)]),
         ] {
             let terms = RankOneTerms::of(&change, n).unwrap();
             let (w, alpha) = schur_change(&l, nc, &terms).expect("finite");
@@ -884,9 +902,10 @@ mod tests {
         stepped_and_direct(&[(7, 7, 5e4), (8, 8, 5e4)], &all);
     }
 
-    /// With interface dofs behind the contact ones: an update in place changes the kept
-    /// interface Schur complement by its low-rank term, which equals the complement
-    /// formed from the updated factor; a refactoring forms it again.
+    /// With interface dofs behind the contact ones: an update in place, on contact or
+    /// interface dofs, changes the kept interface Schur complement by its low-rank term,
+    /// which equals the complement formed from the updated factor; a refactoring forms it
+    /// again.
     #[test]
     fn interface_schur_follows_the_updates_of_the_contact_block() {
         let mesh = builtin::block(2.0, 1.0, 40, 10);
@@ -928,11 +947,20 @@ mod tests {
             let err = (&kept - &formed).norm_max();
             assert!(err < 1e-10 * formed.norm_max(), "step {step}: {err:e}");
         }
-        // An interface dof touched: formed again.
+        // Interface dofs touched, alone and coupled with a contact dof (a mortar row
+        // whose master nodes are interface nodes): a low-rank term all the same.
         let mut wide = all.clone();
         wide.push((nc + 3, nc + 3, 1.0));
+        wide.push((nc + 5, 2, -0.5));
+        let change = lf.update_boundary(&wide).unwrap();
+        assert!(matches!(change, SchurChange::LowRank { .. }));
+        let (kept, formed) = (lf.interface_schur(), lf.formed_schur());
+        let err = (&kept - &formed).norm_max();
+        assert!(err < 1e-10 * formed.norm_max(), "interface dofs: {err:e}");
+        // Most of the block changed: refactored, formed again.
+        let many: Vec<(usize, usize, f64)> = (0..nb).map(|k| (k, k, 3.0)).collect();
         assert!(matches!(
-            lf.update_boundary(&wide).unwrap(),
+            lf.update_boundary(&many).unwrap(),
             SchurChange::Full
         ));
         assert!(lf.schur_g.is_none());
