@@ -9,6 +9,10 @@ use super::sweep::Sweep;
 pub struct Augmentation {
     pub r_n: Vec<f64>,
     pub r_t: Vec<f64>,
+    /// Whether this r was set once the statuses had settled ([`Retune::ToStatus`]): free
+    /// directions are then lowered further ([`SETTLED_FREE_FACTOR`]).
+    #[serde(default)]
+    pub settled: bool,
 }
 
 impl Augmentation {
@@ -17,6 +21,7 @@ impl Augmentation {
         Augmentation {
             r_n: vec![r; n],
             r_t: vec![r; n],
+            settled: false,
         }
     }
 
@@ -25,21 +30,23 @@ impl Augmentation {
     /// `mesh_stiffness` the body's E_eff / h (0 when not known).
     pub fn for_statuses(
         kind: Retune,
-        held: &[(bool, bool)],
+        held: &[Held],
         frictional: bool,
         r: f64,
         mesh_stiffness: f64,
     ) -> Self {
         let mut aug = Augmentation::uniform(held.len(), r);
+        aug.settled = kind == Retune::ToStatus;
         for (i, &h) in held.iter().enumerate() {
+            let (r_n, r_t) = tuned(h, frictional, r, mesh_stiffness, aug.settled);
             match kind {
-                Retune::ToStatus => {
-                    (aug.r_n[i], aug.r_t[i]) = tuned(h, frictional, r, mesh_stiffness)
-                }
+                Retune::ToStatus => (aug.r_n[i], aug.r_t[i]) = (r_n, r_t),
                 Retune::Normals => {
-                    aug.r_n[i] = tuned(h, frictional, r, mesh_stiffness).0;
+                    aug.r_n[i] = r_n;
                     if frictional {
-                        aug.r_t[i] = r / TANGENT_FACTOR;
+                        // A loose tangent carries no force whatever the stage: it is
+                        // as free as an open normal.
+                        aug.r_t[i] = if h.loose { r_t } else { r / TANGENT_FACTOR };
                     }
                 }
                 Retune::ToReference => {}
@@ -60,6 +67,20 @@ pub const SETTLED_SWEEPS: usize = 1;
 /// 7-8; 1000 x, 6. Held x 100 with the normals following their statuses every sweep:
 /// hertz 13-17 sweeps at levels 1-3 against 9-13, the slender cases no better.
 pub(super) const NORMAL_FACTOR: f64 = 1000.0;
+/// The factor below the reference r of a free direction (an open normal, a loose
+/// tangent) once the statuses have settled ([`Retune::ToStatus`]), in place of
+/// [`NORMAL_FACTOR`]. A free direction carries no force: its spring w r only pulls it
+/// back towards its last value, and contracts the body's modes of compliance c by
+/// r c / (1 + r c) per sweep. While the contact zone moves, that pull keeps a sweep
+/// from throwing the body far through the foundation; once the statuses have settled it
+/// only slows the smooth modes of a body that the contact holds at a few nodes (a thin
+/// half ring standing on one node: r c about 2000 for its free arc at r / 1000, and 179
+/// to 240 sweeps on one piece whose statuses no longer changed; 35 with r / 10^4, 24
+/// with r / 10^5). Measured over the unstructured cases of docs/performance-history.md:
+/// 10^5 took a Tresca strip from 72 to 87-89 sweeps (its statuses flip back and forth:
+/// 50 retunes), 10^4 left every case but the ring within a few sweeps. A status change
+/// returns the free directions to [`NORMAL_FACTOR`] ([`Retune::Normals`]).
+pub(super) const SETTLED_FREE_FACTOR: f64 = 1.0e4;
 /// The same for the tangents. Friction statuses are fragile (a sticking node flips to
 /// slip when a large r amplifies the remaining tangential motion): over the built-in
 /// frictional cases at levels 1-3, 10 x gave 22-42 sweeps, 30 x 19-56, 1000 x 20-112;
@@ -108,10 +129,15 @@ pub const MAX_RETUNES: usize = 100;
 /// (E_eff / h, 0 when not known); lowered where free (open, slipping). Without friction
 /// the tangent is not part of the method and keeps r.
 pub fn tuned(
-    (held_n, held_t): (bool, bool),
+    Held {
+        n: held_n,
+        t: held_t,
+        loose,
+    }: Held,
     frictional: bool,
     r: f64,
     mesh_stiffness: f64,
+    settled: bool,
 ) -> (f64, f64) {
     let pick = |held: bool, factor: f64, floor: f64| {
         if held {
@@ -120,17 +146,48 @@ pub fn tuned(
             r / factor
         }
     };
-    let t = if frictional {
+    let free = if settled {
+        r / SETTLED_FREE_FACTOR
+    } else {
+        r / NORMAL_FACTOR
+    };
+    let t = if frictional && loose {
+        free
+    } else if frictional {
         pick(held_t, TANGENT_FACTOR, HELD_TANGENT_FLOOR)
     } else {
         r
     };
-    (pick(held_n, NORMAL_FACTOR, HELD_NORMAL_FLOOR), t)
+    let n = if held_n {
+        pick(true, NORMAL_FACTOR, HELD_NORMAL_FLOOR)
+    } else {
+        free
+    };
+    (n, t)
 }
 
 /// The largest r that [`tuned`] gives any direction: the scale of the sweep's round-off.
 pub fn largest_tuned(r: f64, mesh_stiffness: f64) -> f64 {
     (r * NORMAL_FACTOR).max(HELD_NORMAL_FLOOR * mesh_stiffness)
+}
+
+/// What holds a contact node's directions, as its status in an image says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Held {
+    /// The normal: pressed onto the foundation.
+    pub n: bool,
+    /// The tangent (with friction): sticking, below a positive slip threshold.
+    pub t: bool,
+    /// The tangent (with friction) has a zero slip threshold (an open node under
+    /// Coulomb, a frictionless contact among frictional ones): no force acts on it at
+    /// all, so it is as free as an open normal.
+    pub loose: bool,
+}
+
+impl Held {
+    pub fn new(n: bool, t: bool) -> Self {
+        Held { n, t, loose: false }
+    }
 }
 
 /// What [`retuned`] asks for.
@@ -278,22 +335,22 @@ mod tests {
         // A reference r lowered far below the mesh-scale stiffness (a slender body):
         // held directions rise to their floors, free ones stay below the reference.
         let (r, k) = (1.0, 1e6);
-        let (n, t) = tuned((true, true), true, r, k);
+        let (n, t) = tuned(Held::new(true, true), true, r, k, false);
         assert_eq!((n, t), (HELD_NORMAL_FLOOR * k, HELD_TANGENT_FLOOR * k));
         assert_eq!(
-            tuned((false, false), true, r, k),
+            tuned(Held::new(false, false), true, r, k, false),
             (r / NORMAL_FACTOR, r / TANGENT_FACTOR)
         );
         // A compact body's reference r: the factors already exceed the floors.
         let r = 1e5;
         assert_eq!(
-            tuned((true, true), true, r, 1e6),
+            tuned(Held::new(true, true), true, r, 1e6, false),
             (r * NORMAL_FACTOR, r * TANGENT_FACTOR)
         );
         assert_eq!(largest_tuned(r, 1e6), r * NORMAL_FACTOR);
         assert_eq!(largest_tuned(1.0, 1e6), HELD_NORMAL_FLOOR * 1e6);
         // Without friction the tangent keeps the reference r, floor or not.
-        assert_eq!(tuned((true, true), false, 1.0, k).1, 1.0);
+        assert_eq!(tuned(Held::new(true, true), false, 1.0, k, false).1, 1.0);
     }
 
     #[test]
@@ -314,20 +371,56 @@ mod tests {
     }
 
     #[test]
+    fn free_directions_are_lowered_further_once_settled() {
+        let r = 10.0;
+        // An open node under Coulomb: no threshold, its tangent as free as its normal.
+        let open = Held {
+            n: false,
+            t: false,
+            loose: true,
+        };
+        let free = r / NORMAL_FACTOR;
+        assert_eq!(tuned(open, true, r, 0.0, false), (free, free));
+        let settled = r / SETTLED_FREE_FACTOR;
+        assert_eq!(tuned(open, true, r, 0.0, true), (settled, settled));
+        // Held and slipping directions keep their factors.
+        assert_eq!(
+            tuned(Held::new(true, true), true, r, 0.0, true),
+            (r * NORMAL_FACTOR, r * TANGENT_FACTOR)
+        );
+        assert_eq!(
+            tuned(Held::new(true, false), true, r, 0.0, true).1,
+            r / TANGENT_FACTOR
+        );
+        // While the zone moves a loose tangent stays free, the others are lowered as if
+        // slipping; settling is what the tangents' retune does.
+        let held = [open, Held::new(true, true)];
+        let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0);
+        assert_eq!(a.r_t, vec![free, r / TANGENT_FACTOR]);
+        assert!(!a.settled);
+        let a = Augmentation::for_statuses(Retune::ToStatus, &held, true, r, 0.0);
+        assert!(a.settled);
+        assert_eq!(a.r_n, vec![settled, r * NORMAL_FACTOR]);
+    }
+
+    #[test]
     fn statuses_ask_for_their_r() {
         let r = 10.0;
         assert_eq!(
-            tuned((true, false), true, r, 0.0),
+            tuned(Held::new(true, false), true, r, 0.0, false),
             (r * NORMAL_FACTOR, r / TANGENT_FACTOR)
         );
         assert_eq!(
-            tuned((false, true), true, r, 0.0),
+            tuned(Held::new(false, true), true, r, 0.0, false),
             (r / NORMAL_FACTOR, r * TANGENT_FACTOR)
         );
         // Without friction the tangent keeps the reference r.
-        assert_eq!(tuned((true, false), false, r, 0.0), (r * NORMAL_FACTOR, r));
+        assert_eq!(
+            tuned(Held::new(true, false), false, r, 0.0, false),
+            (r * NORMAL_FACTOR, r)
+        );
         // Normals alone: tangents lowered with friction, kept without.
-        let held = [(true, true), (false, true)];
+        let held = [Held::new(true, true), Held::new(false, true)];
         let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0);
         assert_eq!(a.r_n, vec![r * NORMAL_FACTOR, r / NORMAL_FACTOR]);
         assert_eq!(a.r_t, vec![r / TANGENT_FACTOR; 2]);

@@ -3,7 +3,7 @@
 //! sums that the sweep's one all-reduce turns into its line of the history.
 
 use super::kernels::{coulomb_threshold, project_normal, shrink, state, update_multiplier};
-use super::retune::{largest_tuned, tuned, Augmentation};
+use super::retune::{largest_tuned, tuned, Augmentation, Held};
 use super::{ContactNodes, LinearStep, Reduce};
 use crate::error::Result;
 
@@ -87,11 +87,16 @@ pub(super) struct Derived {
 impl Derived {
     /// Whether node i's normal and tangential directions are held: pressed onto the
     /// foundation, and sticking (with friction).
-    pub(super) fn held(&self, i: usize, frictional: bool) -> (bool, bool) {
-        (self.lambda[i] > 0.0, frictional && self.q[i] == 0.0)
+    pub(super) fn held(&self, i: usize, frictional: bool) -> Held {
+        let loose = frictional && self.threshold[i] <= 0.0;
+        Held {
+            n: self.lambda[i] > 0.0,
+            t: frictional && !loose && self.q[i] == 0.0,
+            loose,
+        }
     }
 
-    fn statuses(&self, frictional: bool) -> Vec<(bool, bool)> {
+    fn statuses(&self, frictional: bool) -> Vec<Held> {
         (0..self.p.len())
             .map(|i| self.held(i, frictional))
             .collect()
@@ -381,7 +386,7 @@ pub(super) struct Sweeper<'a, S: LinearStep> {
     pub(super) mesh_stiffness: f64,
     pub(super) aug: Augmentation,
     /// The statuses in the image of the last evaluation (empty before the first).
-    last_held: Vec<(bool, bool)>,
+    last_held: Vec<Held>,
     /// How close (a length) a state may come to its status boundary before its status
     /// counts as uncertain: the estimated error of the last sweep.
     pub(super) margin: f64,
@@ -511,7 +516,7 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             if before.unwrap_or_else(|| inp.held(i, frictional)) != held {
                 s.changed += 1.0;
             }
-            let (want_n, want_t) = tuned(held, frictional, r, self.mesh_stiffness);
+            let (want_n, want_t) = tuned(held, frictional, r, self.mesh_stiffness, aug.settled);
             for (have, want) in [(aug.r_n[i], want_n), (aug.r_t[i], want_t)] {
                 if have > r {
                     s.stiff += 1.0;
@@ -533,6 +538,31 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tangent_without_threshold_is_loose() {
+        // Node 0 open under Coulomb (threshold 0), node 1 open under Tresca and stuck,
+        // node 2 pressed and slipping.
+        let d = Derived {
+            p: vec![-1.0, -1.0, 0.0],
+            lambda: vec![0.0, 0.0, 2.0],
+            q: vec![0.3, 0.0, 0.1],
+            mu: vec![0.0, 0.5, 1.0],
+            threshold: vec![0.0, 1.0, 1.0],
+        };
+        assert_eq!(
+            d.held(0, true),
+            Held {
+                n: false,
+                t: false,
+                loose: true
+            }
+        );
+        assert_eq!(d.held(1, true), Held::new(false, true));
+        assert_eq!(d.held(2, true), Held::new(true, false));
+        // Without friction there is no tangent to hold or loosen.
+        assert_eq!(d.held(0, false), Held::new(false, false));
+    }
 
     #[test]
     fn sums_travel_by_name() {

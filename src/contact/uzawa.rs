@@ -41,7 +41,7 @@
 
 use super::anderson::{dot, metric, span_secant, Anderson};
 use super::kernels::{coulomb_threshold, first_crossing, state};
-use super::retune::{retuned, Augmentation};
+use super::retune::{retuned, Augmentation, Held};
 use super::sweep::{
     error_estimate, project_and_update, relative, Derived, Law, Reduced, Sweep, Sweeper, ROUNDOFF,
 };
@@ -665,7 +665,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             return Ok(false);
         };
         let n = last.p.len();
-        let held: Vec<(bool, bool)> = (0..n).map(|i| last.held(i, frictional)).collect();
+        let held: Vec<Held> = (0..n).map(|i| last.held(i, frictional)).collect();
         let aug = Augmentation::for_statuses(
             kind,
             &held,
