@@ -44,9 +44,7 @@ impl Augmentation {
                 Retune::Normals => {
                     aug.r_n[i] = r_n;
                     if frictional {
-                        // A loose tangent carries no force whatever the stage: it is
-                        // as free as an open normal.
-                        aug.r_t[i] = if h.loose { r_t } else { r / TANGENT_FACTOR };
+                        aug.r_t[i] = r / TANGENT_FACTOR;
                     }
                 }
                 Retune::ToReference => {}
@@ -69,17 +67,19 @@ pub const SETTLED_SWEEPS: usize = 1;
 pub(super) const NORMAL_FACTOR: f64 = 1000.0;
 /// The factor below the reference r of a free direction (an open normal, a loose
 /// tangent) once the statuses have settled ([`Retune::ToStatus`]), in place of
-/// [`NORMAL_FACTOR`]. A free direction carries no force: its spring w r only pulls it
-/// back towards its last value, and contracts the body's modes of compliance c by
-/// r c / (1 + r c) per sweep. While the contact zone moves, that pull keeps a sweep
-/// from throwing the body far through the foundation; once the statuses have settled it
-/// only slows the smooth modes of a body that the contact holds at a few nodes (a thin
-/// half ring standing on one node: r c about 2000 for its free arc at r / 1000, and 179
-/// to 240 sweeps on one piece whose statuses no longer changed; 35 with r / 10^4, 24
-/// with r / 10^5). Measured over the unstructured cases of docs/performance-history.md:
-/// 10^5 took a Tresca strip from 72 to 87-89 sweeps (its statuses flip back and forth:
-/// 50 retunes), 10^4 left every case but the ring within a few sweeps. A status change
-/// returns the free directions to [`NORMAL_FACTOR`] ([`Retune::Normals`]).
+/// [`NORMAL_FACTOR`] (normals) and [`TANGENT_FACTOR`] (loose tangents, which were tuned
+/// as slipping ones). A free direction carries no force: its spring w r only pulls it
+/// back towards its last value, and holds the body's modes of compliance c by r c / (1 +
+/// r c) per sweep. While the contact zone moves, that pull keeps a sweep from throwing
+/// the body far through the foundation; once the statuses have settled it only slows the
+/// smooth modes of a body that the contact holds at few nodes. Measured on the thin half
+/// ring of make_cases.py --heldout, which stands on one sticking node: its 262 open nodes
+/// held its bending modes by r c of about 10^3 (normals at r / 1000) and 10^5 (tangents
+/// at r / 10), the loop contracted by 0.9999 on one piece whose statuses no longer
+/// changed, and took 455 sweeps (2 threads; 837 on 1, 531 on 2 ranks, 1410 on 3, the
+/// path following round-off); with this factor 38 on each. 10^5: ring 24, but a Tresca
+/// strip 73 -> 87 (its statuses flip back and forth, 50 retunes). A status change
+/// returns the free directions to the factors of the moving zone ([`Retune::Normals`]).
 pub(super) const SETTLED_FREE_FACTOR: f64 = 1.0e4;
 /// The same for the tangents. Friction statuses are fragile (a sticking node flips to
 /// slip when a large r amplifies the remaining tangential motion): over the built-in
@@ -126,8 +126,9 @@ pub const MAX_RETUNES: usize = 100;
 
 /// The r of a node's normal and tangential directions for its statuses: raised where
 /// held (pressed, sticking), at least to the floors above in units of `mesh_stiffness`
-/// (E_eff / h, 0 when not known); lowered where free (open, slipping). Without friction
-/// the tangent is not part of the method and keeps r.
+/// (E_eff / h, 0 when not known); lowered where free (open, slipping), further once
+/// `settled` for the directions that carry no force ([`SETTLED_FREE_FACTOR`]). Without
+/// friction the tangent is not part of the method and keeps r.
 pub fn tuned(
     Held {
         n: held_n,
@@ -151,7 +152,7 @@ pub fn tuned(
     } else {
         r / NORMAL_FACTOR
     };
-    let t = if frictional && loose {
+    let t = if frictional && loose && settled {
         free
     } else if frictional {
         pick(held_t, TANGENT_FACTOR, HELD_TANGENT_FLOOR)
@@ -180,7 +181,8 @@ pub struct Held {
     pub t: bool,
     /// The tangent (with friction) has a zero slip threshold (an open node under
     /// Coulomb, a frictionless contact among frictional ones): no force acts on it at
-    /// all, so it is as free as an open normal.
+    /// all. Tuned as a slipping tangent while the contact zone moves, as an open normal
+    /// once the statuses have settled ([`SETTLED_FREE_FACTOR`]).
     pub loose: bool,
 }
 
@@ -373,14 +375,17 @@ mod tests {
     #[test]
     fn free_directions_are_lowered_further_once_settled() {
         let r = 10.0;
-        // An open node under Coulomb: no threshold, its tangent as free as its normal.
+        // An open node under Coulomb: no threshold, its tangent carries no force.
         let open = Held {
             n: false,
             t: false,
             loose: true,
         };
-        let free = r / NORMAL_FACTOR;
-        assert_eq!(tuned(open, true, r, 0.0, false), (free, free));
+        // While the zone moves, as before: the normal / 1000, the tangent as slipping.
+        assert_eq!(
+            tuned(open, true, r, 0.0, false),
+            (r / NORMAL_FACTOR, r / TANGENT_FACTOR)
+        );
         let settled = r / SETTLED_FREE_FACTOR;
         assert_eq!(tuned(open, true, r, 0.0, true), (settled, settled));
         // Held and slipping directions keep their factors.
@@ -392,11 +397,10 @@ mod tests {
             tuned(Held::new(true, false), true, r, 0.0, true).1,
             r / TANGENT_FACTOR
         );
-        // While the zone moves a loose tangent stays free, the others are lowered as if
-        // slipping; settling is what the tangents' retune does.
+        // Settling is what the tangents' retune does; the normals' undoes it.
         let held = [open, Held::new(true, true)];
         let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0);
-        assert_eq!(a.r_t, vec![free, r / TANGENT_FACTOR]);
+        assert_eq!(a.r_n, vec![r / NORMAL_FACTOR, r * NORMAL_FACTOR]);
         assert!(!a.settled);
         let a = Augmentation::for_statuses(Retune::ToStatus, &held, true, r, 0.0);
         assert!(a.settled);
