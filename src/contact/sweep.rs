@@ -40,6 +40,10 @@ pub struct Sweep {
     pub mistuned: usize,
     /// Normal directions among them.
     pub mistuned_n: usize,
+    /// Directions whose r differs from what the retune of settled statuses would give
+    /// them: the mistuned ones, and the free ones not yet lowered further.
+    #[serde(default)]
+    pub unsettled: usize,
     /// Contact nodes whose status could still flip: the state of a direction lies closer
     /// to its status boundary (the gap, the slip threshold) than the estimated error of
     /// the sweep before.
@@ -164,6 +168,7 @@ pub(super) struct SweepSums {
     pub(super) mistuned: f64,
     pub(super) uncertain: f64,
     pub(super) mistuned_n: f64,
+    pub(super) unsettled: f64,
 }
 
 /// The floor of each quantity's scale, as a fraction of the other quantities' sizes of
@@ -186,7 +191,7 @@ pub const ROUNDOFF: f64 = 16.0 * f64::EPSILON;
 
 impl SweepSums {
     /// The numbers [`SweepSums::pack`] puts in the all-reduce.
-    pub(super) const LEN: usize = 16;
+    pub(super) const LEN: usize = 17;
 
     pub(super) fn pack(&self) -> [f64; Self::LEN] {
         [
@@ -206,11 +211,12 @@ impl SweepSums {
             self.mistuned,
             self.uncertain,
             self.mistuned_n,
+            self.unsettled,
         ]
     }
 
     pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
-        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain, mistuned_n] =
+        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain, mistuned_n, unsettled] =
             v;
         SweepSums {
             force_change_n,
@@ -229,6 +235,7 @@ impl SweepSums {
             mistuned,
             uncertain,
             mistuned_n,
+            unsettled,
         }
     }
 
@@ -300,6 +307,7 @@ impl SweepSums {
             soft: self.soft as usize,
             mistuned: self.mistuned as usize,
             mistuned_n: self.mistuned_n as usize,
+            unsettled: self.unsettled as usize,
             uncertain: self.uncertain as usize,
             retunes,
             refused: 0,
@@ -530,6 +538,9 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             if aug.r_n[i] != want_n {
                 s.mistuned_n += 1.0;
             }
+            let settled = tuned(held, frictional, r, self.mesh_stiffness, true);
+            s.unsettled += f64::from(u8::from(aug.r_n[i] != settled.0))
+                + f64::from(u8::from(aug.r_t[i] != settled.1));
         }
         s
     }
