@@ -25,9 +25,9 @@
 //! therefore bounds the accelerated one (at the price of one extra solve per refusal).
 //!
 //! ## Communication per sweep
-//! One linear step, and one all-reduce of 20 + m(m+1)/2 + m numbers: the 16 sums of
+//! One linear step, and one all-reduce of 21 + m(m+1)/2 + m numbers: the 17 sums of
 //! `SweepSums` (the squared W-norms of the changes, displacements and multipliers, the
-//! active, slip, changed, stiff, soft, mistuned (all and normal) and uncertain counts), the squared
+//! active, slip, changed, stiff, soft, mistuned (all and normal), uncertain and unsettled counts), the squared
 //! fixed-point residual, the secant's three squared norms, and the Anderson Gram matrix
 //! and right-hand side.
 //!
