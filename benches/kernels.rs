@@ -563,6 +563,7 @@ fn plots(c: &mut Criterion) {
                     soft: 0,
                     mistuned: 0,
                     mistuned_n: 0,
+                    unsettled: 0,
                     uncertain: 0,
                     retunes: (k / 8).min(4),
                     refused: k / 100,

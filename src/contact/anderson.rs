@@ -35,7 +35,7 @@ pub(super) fn metric(w: &[f64], aug: &Augmentation, r_ref: f64, frictional: bool
 /// The secant ratio below which the sweep map counts as a translation (see
 /// [`Anderson::propose`]); far below the slowest contraction worth accelerating (1e-6 is
 /// rho = 0.999999).
-const FLAT_SECANT: f64 = 1e-8;
+pub(super) const FLAT_SECANT: f64 = 1e-8;
 
 /// Anderson memory (m = 0: no acceleration): differences of residuals and of images of the last iterations.
 pub(super) struct Anderson {
@@ -314,6 +314,7 @@ mod tests {
         let aug = Augmentation {
             r_n: vec![1000.0 * r, r / 1000.0],
             r_t: vec![r / 10.0, 10.0 * r],
+            settled: false,
         };
         let omega = metric(&w, &aug, r, true);
         let dx = [1e-3, 1e3, 10.0, 0.1];

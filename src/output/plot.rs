@@ -807,6 +807,7 @@ mod tests {
             soft: 0,
             mistuned: 0,
             mistuned_n: 0,
+            unsettled: 0,
             uncertain: 0,
             retunes,
             refused,
