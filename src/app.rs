@@ -385,7 +385,7 @@ fn plot_facts<'a>(ctx: &Subdomain<'a>) -> PlotFacts<'a> {
             },
             _ => ALONG_OBSTACLES,
         },
-        friction: format!("friction {}", friction_name(&case.friction())),
+        friction: format!("friction {}", case.friction_name()),
         frictional: Problem::is_frictional(case),
         tol: case.solver.tol,
     }
@@ -919,14 +919,6 @@ pub fn load_mesh(case: &Case) -> Result<(Mesh, String)> {
     }
 }
 
-fn friction_name(f: &Friction) -> &'static str {
-    match f {
-        Friction::None => "none",
-        Friction::Tresca { .. } => "tresca",
-        Friction::Coulomb { .. } => "coulomb",
-    }
-}
-
 /// The size of the problem, for the first line.
 struct Size {
     nodes: usize,
@@ -942,7 +934,7 @@ fn header_line(case: &Case, size: &Size, r: f64, layout: Layout, per_rank: usize
         size.nodes,
         size.elements,
         size.contact_nodes,
-        friction_name(&case.friction()),
+        case.friction_name(),
         r,
         case.solver.tol,
         layout.ranks,
@@ -1187,7 +1179,7 @@ fn run_facts(ctx: &Subdomain) -> RunFacts {
         boundary_dofs: setup.facts.n_boundary,
         interface_dofs: setup.facts.n_interface,
         contact_nodes: setup.facts.contact_nodes,
-        friction: friction_name(&case.friction()),
+        friction: case.friction_name(),
         pairs: (case.contacts.iter())
             .map(|c| (c.group.clone(), c.kind(), c.master.clone()))
             .collect(),

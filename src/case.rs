@@ -133,6 +133,31 @@ impl Case {
             .find(|f| *f != Friction::None)
             .unwrap_or(Friction::None)
     }
+
+    /// Whether some contacts have Tresca friction and others Coulomb friction.
+    pub fn mixed_friction(&self) -> bool {
+        let has = |tresca: bool| {
+            (self.contacts.iter()).any(|c| match c.friction {
+                Friction::Tresca { .. } => tresca,
+                Friction::Coulomb { .. } => !tresca,
+                Friction::None => false,
+            })
+        };
+        has(true) && has(false)
+    }
+
+    /// The friction law as messages and summary.json name it: "none", "tresca",
+    /// "coulomb", or "tresca+coulomb" where contacts mix them.
+    pub fn friction_name(&self) -> &'static str {
+        if self.mixed_friction() {
+            return "tresca+coulomb";
+        }
+        match self.friction() {
+            Friction::None => "none",
+            Friction::Tresca { .. } => "tresca",
+            Friction::Coulomb { .. } => "coulomb",
+        }
+    }
 }
 
 // ---- raw TOML schema (serde), kept private: only validated `Case`s leave this module ----
@@ -684,28 +709,6 @@ fn validate_contacts(raw: OneOrMany<RawContact>, origin: &str) -> Result<Vec<Con
             master: c.master,
             friction,
         });
-    }
-    let law = |f: &Friction| match f {
-        Friction::None => "none",
-        Friction::Tresca { .. } => "tresca",
-        Friction::Coulomb { .. } => "coulomb",
-    };
-    // Frictionless contacts mix with frictional ones (a frictionless node is one with a
-    // zero coefficient or threshold); two frictional laws do not.
-    let frictional: Vec<(usize, &Contact)> = (contacts.iter().enumerate())
-        .filter(|(_, c)| c.friction != Friction::None)
-        .collect();
-    if let Some(&(i, c)) = frictional
-        .iter()
-        .find(|(_, c)| law(&c.friction) != law(&frictional[0].1.friction))
-    {
-        return input(format!(
-            "{origin}: contact #{} has friction = \"{}\" but contact #{} friction = \"{}\"; all contacts share one friction law for now (each its own coefficient or threshold, or \"none\"): give every frictional [[contact]] the same friction",
-            i + 1,
-            law(&c.friction),
-            frictional[0].0 + 1,
-            law(&frictional[0].1.friction)
-        ));
     }
     if let Some((i, c)) = (contacts.iter().enumerate())
         .find(|(i, c)| contacts[..*i].iter().any(|d| d.group == c.group))

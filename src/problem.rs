@@ -76,10 +76,28 @@ impl Problem {
 }
 
 /// `nodes` with each node's friction value (Coulomb coefficient or Tresca threshold) from
-/// its contact's law, where the contacts give different values (the law is the same
-/// kind on all: checked with the case); otherwise as they are, the one value of
-/// `Case::friction` serving every node.
+/// its contact's law, where the contacts give different values; otherwise as they are,
+/// the one value of `Case::friction` serving every node. Where Tresca and Coulomb
+/// contacts are mixed, `friction` holds the coefficients and `fixed_threshold` the
+/// thresholds (each 0 at the other law's nodes).
 pub fn with_friction_values(case: &Case, nodes: &ContactNodes) -> ContactNodes {
+    if case.mixed_friction() {
+        let mut out = nodes.clone();
+        let law = |p: &u32| case.contacts[*p as usize].friction;
+        out.friction = (nodes.pair.iter())
+            .map(|p| match law(p) {
+                Friction::Coulomb { coefficient } => coefficient,
+                _ => 0.0,
+            })
+            .collect();
+        out.fixed_threshold = (nodes.pair.iter())
+            .map(|p| match law(p) {
+                Friction::Tresca { threshold } => threshold,
+                _ => 0.0,
+            })
+            .collect();
+        return out;
+    }
     let value = |f: Friction| match f {
         Friction::None => 0.0,
         Friction::Tresca { threshold } => threshold,
@@ -474,6 +492,7 @@ fn contact_geometry(
         normal: geometry.iter().map(|g| g.normal).collect(),
         pair: contact_nodes.iter().map(|v| contact_of(v) as u32).collect(),
         friction: Vec::new(),
+        fixed_threshold: Vec::new(),
     };
     let masters: Vec<Vec<(usize, f64)>> = (contact_nodes.iter())
         .map(|v| rows.get(v).map_or_else(Vec::new, |r| r.1.masters.clone()))

@@ -334,13 +334,15 @@ fn the_punch_sticks_and_slips() {
 }
 
 /// Two contacts with their own friction: the block pushed by its left side slides
-/// against a wall (Coulomb 0.1, or frictionless) while its floor (Coulomb 0.3) holds it;
-/// each node obeys its own contact's law.
+/// against a wall (Coulomb 0.1, frictionless, or Tresca 2: laws mixed) while its floor
+/// (Coulomb 0.3) holds it; each node obeys its own contact's law, and the mixed laws
+/// agree on 1 and 3 ranks and with the outer Coulomb loop.
 #[test]
 fn each_contact_has_its_own_friction() {
     for wall_law in [
         "friction = \"coulomb\"\ncoefficient = 0.1",
         "friction = \"none\"",
+        "friction = \"tresca\"\nthreshold = 2.0",
     ] {
         let case = format!(
             r#"title = "block on a floor against a wall"
@@ -389,6 +391,26 @@ tol = 1e-10
             let s = run.summary();
             assert_eq!(s["contacts"][1]["active_nodes"], 20);
             assert_eq!(num(&s, "stick_nodes") + num(&s, "slip_nodes"), 81.0);
+        } else if wall_law.contains("tresca") {
+            assert_eq!(run.summary()["friction"], "tresca+coulomb");
+            let counts = check_kkt(&wall, Law::Tresca(2.0), 1e-7, "Tresca wall");
+            assert!(counts.slip >= 10, "the wall should slip: {counts:?}");
+            // Every slipping node carries the threshold, not a share of its pressure.
+            let slipping = wall.iter().filter(|r| r.u_t.abs() > 1e-9);
+            assert!(slipping.clone().all(|r| (r.p_t.abs() - 2.0).abs() < 1e-6));
+            let dir = tempfile::TempDir::new().unwrap();
+            std::fs::write(dir.path().join("case.toml"), &case).unwrap();
+            let args = ["case.toml", "--out", "out", "--quiet"];
+            let (code, _, err) = run_on_ranks(dir.path(), 3, &args);
+            assert_eq!(code, 0, "{err}");
+            let three = read_contact(&dir.path().join("out/contact.csv"));
+            assert_same_columns(&rows, &three, 1e-8, "mixed laws, 1 vs 3 ranks");
+            let outer = run_case(
+                &case.replace("tol = 1e-10", "tol = 1e-10\ncoulomb = \"outer\""),
+                &[],
+            );
+            outer.expect_code(0);
+            assert_same_columns(&rows, &outer.contact(), 1e-7, "mixed laws, inner vs outer");
         } else {
             let counts = check_kkt(&wall, Law::Coulomb(0.1), 1e-7, "wall");
             assert!(counts.slip >= 10, "the wall should slip: {counts:?}");

@@ -78,6 +78,12 @@ pub struct ContactNodes {
     /// change between runs of one split).
     #[serde(default)]
     pub friction: Vec<f64>,
+    /// Where Tresca and Coulomb contacts are mixed: each node's fixed slip threshold
+    /// (its Tresca threshold, 0 at a Coulomb node), `friction` then holding the Coulomb
+    /// coefficients (0 at a Tresca node), so that s_i = threshold_i + c_i p_n,i at every
+    /// node; empty otherwise. Filled from the case at each run, like `friction`.
+    #[serde(default)]
+    pub fixed_threshold: Vec<f64>,
 }
 
 /// The tangent of a unit normal: m turned clockwise.
@@ -97,6 +103,10 @@ impl ContactNodes {
             friction: keep
                 .iter()
                 .filter_map(|&k| self.friction.get(k).copied())
+                .collect(),
+            fixed_threshold: keep
+                .iter()
+                .filter_map(|&k| self.fixed_threshold.get(k).copied())
                 .collect(),
         }
     }

@@ -62,6 +62,11 @@ pub(super) enum Law<'a> {
     Fixed(&'a [f64]),
     /// The coefficient of each node.
     Coulomb(&'a [f64]),
+    /// Tresca and Coulomb contacts in one run: s_i = fixed_i + coefficient_i p_n,i.
+    Mixed {
+        fixed: &'a [f64],
+        coefficient: &'a [f64],
+    },
 }
 
 impl Law<'_> {
@@ -74,6 +79,9 @@ impl Law<'_> {
             Law::Frictionless => 0.0,
             Law::Fixed(s) => s[i],
             Law::Coulomb(c) => coulomb_threshold(c[i], lambda),
+            Law::Mixed { fixed, coefficient } => {
+                fixed[i] + coulomb_threshold(coefficient[i], lambda)
+            }
         }
     }
 }

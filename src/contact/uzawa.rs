@@ -217,7 +217,21 @@ pub fn solve_with(
         run.applied.push(Augmentation::uniform(n, r));
     }
     let mut outer_iterations = 1;
+    let mixed = !nodes.fixed_threshold.is_empty();
     let (converged, last, threshold) = match (params.friction, params.coulomb) {
+        // Tresca and Coulomb contacts in one run (see `ContactNodes::fixed_threshold`).
+        (_, CoulombMode::Inner) if mixed => {
+            let (fixed, coefficient) = (&nodes.fixed_threshold, &nodes.friction);
+            let (c, d) = run.sweeps(Law::Mixed { fixed, coefficient }, &mut x)?;
+            let s = mixed_thresholds(fixed, coefficient, &d.lambda);
+            (c, d, s)
+        }
+        (_, CoulombMode::Outer) if mixed => {
+            let (fixed, coefficient) = (&nodes.fixed_threshold, &nodes.friction);
+            let (c, d, s, outer) = run.coulomb_outer(fixed, coefficient, &mut x)?;
+            outer_iterations = outer;
+            (c, d, s)
+        }
         (Friction::None, _) => {
             let (c, d) = run.sweeps(Law::Frictionless, &mut x)?;
             (c, d, vec![0.0; n])
@@ -235,7 +249,7 @@ pub fn solve_with(
         }
         (Friction::Coulomb { coefficient }, CoulombMode::Outer) => {
             let coefficient = nodes.friction_values(coefficient);
-            let (c, d, s, outer) = run.coulomb_outer(&coefficient, &mut x)?;
+            let (c, d, s, outer) = run.coulomb_outer(&vec![0.0; n], &coefficient, &mut x)?;
             outer_iterations = outer;
             (c, d, s)
         }
@@ -321,6 +335,13 @@ fn initial_state(nodes: &ContactNodes, frictional: bool) -> Vec<f64> {
 }
 
 /// The Coulomb thresholds of the pressures `lambda`, each node with its coefficient.
+/// s_i = fixed_i + c_i p_n,i: Tresca and Coulomb contacts mixed.
+fn mixed_thresholds(fixed: &[f64], coefficient: &[f64], lambda: &[f64]) -> Vec<f64> {
+    (fixed.iter().zip(coulomb_thresholds(coefficient, lambda)))
+        .map(|(f, s)| f + s)
+        .collect()
+}
+
 fn coulomb_thresholds(coefficient: &[f64], lambda: &[f64]) -> Vec<f64> {
     (coefficient.iter().zip(lambda))
         .map(|(&c, &l)| coulomb_threshold(c, l))
@@ -667,7 +688,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         if !accelerating
             || cur.active > 0
             || cur.secant >= FLAT_SECANT
-            || matches!(law, Law::Fixed(_))
+            || matches!(law, Law::Fixed(_) | Law::Mixed { .. })
         {
             return None;
         }
@@ -720,11 +741,13 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         Ok(true)
     }
 
-    /// Coulomb, outer mode: Tresca solves with the thresholds frozen at the last
-    /// pressures, until the thresholds change by less than tol. Returns the outcome of
+    /// Coulomb, outer mode: Tresca solves with the thresholds fixed + c p_n frozen at the
+    /// last pressures (`fixed`: the Tresca nodes' thresholds where the laws are mixed,
+    /// else zeros), until the thresholds change by less than tol. Returns the outcome of
     /// [`Run::sweeps`], the last thresholds and the outer iterations.
     fn coulomb_outer(
         &mut self,
+        fixed: &[f64],
         coefficient: &[f64],
         x: &mut Vec<f64>,
     ) -> Result<(bool, Derived, Vec<f64>, usize)> {
@@ -736,7 +759,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             let outer_iterations = done_outer + 1;
             self.outer = Some((s.clone(), done_outer, last_change));
             let (inner_ok, d) = self.sweeps(Law::Fixed(&s), x)?;
-            let s_new = coulomb_thresholds(coefficient, &d.lambda);
+            let s_new = mixed_thresholds(fixed, coefficient, &d.lambda);
             // The outer iteration contracts too: its error is its change over 1 - rho,
             // rho the ratio of its last two changes.
             let change = self.threshold_change(&s, &s_new);
