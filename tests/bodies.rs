@@ -199,6 +199,64 @@ fn a_frictional_pair_agrees_on_one_and_three_ranks() {
     }
 }
 
+/// A half disc (steel) pressed into an aluminium block and dragged along it, Coulomb 0.3,
+/// both meshed unstructured on their own (`disc.msh`, `make_meshes.py --disc 0.1`): the
+/// slave line is the whole lower half circle, whose sides face the block's top at a
+/// grazing angle and must not be paired with it (they are kept as open rows, or left
+/// out). Stick and slip, the contact conditions, action and reaction, 1 and 3 ranks.
+#[test]
+fn a_disc_dragged_on_a_block() {
+    let case = r#"[mesh]
+file = "disc.msh"
+[[material]]
+group = "disc"
+young = 210000.0
+poisson = 0.3
+[[material]]
+group = "block"
+young = 70000.0
+poisson = 0.33
+[[dirichlet]]
+group = "block_bottom"
+ux = 0.0
+uy = 0.0
+[[dirichlet]]
+group = "disc_top"
+ux = 0.004
+uy = -0.05
+[[contact]]
+slave = "disc_arc"
+master = "block_top"
+friction = "coulomb"
+coefficient = 0.3
+[solver]
+tol = 1e-10
+"#;
+    let run = |np: usize| {
+        let dir = tempfile::TempDir::new().unwrap();
+        std::fs::copy(bodies_dir().join("disc.msh"), dir.path().join("disc.msh")).unwrap();
+        std::fs::write(dir.path().join("case.toml"), case).unwrap();
+        let result = run_on_ranks(dir.path(), np, &["case.toml", "--out", "out", "--quiet"]);
+        Run::kept(dir, result)
+    };
+    let (one, three) = (run(1), run(3));
+    one.expect_code(0);
+    three.expect_code(0);
+    let rows = one.contact();
+    let counts = check_kkt(&rows, Law::Coulomb(0.3), 1e-6, "disc");
+    assert!(counts.stick > 0 && counts.slip > 0, "{counts:?}");
+    // Every gap is that of a node facing the block from above: none below the block.
+    assert!(
+        rows.iter().all(|r| r.gap > -1e-9 && r.y >= 0.0),
+        "a bad pairing"
+    );
+    // Contact only around the bottom of the disc.
+    assert!(rows.iter().filter(|r| r.p_n > 0.0).all(|r| r.x.abs() < 1.0));
+    assert_same_columns(&rows, &three.contact(), 1e-8, "disc, 1 vs 3 ranks");
+    assert_action_reaction(&one, "disc");
+    assert_action_reaction(&three, "disc, 3 ranks");
+}
+
 /// A body that nothing holds but another body it only touches without friction slides
 /// off: refused before any work, with one line naming it.
 #[test]

@@ -19,10 +19,11 @@
 //! segment (the contact patch test), which node-to-segment pairing does not.
 //!
 //! A slave node whose support is only partly faced by the master line (at the end of
-//! the master) is kept when the faced part carries at least half of its dual weight; its
-//! coefficients are then scaled to sum to one (a rigid translation of both bodies
-//! leaves every gap unchanged, and the master takes exactly the slave's force); a node
-//! faced less is left out of the contact.
+//! the master, or where the lines turn away from each other) is kept when the faced part
+//! carries at least half of its weight; its row is then the phi_j-weighted mean of the
+//! master over that part. Every row's coefficients sum to one (a rigid translation of
+//! both bodies leaves every gap unchanged, and the master takes exactly the slave's
+//! force); a node faced less is left out of the contact.
 
 /// A boundary segment (nodes a, b) and the unit normal pointing out of its body.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -50,6 +51,21 @@ pub struct MortarRow {
 /// Share of a node's dual weight the master line must face for the node to be kept.
 pub const MIN_FACED: f64 = 0.5;
 
+/// How far (in the master segment's parameter) a normal line may cross a master line
+/// outside the segment it was paired with: round-off of the projections.
+const ETA_SLACK: f64 = 1e-6;
+
+/// Relative shortfall of the faced share below which a node counts as faced over its
+/// whole support (round-off of the projections).
+const FULLY_FACED: f64 = 1e-9;
+
+/// A slave and a master segment pair only where their outward normals are opposed within
+/// 60 degrees (cos = 0.5): beyond that the slave's normal meets the master line at a
+/// grazing angle, far from where the bodies could touch under small deformation (the
+/// sides of a disc resting on a block would otherwise be paired with the block's top,
+/// their normals' rays crossing it behind them).
+pub const FACING_COS: f64 = 0.5;
+
 fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
     [a[0] - b[0], a[1] - b[1]]
 }
@@ -65,7 +81,8 @@ fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
 /// it (as the established 2D mortar methods do): every master point is seen from exactly
 /// one slave point, with no gap or overlap at a slave node where the slave line turns, so
 /// that a curved interface keeps the weighted gaps of neighbouring nodes consistent. A
-/// master segment counts where its outward normal opposes the slave segment's. The
+/// master segment counts where its outward normal opposes the slave segment's within
+/// [`FACING_COS`] and it does not lie behind the slave segment. The
 /// products psi_j N_k are integrated with four Gauss points on each overlap (exact on a
 /// flat interface, where the pairing is affine).
 pub fn mortar_rows(nodes: &[[f64; 2]], slave: &[Segment], master: &[Segment]) -> Vec<MortarRow> {
@@ -74,7 +91,9 @@ pub fn mortar_rows(nodes: &[[f64; 2]], slave: &[Segment], master: &[Segment]) ->
     struct Acc {
         d: f64,
         normal: [f64; 2],
+        /// Integrals of psi_j N_k (the dual row) and of phi_j N_k (its faced share).
         m: BTreeMap<usize, f64>,
+        m_phi: BTreeMap<usize, f64>,
     }
     let mut acc: BTreeMap<usize, Acc> = BTreeMap::new();
     for s in slave {
@@ -139,7 +158,7 @@ pub fn mortar_rows(nodes: &[[f64; 2]], slave: &[Segment], master: &[Segment]) ->
                 .min_by(|p, q| (p - 0.5).abs().total_cmp(&(q - 0.5).abs()))
         };
         for m in master {
-            if dot(s.outward, m.outward) >= 0.0 {
+            if dot(s.outward, m.outward) > -FACING_COS {
                 continue;
             }
             let [c, d] = m.nodes;
@@ -152,22 +171,40 @@ pub fn mortar_rows(nodes: &[[f64; 2]], slave: &[Segment], master: &[Segment]) ->
                 continue;
             }
             let f = sub(yd, yc);
+            // At every Gauss point the normal line must cross this master segment (the
+            // overlap came from the normal field, which a far master point can only
+            // reach by extrapolating it beyond the segment), and not behind the slave
+            // point by more than a segment (a master line across the slave body).
+            let reach = len.max(dot(f, f).sqrt());
+            let paired = gauss.iter().all(|&(q, _)| {
+                let (x, n) = at(lo + q * (hi - lo));
+                let den = cross(f, n);
+                if den == 0.0 {
+                    return false;
+                }
+                let eta = cross(sub(x, yc), n) / den;
+                let y = [yc[0] + eta * f[0], yc[1] + eta * f[1]];
+                (-ETA_SLACK..=1.0 + ETA_SLACK).contains(&eta)
+                    && dot(sub(x, y), n) / dot(n, n).sqrt() >= -reach
+            });
+            if !paired {
+                continue;
+            }
             for (q, wq) in gauss {
                 let xi = lo + q * (hi - lo);
                 let (x, n) = at(xi);
-                // The master point on the normal line of x: yc + eta f.
-                let den = cross(f, n);
-                if den == 0.0 {
-                    continue;
-                }
-                let eta = (cross(sub(x, yc), n) / den).clamp(0.0, 1.0);
+                // The master point on the normal line of x: yc + eta f (within the
+                // segment, checked above; clamped for round-off).
+                let eta = (cross(sub(x, yc), n) / cross(f, n)).clamp(0.0, 1.0);
                 let psi = [2.0 - 3.0 * xi, 3.0 * xi - 1.0];
+                let phi = [1.0 - xi, xi];
                 let shape = [1.0 - eta, eta];
                 let weight = wq * (hi - lo) * len;
                 for (j, &vj) in [a, b].iter().enumerate() {
                     let row = acc.get_mut(&vj).expect("added above");
                     for (k, &vk) in [c, d].iter().enumerate() {
                         *row.m.entry(vk).or_insert(0.0) += weight * psi[j] * shape[k];
+                        *row.m_phi.entry(vk).or_insert(0.0) += weight * phi[j] * shape[k];
                     }
                 }
             }
@@ -175,14 +212,23 @@ pub fn mortar_rows(nodes: &[[f64; 2]], slave: &[Segment], master: &[Segment]) ->
     }
     acc.into_iter()
         .filter_map(|(node, a)| {
-            let faced: f64 = a.m.values().sum();
+            // The faced share of the node's support, phi_j weighted (in [0, 1]).
+            let faced: f64 = a.m_phi.values().sum();
             if faced < MIN_FACED * a.d {
                 return None;
             }
+            // Faced over its whole support: the dual row. Over part of it (the end of
+            // the master, or the edge of the facing cone): the dual functions integrated
+            // over part of their support no longer average the master around the node
+            // (they take negative values), so the row is the phi_j-weighted mean of the
+            // master over the faced part: non-negative weights near the node.
+            let whole = faced >= (1.0 - FULLY_FACED) * a.d;
+            let m = if whole { a.m } else { a.m_phi };
+            let sum: f64 = m.values().sum();
             let normal = normals[&node];
-            let masters: Vec<(usize, f64)> = (a.m.into_iter())
+            let masters: Vec<(usize, f64)> = (m.into_iter())
                 .filter(|&(_, m)| m != 0.0)
-                .map(|(k, m)| (k, m / faced))
+                .map(|(k, m)| (k, m / sum))
                 .collect();
             let mut mean = [0.0; 2];
             for &(k, c) in &masters {
@@ -280,6 +326,29 @@ mod tests {
         let mut nodes = Vec::new();
         let master = line(&mut nodes, &[0.0, 1.0], 0.0, false);
         let slave = line(&mut nodes, &[0.0, 1.0], 0.1, false);
+        assert!(mortar_rows(&nodes, &slave, &master).is_empty());
+        // Nor a master line across the slave body, five segments behind it.
+        let mut nodes = Vec::new();
+        let master = line(&mut nodes, &[-1.0, 3.0], 5.0, true);
+        let slave = line(&mut nodes, &[0.0, 1.0, 2.0], 0.0, false);
+        assert!(mortar_rows(&nodes, &slave, &master).is_empty());
+    }
+
+    #[test]
+    fn a_side_seen_at_a_grazing_angle_does_not_pair() {
+        // The lower left side of a disc (outward normal 80 degrees from straight down)
+        // above a flat master: its normal's ray would cross the master far away.
+        let (c, s) = (80f64.to_radians().cos(), 80f64.to_radians().sin());
+        let mut nodes = vec![[-20.0, 0.0], [20.0, 0.0]];
+        let master = vec![Segment {
+            nodes: [0, 1],
+            outward: [0.0, 1.0],
+        }];
+        nodes.extend([[-10.0, 9.0], [-9.8, 8.0]]);
+        let slave = vec![Segment {
+            nodes: [2, 3],
+            outward: [-s, -c],
+        }];
         assert!(mortar_rows(&nodes, &slave, &master).is_empty());
     }
 
