@@ -257,6 +257,72 @@ tol = 1e-10
     assert_action_reaction(&three, "disc, 3 ranks");
 }
 
+/// Non-zero displacements prescribed at a slave and at a master node (the blocks' left
+/// corners moved apart), Coulomb 0.2: the retunes of r (a hundred here) leave the answer
+/// that of a fixed r, on 1 and 3 ranks; the lifting of the prescribed values through the
+/// rows' coupling is consistent.
+#[test]
+fn prescribed_values_at_mortar_nodes_and_retunes() {
+    let case = blocks_case()
+        .replace(
+            "group = \"upper_left\"\nux = 0.0",
+            "group = \"upper_left\"\nux = 0.01",
+        )
+        .replace(
+            "group = \"lower_left\"\nux = 0.0",
+            "group = \"lower_left\"\nux = 0.02",
+        )
+        .replace(
+            "friction = \"none\"",
+            "friction = \"coulomb\"\ncoefficient = 0.2\n\n[solver]\ntol = 1e-11",
+        );
+    assert!(case.contains("ux = 0.02") && case.contains("ux = 0.01"));
+    let default = run_blocks(&case, 1);
+    default.expect_code(0);
+    assert!(
+        num(&default.summary(), "r_retunes") > 0.0,
+        "no retune to test"
+    );
+    let r = num(&default.summary(), "r");
+    let fixed = run_blocks(
+        &case.replace("tol = 1e-11", &format!("tol = 1e-11\nr = {r:?}")),
+        1,
+    );
+    fixed.expect_code(0);
+    assert_eq!(num(&fixed.summary(), "r_retunes"), 0.0);
+    let rows = default.contact();
+    check_kkt(&rows, Law::Coulomb(0.2), 1e-8, "retuned");
+    // Every slave node is in contact: u_n is round-off around zero, so the pressures and
+    // tractions are compared in contact.csv and the displacement in nodes.csv.
+    let same = |other: &Run, what: &str| {
+        let d = column_diffs(&rows, &other.contact());
+        assert!(
+            d[4] <= 1e-9 && d[5] <= 1e-9,
+            "{what}: p_n, p_t differ by {d:?}"
+        );
+        let (a, b) = (
+            read_nodes(&default.out.join("nodes.csv")),
+            read_nodes(&other.out.join("nodes.csv")),
+        );
+        let scale = a.iter().map(|n| n[2].hypot(n[3])).fold(0.0, f64::max);
+        let worst = (a.iter().zip(&b))
+            .map(|(p, q)| (p[2] - q[2]).hypot(p[3] - q[3]))
+            .fold(0.0, f64::max);
+        println!(
+            "{what}: p_n, p_t {:e} {:e}, u {:e}",
+            d[4],
+            d[5],
+            worst / scale
+        );
+        assert!(
+            worst <= 1e-9 * scale,
+            "{what}: displacements differ by {worst:e}"
+        );
+    };
+    same(&fixed, "retuned vs fixed r");
+    same(&run_blocks(&case, 3), "1 vs 3 ranks");
+}
+
 /// A body that nothing holds but another body it only touches without friction slides
 /// off: refused before any work, with one line naming it.
 #[test]
