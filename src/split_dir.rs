@@ -115,13 +115,13 @@ fn fingerprint(case: &Case) -> BTreeMap<String, String> {
         ),
         MeshSource::Builtin { name, level } => format!("builtin {name:?} {level}"),
     };
-    // Each contact's group and obstacle (the nodes' frames and gaps are in the parts),
-    // and whether there is friction (which decides the boundary dofs).
+    // Each contact's group, obstacle or master (the nodes' frames, gaps and mortar rows
+    // are in the parts), and whether there is friction (which decides the boundary dofs).
     let contact = format!(
         "{} {}",
         json(
             &(case.contacts.iter())
-                .map(|c| (&c.group, &c.obstacle))
+                .map(|c| (&c.group, &c.obstacle, &c.master))
                 .collect::<Vec<_>>()
         ),
         !matches!(case.friction(), Friction::None)
