@@ -785,10 +785,16 @@ fn partition_problem(
     mesh_name: &str,
     nparts: usize,
 ) -> Result<(Facts, Vec<SubProblem>)> {
-    let part = partition::partition_mesh(
+    // Each slave node of a contact between bodies tied to its master nodes: the parts
+    // then keep a contact zone's two sides together (see `partition_mesh_with_ties`).
+    let ties: Vec<[usize; 2]> = (prob.contact_nodes.iter().zip(&prob.contact_masters))
+        .flat_map(|(&s, masters)| masters.iter().map(move |&(m, _)| [s, m]))
+        .collect();
+    let part = partition::partition_mesh_with_ties(
         prob.mesh.num_nodes(),
         &prob.mesh.triangles,
         &prob.contact_nodes,
+        &ties,
         nparts,
     )
     .map_err(|e| Error::Input(format!("{mesh_name}: cannot partition the mesh: {e}")))?;

@@ -149,6 +149,56 @@ pub(crate) fn dual_from_stars(
     })
 }
 
+/// `graph` with an edge between the first triangles around the two nodes of each tie
+/// (node pairs coupled by something other than the mesh, e.g. the two sides of a contact
+/// between bodies), where not already adjacent: the partitioner then pays for cutting a
+/// tie as for cutting an edge of the mesh.
+pub(crate) fn with_ties(
+    graph: Graph,
+    stars: &Stars,
+    ties: &[[usize; 2]],
+) -> Result<Graph, PartitionError> {
+    if ties.is_empty() {
+        return Ok(graph);
+    }
+    let n = graph.num_vertices();
+    let mut extra: Vec<Vec<Idx>> = vec![Vec::new(); n];
+    for &[a, b] in ties {
+        let (Some(&ta), Some(&tb)) = (stars.of(a).first(), stars.of(b).first()) else {
+            continue;
+        };
+        if ta != tb {
+            extra[ta as usize].push(tb);
+            extra[tb as usize].push(ta);
+        }
+    }
+    let mut xadj = Vec::with_capacity(n + 1);
+    xadj.push(0 as Idx);
+    let mut adjncy = Vec::with_capacity(graph.adjncy.len() + 2 * ties.len());
+    for (v, more) in extra.iter_mut().enumerate() {
+        let start = adjncy.len();
+        adjncy.extend_from_slice(&graph.adjncy[graph.range(v)]);
+        adjncy.append(more);
+        let row = &mut adjncy[start..];
+        row.sort_unstable();
+        let mut kept = row.len().min(1);
+        for i in 1..row.len() {
+            if row[i] != row[kept - 1] {
+                row[kept] = row[i];
+                kept += 1;
+            }
+        }
+        adjncy.truncate(start + kept);
+        xadj.push(to_idx(adjncy.len())?);
+    }
+    Ok(Graph {
+        xadj,
+        adjncy,
+        vwgt: graph.vwgt,
+        adjwgt: None,
+    })
+}
+
 /// For each colour `c < ncolours`, the number of connected pieces of the subgraph
 /// induced by the vertices of colour `c`; and the total weight of the edges between
 /// different colours.

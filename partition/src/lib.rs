@@ -348,6 +348,25 @@ pub fn partition_mesh(
     contact_nodes: &[usize],
     nparts: usize,
 ) -> Result<Partition, PartitionError> {
+    partition_mesh_with_ties(num_nodes, triangles, contact_nodes, &[], nparts)
+}
+
+/// [`partition_mesh`] with `ties`: pairs of nodes that something other than the mesh
+/// couples (a slave node of a contact between two bodies and each master node of its
+/// row). Each tie is an edge of the dual graph between a triangle around either node,
+/// so that the parts keep tied nodes together where that costs no more than cutting
+/// the mesh: two bodies in contact are then not split along their contact, whose
+/// master nodes would all become interface nodes.
+///
+/// # Errors
+/// As [`partition_mesh`].
+pub fn partition_mesh_with_ties(
+    num_nodes: usize,
+    triangles: &[[usize; 3]],
+    contact_nodes: &[usize],
+    ties: &[[usize; 2]],
+    nparts: usize,
+) -> Result<Partition, PartitionError> {
     check_nparts(nparts, triangles.len())?;
     validate_triangles(num_nodes, triangles)?;
     if nparts == 1 {
@@ -357,7 +376,15 @@ pub fn partition_mesh(
         return build_partition(num_nodes, triangles, contact_nodes, 1, element_part, &mesh);
     }
     let mesh = Connectivity::new(num_nodes, triangles)?;
-    let mut element_part = partition_graph(mesh.graph()?, nparts, METIS_MAX_VERTICES)?;
+    let tied = match ties {
+        [] => None,
+        _ => Some(graph::with_ties(mesh.graph()?.clone(), &mesh.stars, ties)?),
+    };
+    let graph = match &tied {
+        Some(g) => g,
+        None => mesh.graph()?,
+    };
+    let mut element_part = partition_graph(graph, nparts, METIS_MAX_VERTICES)?;
     fill_empty_parts(&mut element_part, nparts);
     build_partition(
         num_nodes,

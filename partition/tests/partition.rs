@@ -3,7 +3,9 @@
 mod common;
 
 use common::{irregular, rectangle, two_bodies};
-use partition::{dual_graph, partition_mesh, Partition, PartitionError, NO_PART};
+use partition::{
+    dual_graph, partition_mesh, partition_mesh_with_ties, Partition, PartitionError, NO_PART,
+};
 use std::collections::BTreeSet;
 
 type Mesh = (usize, Vec<[usize; 3]>, Vec<usize>);
@@ -448,4 +450,34 @@ fn one_part_is_the_whole_mesh_without_a_dual_graph() {
     let one = partition_mesh(n, &tris, &contact, 1).unwrap();
     assert_eq!(one.quality.disconnected_parts, 1, "{}", one.quality);
     assert_eq!(one.quality.edge_cut, 0);
+}
+
+#[test]
+fn ties_keep_two_bodies_in_contact_together() {
+    // Two flat bodies, the top of the first against the bottom of the second. Alone,
+    // the dual graph is two pieces and two parts take one body each, so every contact
+    // pair straddles the cut; tied, the cut crosses the contact once instead.
+    let (nx, ny) = (40, 6);
+    let mesh = two_bodies(nx, ny);
+    let n = mesh.0 / 2;
+    let ties: Vec<[usize; 2]> = (0..=nx).map(|i| [ny * (nx + 1) + i, n + i]).collect();
+    let split = |p: &Partition| {
+        (ties.iter())
+            .filter(|[a, b]| p.node_owner[*a] != p.node_owner[*b])
+            .count()
+    };
+    let alone = partition_mesh(mesh.0, &mesh.1, &mesh.2, 2).unwrap();
+    assert_eq!(split(&alone), nx + 1, "the bodies were not split apart");
+    let tied = partition_mesh_with_ties(mesh.0, &mesh.1, &mesh.2, &ties, 2).unwrap();
+    check_partition(&mesh, &tied);
+    assert!(
+        split(&tied) <= 2,
+        "{} tied pairs across the cut",
+        split(&tied)
+    );
+    // No ties: the same parts as without the argument.
+    assert_eq!(
+        partition_mesh_with_ties(mesh.0, &mesh.1, &mesh.2, &[], 2).unwrap(),
+        alone
+    );
 }
