@@ -164,6 +164,23 @@ fn two_elastic_cylinders_against_hertz() {
         e_a.abs() <= 0.01 && e_p.abs() <= 0.01 && profile <= 0.01,
         "finest: half-width {e_a:e}, peak {e_p:e}, profile {profile:e}"
     );
+    // The same answer on 3 ranks (the contact zone's rows and masters across the cut).
+    let one = run_builtin("cylinders", 1, &[]);
+    let dir = tempfile::TempDir::new().unwrap();
+    let args = [
+        "--builtin",
+        "cylinders",
+        "--level",
+        "1",
+        "--out",
+        "out",
+        "--quiet",
+    ];
+    let (code, _, err) = run_on_ranks(dir.path(), 3, &args);
+    assert_eq!(code, 0, "{err}");
+    let three = read_contact(&dir.path().join("out/contact.csv"));
+    let d = column_diffs(&one.contact(), &three);
+    assert!(d[4] <= 1e-9, "p_n differs on 3 ranks by {d:?}");
 }
 
 /// The upper block dragged sideways on the lower one with Coulomb friction (held along x
