@@ -41,7 +41,7 @@
 use contact_par::app::load_mesh;
 use contact_par::case::{self, Case};
 use contact_par::contact::kernels::{coulomb_threshold, normal_from_state, tangential_from_state};
-use contact_par::contact::operators::{contact_blocks, ContactDofs};
+use contact_par::contact::operators::{contact_blocks, ContactDofs, ContactRowsGeometry};
 use contact_par::contact::Acceleration;
 use contact_par::contact::{self, LinearStep, NoComm, Params};
 use contact_par::dd::condense::{ContactRows, LocalResponse};
@@ -187,15 +187,16 @@ impl Fixture {
     /// contact rows against the trailing block of the factor.
     fn condensed(&self, factor: &mut LocalFactor, base: &[f64]) -> LocalResponse {
         let (g, _) = factor.condensed_rhs(base);
-        let rows = ContactRows::new(
-            &self.prob.contact_nodes,
-            &self.prob.fixed,
-            &self.boundary_dofs(),
-            &self.prob.contact.normal,
-            &self.prob.contact_masters,
-            self.frictional,
-        )
-        .expect("contact rows");
+        let geometry = ContactRowsGeometry {
+            nodes: &self.prob.contact_nodes,
+            masters: &self.prob.contact_masters,
+            w: &self.prob.contact.w,
+            normals: &self.prob.contact.normal,
+            step_normals: &self.prob.contact.normal,
+            frictional: self.frictional,
+        };
+        let rows = ContactRows::new(&geometry, &self.prob.fixed, &self.boundary_dofs())
+            .expect("contact rows");
         LocalResponse::new(rows, g)
     }
 

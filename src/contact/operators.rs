@@ -68,7 +68,12 @@ pub struct ContactRowsGeometry<'a> {
     /// Each row's master nodes and coefficients (empty against an obstacle).
     pub masters: &'a [Vec<(usize, f64)>],
     pub w: &'a [f64],
+    /// Each row's normal m (from the master into the slave body).
     pub normals: &'a [[f64; 2]],
+    /// The normal of each row's own node as the linear step sees it: (1, 0) for a node
+    /// whose dofs are turned into its frame (m . u, ...), else m. The master nodes are
+    /// never turned: they read m.
+    pub step_normals: &'a [[f64; 2]],
     /// Whether the tangential augmentation is part of A.
     pub frictional: bool,
 }
@@ -92,6 +97,7 @@ pub fn mortar_blocks(
         masters,
         w,
         normals,
+        step_normals,
         frictional,
     } = *rows;
     let (mut same, mut cross) = (Vec::new(), Vec::new());
@@ -99,16 +105,21 @@ pub fn mortar_blocks(
         let Some(row) = masters.get(k).filter(|m| !m.is_empty()) else {
             continue;
         };
-        let (m, t) = (normals[k], tangent_of(normals[k]));
         let (a, b) = (w[k] * r_n[k], if frictional { w[k] * r_t[k] } else { 0.0 });
-        let unit: [[f64; 2]; 2] =
-            std::array::from_fn(|i| std::array::from_fn(|j| a * m[i] * m[j] + b * t[i] * t[j]));
-        let scaled = |f: f64| unit.map(|r| r.map(|v| f * v));
+        // The row's direction at each of its nodes: the slave's own frame, m elsewhere.
         let on = row_nodes(node, row);
+        let dir = |i: usize| if i == 0 { step_normals[k] } else { normals[k] };
+        let block = |i: usize, j: usize, f: f64| -> [[f64; 2]; 2] {
+            let (mi, mj) = (dir(i), dir(j));
+            let (ti, tj) = (tangent_of(mi), tangent_of(mj));
+            std::array::from_fn(|x| {
+                std::array::from_fn(|y| f * (a * mi[x] * mj[y] + b * ti[x] * tj[y]))
+            })
+        };
         for (i, &(p, fp)) in on.iter().enumerate() {
-            same.push((p, scaled(fp * fp)));
-            for &(q, fq) in &on[..i] {
-                cross.push((p, q, scaled(fp * fq)));
+            same.push((p, block(i, i, fp * fp)));
+            for (j, &(q, fq)) in on[..i].iter().enumerate() {
+                cross.push((p, q, block(i, j, fp * fq)));
             }
         }
     }
@@ -195,6 +206,7 @@ mod tests {
             masters: &masters,
             w: &[1.0, 2.0],
             normals: &[[0.0, 1.0], [0.0, 1.0]],
+            step_normals: &[[0.0, 1.0], [0.0, 1.0]],
             frictional: true,
         };
         let (same, cross) = mortar_blocks(&rows, &[5.0, 5.0], &[1.0, 1.0]);

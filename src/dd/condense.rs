@@ -19,7 +19,7 @@
 //! the trailing block of the sparse factor. The first rank's dense work is set by the
 //! interface alone (n_G^3 / 3 once, 2 n_G^2 a sweep), not by the contact boundary.
 
-use crate::contact::operators::row_nodes;
+use crate::contact::operators::{row_nodes, ContactRowsGeometry};
 use crate::contact::tangent_of;
 use crate::dd::local_factor::LocalFactor;
 use crate::error::{Error, Result};
@@ -38,16 +38,15 @@ pub struct ContactRows {
 }
 
 impl ContactRows {
-    /// `contact_nodes` are local node ids, `fixed` the prescribed value of each local dof,
-    /// `boundary_dofs` the local dof of each position in B.
+    /// `rows.nodes` are local node ids, `fixed` the prescribed value of each local dof,
+    /// `boundary_dofs` the local dof of each position in B. A row's own node is read
+    /// along its step normal (in its frame where it has one), its master nodes along m.
     pub fn new(
-        contact_nodes: &[usize],
+        rows: &ContactRowsGeometry,
         fixed: &[Option<f64>],
         boundary_dofs: &[usize],
-        normals: &[[f64; 2]],
-        masters: &[Vec<(usize, f64)>],
-        frictional: bool,
     ) -> Result<Self> {
+        let (contact_nodes, masters, frictional) = (rows.nodes, rows.masters, rows.frictional);
         let mut position = std::collections::HashMap::with_capacity(boundary_dofs.len());
         for (k, &d) in boundary_dofs.iter().enumerate() {
             position.insert(d, k);
@@ -57,16 +56,20 @@ impl ContactRows {
         let mut entries = Vec::with_capacity(2 * per * n);
         let mut c0 = vec![0.0; per * n];
         for (k, &v) in contact_nodes.iter().enumerate() {
-            let (normal, tangent) = (normals[k], tangent_of(normals[k]));
-            // u_n = -m.u, u_t = t.u.
-            let kinds: &[(usize, [f64; 2])] = if frictional {
-                &[(k, [-normal[0], -normal[1]]), (n + k, tangent)]
-            } else {
-                &[(k, [-normal[0], -normal[1]])]
+            // u_n = -m.u, u_t = t.u, at the row's own node along its step normal.
+            let kinds = |normal: [f64; 2]| -> Vec<(usize, [f64; 2])> {
+                let tangent = tangent_of(normal);
+                let mut kinds = vec![(k, [-normal[0], -normal[1]])];
+                if frictional {
+                    kinds.push((n + k, tangent));
+                }
+                kinds
             };
             let on = row_nodes(v, masters.get(k).map_or(&[][..], |m| &m[..]));
-            for &(row, coef) in kinds {
-                for &(node, factor) in &on {
+            let (own, others) = (kinds(rows.step_normals[k]), kinds(rows.normals[k]));
+            for d in 0..own.len() {
+                for (i, &(node, factor)) in on.iter().enumerate() {
+                    let (row, coef) = if i == 0 { own[d] } else { others[d] };
                     for comp in 0..2 {
                         let dof = 2 * node + comp;
                         if coef[comp] == 0.0 {
@@ -492,8 +495,15 @@ mod tests {
         // Node 0: both dofs free; node 1: x prescribed to 0.5.
         let fixed = vec![None, None, Some(0.5), None];
         let boundary = vec![3, 0, 1];
-        let m = [0.0, 1.0];
-        let rows = ContactRows::new(&[0, 1], &fixed, &boundary, &[m, m], &[], true).unwrap();
+        let geometry = |nodes: &'static [usize], frictional| ContactRowsGeometry {
+            nodes,
+            masters: &[],
+            w: &[1.0, 1.0],
+            normals: &[[0.0, 1.0], [0.0, 1.0]],
+            step_normals: &[[0.0, 1.0], [0.0, 1.0]],
+            frictional,
+        };
+        let rows = ContactRows::new(&geometry(&[0, 1], true), &fixed, &boundary).unwrap();
         assert_eq!(rows.len(), 4);
         // u_n = -m.u = -u_y, u_t = t.u = u_x.
         let mut e = rows.entries.clone();
@@ -503,7 +513,7 @@ mod tests {
         assert_eq!(nonzero, expected);
         assert_eq!(rows.c0, vec![0.0, 0.0, 0.0, 0.5]);
         // A contact dof that is not in B is an internal error, not a panic.
-        assert!(ContactRows::new(&[0], &fixed, &[3], &[m], &[], false).is_err());
+        assert!(ContactRows::new(&geometry(&[0], false), &fixed, &[3]).is_err());
     }
 
     #[test]

@@ -142,9 +142,10 @@ pub fn split(
         is_contact[c] = true;
         let m = prob.contact.normal[k];
         let fixed = [0, 1].map(|i| prob.fixed[2 * c + i].is_some());
-        // A mortar row reads its master nodes in x, y: neither end of it turns.
-        let mortar = !masters(k).is_empty() || is_master[c];
-        if !mortar && in_frame(frictional, m, fixed) {
+        // A mortar row reads its master nodes in x, y along its normal (the rows of
+        // several slave nodes along theirs): a master node does not turn; the slave node
+        // does, like a node against an obstacle.
+        if !is_master[c] && in_frame(frictional, m, fixed) {
             frame[c] = Some(m);
             read[c] = [true, false];
         } else {

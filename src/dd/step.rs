@@ -174,13 +174,11 @@ impl<'a> CondensedStep<'a> {
         let (g_local, interior_forward) =
             timer.time(Phase::OneSolve, || local.factor.condensed_rhs(&local.base));
         let s_local = local.factor.interface_schur();
+        let step_normals = sub.step_normals();
         let rows = mpi.agree(ContactRows::new(
-            &sub.contact_nodes,
+            &contact_rows(sub, &step_normals, setup.frictional),
             &sub.fixed,
             &sub.boundary_dofs,
-            &sub.step_normals(),
-            &sub.contact_masters,
-            setup.frictional,
         ))?;
         drop(schur);
 
@@ -429,14 +427,15 @@ impl LinearStep for CondensedStep<'_> {
 /// The subdomain's contact rows for `mortar_blocks`, with the normals the step sees.
 fn contact_rows<'a>(
     sub: &'a SubProblem,
-    normals: &'a [[f64; 2]],
+    step_normals: &'a [[f64; 2]],
     frictional: bool,
 ) -> ContactRowsGeometry<'a> {
     ContactRowsGeometry {
         nodes: &sub.contact_nodes,
         masters: &sub.contact_masters,
         w: &sub.contact.w,
-        normals,
+        normals: &sub.contact.normal,
+        step_normals,
         frictional,
     }
 }
