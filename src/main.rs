@@ -150,6 +150,11 @@ struct Cli {
     /// runs parts / ranks subdomains).
     #[arg(long, value_name = "DIR")]
     mesh_split: Option<PathBuf>,
+    /// The first rank alone reads a Gmsh mesh file. By default, on several ranks, each
+    /// parses a share of an MSH 4.1 file's nodes and elements (the file must be readable
+    /// by every rank; where it is not, the first reads it alone).
+    #[arg(long)]
+    read_alone: bool,
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -317,6 +322,7 @@ fn run() -> i32 {
         interface: cli.interface,
         subdomains_per_rank: cli.subdomains_per_rank.map(|k| k as usize),
         mesh_split: cli.mesh_split,
+        read_alone: cli.read_alone,
     };
     let print = Printer {
         enabled: rank == 0 && !opts.quiet,
