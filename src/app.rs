@@ -64,8 +64,20 @@ pub struct Options {
     pub subdomains_per_rank: Option<usize>,
     /// A directory of `contact-par split`: each subdomain reads its own part there.
     pub mesh_split: Option<PathBuf>,
-    /// The first rank alone reads a Gmsh file, even on several ranks.
-    pub read_alone: bool,
+    /// Who reads a Gmsh file on several ranks.
+    pub mesh_read: MeshRead,
+}
+
+/// Who reads a Gmsh mesh file when the job has several ranks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeshRead {
+    /// [`MeshRead::Shared`] when the ranks span several nodes, else [`MeshRead::First`].
+    Auto,
+    /// The first rank, on the idle cores of its node.
+    First,
+    /// Every rank parses a share of an MSH 4.1 file's nodes and elements
+    /// ([`read_together`]).
+    Shared,
 }
 
 /// Where the interface system (the subdomains' condensed parts, summed) is factored and
@@ -945,14 +957,21 @@ impl Together {
 /// `$Nodes` and `$Elements`), every rank parses a share of them, and the first gathers
 /// their values (one gather per array), to put the mesh together in [`prepare`].
 /// `None` on the other ranks, and where the first reads alone (one rank, a split
-/// directory, `--read-alone`): [`prepare`] then reads everything.
+/// directory, [`MeshRead`]): [`prepare`] then reads everything.
 ///
 /// Why: on a cluster the first rank has only its node's cores; here every node's parse
 /// the numbers' text, most of the read. Any fault (a share that cannot be parsed, a file
 /// another rank cannot open, a layout the shares do not expect) sends every rank back to
 /// the first rank's reading, which names the fault as it always has.
 fn read_together(opts: &Options, mpi: &Mpi, timer: &Timer) -> Option<Early> {
-    if mpi.size == 1 || mpi.per_rank() > 1 || opts.mesh_split.is_some() || opts.read_alone {
+    // On one node the first rank's reading borrows every core the others would parse
+    // on, without the scan, the gathers and the assembly (docs/performance.md).
+    let shared = match opts.mesh_read {
+        MeshRead::Auto => mpi.node_ranks < mpi.size,
+        MeshRead::First => false,
+        MeshRead::Shared => true,
+    };
+    if !shared || mpi.size == 1 || mpi.per_rank() > 1 || opts.mesh_split.is_some() {
         return None;
     }
     let _read = timer.phase(Phase::Read);

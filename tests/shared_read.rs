@@ -95,13 +95,19 @@ fn every_rank_reading_gives_the_first_ranks_mesh_ascii_and_binary() {
         assert!(!line.contains("ranks"), "{mesh}, one rank: {line}");
         for np in 2..=4 {
             let (shared, alone) = (format!("shared{np}"), format!("alone{np}"));
-            let line = run(p, np, &shared, &[]);
+            let line = run(p, np, &shared, &["--mesh-read", "shared"]);
             assert!(
                 line.contains(&format!("mesh read on {np} ranks")),
                 "{mesh}: {line}"
             );
-            let line = run(p, np, &alone, &["--read-alone"]);
-            assert!(!line.contains("read on"), "{mesh}, --read-alone: {line}");
+            let line = run(p, np, &alone, &["--mesh-read", "first"]);
+            assert!(!line.contains("read on"), "{mesh}, first rank: {line}");
+            // On one node the default is the first rank's reading.
+            let line = run(p, np, &format!("auto{np}"), &[]);
+            assert!(
+                !line.contains("read on"),
+                "{mesh}, auto on one node: {line}"
+            );
             same_outputs(p, &shared, &alone, &format!("{mesh} on {np} ranks"));
         }
     }
@@ -122,13 +128,13 @@ fn disc_with_a_record_over_two_lines() -> Vec<u8> {
 fn a_file_the_shares_cannot_take_is_read_by_the_first_rank_alone() {
     let dir = case_dir(DISC, &disc_with_a_record_over_two_lines());
     let p = dir.path();
-    let line = run(p, 3, "fallback", &[]);
+    let line = run(p, 3, "fallback", &["--mesh-read", "shared"]);
     assert!(line.contains("read by the first rank alone"), "{line}");
-    run(p, 3, "alone", &["--read-alone"]);
+    run(p, 3, "alone", &["--mesh-read", "first"]);
     same_outputs(p, "fallback", "alone", "a record over two lines");
     // And the same mesh as the fixture read by the shares.
     let plain = case_dir(DISC, &fixture("quarter_disc_v41_ascii.msh"));
-    run(plain.path(), 3, "shared", &[]);
+    run(plain.path(), 3, "shared", &["--mesh-read", "shared"]);
     for f in ["contact.csv", "nodes.csv"] {
         let x = std::fs::read(p.join("fallback").join(f)).unwrap();
         let y = std::fs::read(plain.path().join("shared").join(f)).unwrap();
@@ -140,6 +146,8 @@ fn a_file_the_shares_cannot_take_is_read_by_the_first_rank_alone() {
 fn refused(dir: &Path, np: usize) -> Vec<String> {
     let out = dir.join(format!("refused{np}"));
     let args = ["case.toml", "--out", out.to_str().unwrap(), "--no-plots"];
+    let shared = ["--mesh-read", "shared"];
+    let args = [&args[..], &shared[..]].concat();
     let (code, _, stderr) = run_on_ranks(dir, np, &args);
     assert_eq!(code, 2, "{np} ranks: {stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
