@@ -959,8 +959,8 @@ impl Together {
 /// `None` on the other ranks, and where the first reads alone (one rank, a split
 /// directory, [`MeshRead`]): [`prepare`] then reads everything.
 ///
-/// Why: on a cluster the first rank has only its node's cores; here every node's parse
-/// the numbers' text, most of the read. Any fault (a share that cannot be parsed, a file
+/// Why: on a cluster the first rank has only its node's cores; here the cores of every
+/// node parse the numbers' text, most of the read. Any fault (a share that cannot be parsed, a file
 /// another rank cannot open, a layout the shares do not expect) sends every rank back to
 /// the first rank's reading, which names the fault as it always has.
 fn read_together(opts: &Options, mpi: &Mpi, timer: &Timer) -> Option<Early> {
