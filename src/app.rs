@@ -31,6 +31,7 @@ use crate::split_dir::{self, Facts, Split};
 use crate::timer::{self, Phase, Timer, Timings};
 use serde::Serialize;
 use std::path::PathBuf;
+use std::time::Instant;
 
 /// What the command line asks for, after parsing.
 #[derive(Debug, Clone)]
@@ -63,6 +64,20 @@ pub struct Options {
     pub subdomains_per_rank: Option<usize>,
     /// A directory of `contact-par split`: each subdomain reads its own part there.
     pub mesh_split: Option<PathBuf>,
+    /// Who reads a Gmsh file on several ranks.
+    pub mesh_read: MeshRead,
+}
+
+/// Who reads a Gmsh mesh file when the job has several ranks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeshRead {
+    /// [`MeshRead::Shared`] when the ranks span several nodes, else [`MeshRead::First`].
+    Auto,
+    /// The first rank, on the idle cores of its node.
+    First,
+    /// Every rank parses a share of an MSH 4.1 file's nodes and elements
+    /// ([`read_together`]).
+    Shared,
 }
 
 /// Where the interface system (the subdomains' condensed parts, summed) is factored and
@@ -143,12 +158,15 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     // that the cores of those on its node are its to use. `threads`: the rank's own,
     // not those of the pool the set-up borrows.
     let threads = rayon::current_num_threads();
+    let early = read_together(opts, &mpi, &timer);
     let prepared = mpi.is_root().then(|| {
         let layout = Layout {
             ranks: mpi.size,
             threads,
         };
-        host::on_idle_cores(mpi.node_ranks, || prepare(opts, layout, &timer, print))
+        host::on_idle_cores(mpi.node_ranks, || {
+            prepare(opts, layout, &timer, print, early)
+        })
     });
     mpi.barrier_sleeping();
     let (setup, subs) = mpi.agree(prepared.transpose())?.unzip();
@@ -663,6 +681,7 @@ fn prepare(
     layout: Layout,
     timer: &Timer,
     print: &Printer,
+    early: Option<Early>,
 ) -> Result<(Setup, Option<Vec<SubProblem>>)> {
     let Layout { ranks, threads } = layout;
     let read_line = |figure: String| {
@@ -701,7 +720,7 @@ fn prepare(
         return Ok((setup, None));
     }
     // 1. Read and validate the case and the mesh.
-    let (case, prob, mesh_name) = timer.time(Phase::Read, || read(opts))?;
+    let (case, prob, mesh_name, how) = timer.time(Phase::Read, || read(opts, early))?;
     check_linear(opts, &case)?;
     let triangles = prob.mesh.triangles.len();
     let per_rank = match opts.subdomains_per_rank {
@@ -719,7 +738,7 @@ fn prepare(
     let r = case.solver.r.unwrap_or_else(|| prob.default_r(&case));
     print.line(header_line(&case, &size, r, layout, per_rank));
     read_line(format!(
-        "{mesh_name}: {} nodes, {} triangles, {} contact nodes",
+        "{mesh_name}: {} nodes, {} triangles, {} contact nodes{how}",
         size.nodes, size.elements, size.contact_nodes
     ));
     // 2. Partition the mesh into subdomains and split the problem along the cut.
@@ -862,12 +881,160 @@ pub fn split_case(opts: &SplitOptions, print: &Printer) -> Result<()> {
     Ok(())
 }
 
-/// The case, its problem on its mesh, and the mesh's name for messages.
-fn read(opts: &Options) -> Result<(Case, Problem, String)> {
-    let case = load_case(opts)?;
-    let (mesh, mesh_name) = load_mesh(&case)?;
+/// The case, its problem on its mesh, the mesh's name for messages, and for a Gmsh
+/// file how its reading went (the end of the read line: who read it, the seconds of
+/// each part).
+fn read(opts: &Options, early: Option<Early>) -> Result<(Case, Problem, String, String)> {
+    let start = Instant::now();
+    let (case, together) = match early {
+        Some(e) => (e.case?, e.mesh),
+        None => (load_case(opts)?, None),
+    };
+    let file = matches!(case.mesh, MeshSource::File(_));
+    let (mesh, mesh_name, mut how) = match together {
+        Some(mut t) => {
+            let mesh_start = Instant::now();
+            let (mesh, who) = t.mesh()?;
+            let last = mesh_start.elapsed().as_secs_f64();
+            let how = format!(
+                "; mesh {who} in {:.3} s (the first rank alone {:.3} s: case, file and scan \
+                 {:.3} s, assembly {last:.3} s)",
+                t.alone_s + t.together_s + last,
+                t.alone_s + last,
+                t.alone_s,
+            );
+            (mesh, t.name, how)
+        }
+        None => {
+            let (mesh, name) = load_mesh(&case)?;
+            let how = match file {
+                true => format!("; mesh {:.3} s", start.elapsed().as_secs_f64()),
+                false => String::new(),
+            };
+            (mesh, name, how)
+        }
+    };
+    let problem_start = Instant::now();
     let prob = problem::build(&case, mesh, &mesh_name)?;
-    Ok((case, prob, mesh_name))
+    if file {
+        how += &format!(", problem {:.3} s", problem_start.elapsed().as_secs_f64());
+    }
+    Ok((case, prob, mesh_name, how))
+}
+
+/// Phase 1 as far as the first rank has it before [`prepare`]: the case, and the Gmsh
+/// file when the ranks took part in reading it.
+struct Early {
+    case: Result<Case>,
+    mesh: Option<Together>,
+}
+
+/// A Gmsh file read by every rank: the file, and from the ranks its records' values.
+struct Together {
+    name: String,
+    bytes: Vec<u8>,
+    /// `None` where the records were not shared or a share could not be parsed: the
+    /// first rank then parses `bytes` itself.
+    shared: Option<(gmsh::shares::Scan, [Vec<u64>; 2], Vec<f64>)>,
+    ranks: usize,
+    /// Seconds of the first rank alone (the case, the file, the scan), then of all
+    /// ranks (their shares, the gathers).
+    alone_s: f64,
+    together_s: f64,
+}
+
+impl Together {
+    /// The mesh put together from the ranks' values, else parsed here; and who read it.
+    fn mesh(&mut self) -> Result<(Mesh, String)> {
+        let assembled = (self.shared.take())
+            .and_then(|(scan, [tags, elements], coords)| scan.assemble(&tags, &coords, &elements));
+        match assembled {
+            Some(mesh) => Ok((mesh, format!("read on {} ranks", self.ranks))),
+            None => Ok((
+                gmsh::parse_msh(&self.bytes, &self.name)?,
+                "read by the first rank alone".to_string(),
+            )),
+        }
+    }
+}
+
+/// The first part of phase 1, collective: with several ranks and a Gmsh MSH 4.1 file,
+/// the first rank reads the case and the file and finds where its records lie (its
+/// `$Nodes` and `$Elements`), every rank parses a share of them, and the first gathers
+/// their values (one gather per array), to put the mesh together in [`prepare`].
+/// `None` on the other ranks, and where the first reads alone (one rank, a split
+/// directory, [`MeshRead`]): [`prepare`] then reads everything.
+///
+/// Why: on a cluster the first rank has only its node's cores; here the cores of every
+/// node parse the numbers' text, most of the read. Any fault (a share that cannot be parsed, a file
+/// another rank cannot open, a layout the shares do not expect) sends every rank back to
+/// the first rank's reading, which names the fault as it always has.
+fn read_together(opts: &Options, mpi: &Mpi, timer: &Timer) -> Option<Early> {
+    // On one node the first rank's reading borrows every core the others would parse
+    // on, without the scan, the gathers and the assembly (docs/performance.md).
+    let shared = match opts.mesh_read {
+        MeshRead::Auto => mpi.node_ranks < mpi.size,
+        MeshRead::First => false,
+        MeshRead::Shared => true,
+    };
+    if !shared || mpi.size == 1 || mpi.per_rank() > 1 || opts.mesh_split.is_some() {
+        return None;
+    }
+    let _read = timer.phase(Phase::Read);
+    let start = Instant::now();
+    let ranks = mpi.size;
+    let first = mpi.is_root().then(|| {
+        host::on_idle_cores(mpi.node_ranks, || {
+            let case = load_case(opts);
+            let path = match case.as_ref().map(|c| &c.mesh) {
+                Ok(MeshSource::File(path)) => Some(path.clone()),
+                _ => None,
+            };
+            // A file that cannot be read gets its message from `load_mesh`.
+            let file = path.and_then(|p| Some((std::fs::read(&p).ok()?, p)));
+            let scanned = file.as_ref().and_then(|(bytes, path)| {
+                let scan = gmsh::shares::scan(bytes, &path.display().to_string())?;
+                let plan = scan.plan(bytes, path, ranks)?;
+                Some((scan, plan))
+            });
+            (case, file, scanned)
+        })
+    });
+    mpi.barrier_sleeping();
+    let alone_s = start.elapsed().as_secs_f64();
+    let plan = first
+        .as_ref()
+        .map(|(_, _, s)| s.as_ref().map(|(_, plan)| plan.clone()));
+    let plan = mpi.broadcast(plan).ok().flatten();
+    let (case, file, scanned) = match first {
+        Some((case, file, scanned)) => (Some(case), file, scanned),
+        None => (None, None, None),
+    };
+    let gathered = plan.and_then(|plan| {
+        let share = gmsh::shares::read_share(&plan, mpi.rank, file.as_ref().map(|f| &f.0[..]));
+        if !mpi.all_ok(share.is_some()) {
+            return None;
+        }
+        let share = share.unwrap_or_default();
+        let [tags, coords, elements] = plan.counts();
+        let tags = mpi.gather_varcount(&share.tags, &tags);
+        let coords = mpi.gather_varcount(&share.coords, &coords);
+        let elements = mpi.gather_varcount(&share.elements, &elements);
+        Some((tags?, coords?, elements?))
+    });
+    let together_s = start.elapsed().as_secs_f64() - alone_s;
+    let case = case?;
+    let mesh = file.map(|(bytes, path)| Together {
+        name: path.display().to_string(),
+        bytes,
+        shared: scanned
+            .zip(gathered)
+            .map(|((scan, _), (tags, coords, elements))| (scan, [tags, elements], coords)),
+        ranks: mpi.size,
+        alone_s,
+        together_s,
+    });
+    Some(Early { case, mesh })
 }
 
 /// The number of subdomains, `ranks` x `per_rank`, if the mesh has a triangle for each.

@@ -9,7 +9,7 @@
 //! 4 numerical failure, 5 outputs could not be written.
 
 use clap::Parser;
-use contact_par::app::{self, InterfaceMode, LinearMode, Options, Printer};
+use contact_par::app::{self, InterfaceMode, LinearMode, MeshRead, Options, Printer};
 use contact_par::case;
 use contact_par::contact::{Acceleration, CoulombMode, DEFAULT_ANDERSON_MEMORY};
 use contact_par::dd::comm::Mpi;
@@ -150,6 +150,13 @@ struct Cli {
     /// runs parts / ranks subdomains).
     #[arg(long, value_name = "DIR")]
     mesh_split: Option<PathBuf>,
+    /// Who reads a Gmsh mesh file on several ranks: first (the first rank, on the idle
+    /// cores of its node), shared (every rank parses a share of an MSH 4.1 file's nodes
+    /// and elements, the first puts them together; the file must be readable by every
+    /// rank, else the first reads it alone) or auto (default: shared when the ranks span
+    /// several nodes).
+    #[arg(long, default_value = "auto", value_parser = parse_mesh_read)]
+    mesh_read: MeshRead,
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -192,6 +199,15 @@ fn parse_ordering(s: &str) -> Result<Ordering, String> {
         "nd" => Ok(Ordering::NestedDissection),
         "gnd" => Ok(Ordering::Geometric),
         _ => Err(format!("\"{s}\" is not auto, amd, nd or gnd")),
+    }
+}
+
+fn parse_mesh_read(s: &str) -> Result<MeshRead, String> {
+    match s {
+        "auto" => Ok(MeshRead::Auto),
+        "first" => Ok(MeshRead::First),
+        "shared" => Ok(MeshRead::Shared),
+        _ => Err(format!("\"{s}\" is not auto, first or shared")),
     }
 }
 
@@ -317,6 +333,7 @@ fn run() -> i32 {
         interface: cli.interface,
         subdomains_per_rank: cli.subdomains_per_rank.map(|k| k as usize),
         mesh_split: cli.mesh_split,
+        mesh_read: cli.mesh_read,
     };
     let print = Printer {
         enabled: rank == 0 && !opts.quiet,

@@ -428,6 +428,51 @@ impl Mpi {
         *out = all;
     }
 
+    /// Whether `ok` holds on every subdomain: a vote without a message, for work that
+    /// every rank falls back from together (the shared reading of a mesh file).
+    pub fn all_ok(&self, ok: bool) -> bool {
+        if self.size == 1 {
+            return ok;
+        }
+        self.leader_then_all(ok, |s, parts| {
+            let mine = parts.iter().all(|&ok| ok);
+            if s.mpi_size == 1 {
+                return mine;
+            }
+            Leader { mpi: s }.all_true(mine)
+        })
+    }
+
+    /// Every rank's `local` (`counts[r]` values from rank r), concatenated in rank order
+    /// on the first rank, `None` on the others: one MPI_Gatherv. For the set-up, before
+    /// any team exists (one subdomain per rank).
+    pub fn gather_varcount<T>(&self, local: &[T], counts: &[usize]) -> Option<Vec<T>>
+    where
+        T: mpi::datatype::Equivalence + Copy + Default,
+    {
+        assert_eq!(
+            self.per_rank(),
+            1,
+            "gather_varcount: one subdomain per rank"
+        );
+        debug_assert_eq!(counts.get(self.mpi_rank), Some(&local.len()));
+        if self.mpi_size == 1 {
+            return Some(local.to_vec());
+        }
+        let root = self.world().process_at_rank(0);
+        if self.is_root() {
+            let mut all = vec![T::default(); counts.iter().sum()];
+            let (c, d) = counts_displs(counts);
+            let mut part = PartitionMut::new(&mut all[..], &c[..], &d[..]);
+            root.gather_varcount_into_root(local, &mut part);
+            Some(all)
+        } else {
+            count_sent(std::mem::size_of_val(local));
+            root.gather_varcount_into(local);
+            None
+        }
+    }
+
     /// Concatenation over subdomains of `local`, on the first subdomain only.
     pub fn gather_to_root(&self, local: &[f64], counts: &[usize], out: &mut Vec<f64>) {
         // One subdomain per rank (every sweep of a cluster job): no team, no copy.

@@ -16,6 +16,9 @@ use std::str::FromStr;
 use crate::error::{input, Error, Result};
 use crate::mesh::Mesh;
 
+#[path = "gmsh_shares.rs"]
+pub mod shares;
+
 const REEXPORT: &str = "export the mesh again from Gmsh";
 const CONVERT: &str =
     "convert it with `gmsh old.msh -save -format msh41 -o new.msh` (or `-format msh22`)";
@@ -62,7 +65,7 @@ enum Version {
 }
 
 /// How numbers are stored in a binary file.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 struct Binary {
     big_endian: bool,
     /// Bytes of a `size_t` (MSH 4.1 only; MSH 2.2 binary uses 4-byte ints).
@@ -1375,7 +1378,7 @@ mod tests {
     /// An ASCII MSH 4.1 grid of (n + 1)^2 nodes and 2 n^2 triangles, its node tags
     /// scrambled, with a line group and a surface group: large enough to be read in
     /// parallel.
-    fn big_ascii(n: usize) -> String {
+    pub(super) fn big_ascii(n: usize) -> String {
         let nodes = (n + 1) * (n + 1);
         let tag = |i: usize| (i * 7919) % nodes + 1;
         let mut t = String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n");
@@ -1594,7 +1597,7 @@ mod tests {
 
     /// A small mesh to write in any format: nodes (tag, xyz), elements (type, physical tag
     /// or 0, node tags), physical names (dim, tag, name).
-    struct Spec<'s> {
+    pub(super) struct Spec<'s> {
         nodes: &'s [(i32, [f64; 3])],
         elements: &'s [(i32, i32, &'s [i32])],
         names: &'s [(i32, i32, &'s str)],
@@ -1762,7 +1765,7 @@ mod tests {
     }
 
     /// Every hand-made variant of `spec`: (label, bytes).
-    fn all_variants(spec: &Spec) -> Vec<(String, Vec<u8>)> {
+    pub(super) fn all_variants(spec: &Spec) -> Vec<(String, Vec<u8>)> {
         let mut out = Vec::new();
         for enc in [Enc::Ascii, Enc::Little, Enc::Big] {
             out.push((format!("2.2 {enc:?}"), msh22(enc, spec)));
@@ -1799,7 +1802,7 @@ mod tests {
     ];
     const SQUARE_NAMES: [(i32, i32, &str); 2] = [(1, 1, "bottom side"), (2, 3, "body")];
 
-    fn square() -> Spec<'static> {
+    pub(super) fn square() -> Spec<'static> {
         Spec {
             nodes: &SQUARE_NODES,
             elements: &SQUARE_ELEMENTS,

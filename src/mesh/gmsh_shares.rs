@@ -1,0 +1,676 @@
+//! One MSH 4.1 file read by several processes: one of them finds where the records of
+//! `$Nodes` and `$Elements` lie ([`scan`]) and cuts them into one share per process
+//! ([`Scan::plan`]); each process parses its share ([`read_share`]); the first puts the
+//! gathered values together into the same [`Mesh`] as [`super::parse_msh`] makes
+//! ([`Scan::assemble`]). Nothing here moves data between processes.
+//!
+//! Why: the numbers' text is most of a large mesh file and its parse most of the read,
+//! and a process has only its own node's cores to parse on.
+//!
+//! Any fault (a layout this reading does not expect, a bad number, a duplicate or
+//! unknown tag) makes these functions return `None`: the caller then parses the whole
+//! file the careful way, which finds the fault and names its place exactly as it always
+//! has, so nothing here needs messages of its own. MSH 2.2 is not shared (`scan` returns
+//! `None`).
+
+use super::{
+    ascii_number, ascii_u64, is_space, read_mesh_format, read_section, Binary, Builder, Kind,
+    Reader, Version,
+};
+use crate::mesh::Mesh;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// What a stretch of a section holds, one record after another.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Record {
+    /// A node tag.
+    Tag,
+    /// A node's x, y, z and `extra` parametric coordinates.
+    Point { extra: u8 },
+    /// An element's tag and its `nodes` node tags.
+    Element { nodes: u8 },
+}
+
+impl Record {
+    fn tokens(self) -> usize {
+        match self {
+            Record::Tag => 1,
+            Record::Point { extra } => 3 + extra as usize,
+            Record::Element { nodes } => 1 + nodes as usize,
+        }
+    }
+
+    fn bytes(self, size_t: usize) -> usize {
+        match self {
+            Record::Tag => size_t,
+            Record::Point { extra } => 8 * (3 + extra as usize),
+            Record::Element { nodes } => size_t * (1 + nodes as usize),
+        }
+    }
+
+    /// The array of a [`Share`] it goes to (tags, coordinates, element nodes) and how
+    /// many values it adds there.
+    fn array(self) -> (usize, usize) {
+        match self {
+            Record::Tag => (0, 1),
+            Record::Point { .. } => (1, 3),
+            Record::Element { nodes } => (2, nodes as usize),
+        }
+    }
+}
+
+/// Records of one kind at bytes `start..end` of the file (in ASCII, whole lines, the
+/// last one's newline included).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Stretch {
+    pub start: u64,
+    pub end: u64,
+    pub records: u64,
+    pub record: Record,
+}
+
+/// Who parses which bytes of the file: small, sent to every process.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SharePlan {
+    pub path: PathBuf,
+    binary: Option<Binary>,
+    /// Each process's stretches; process after process, they are the file's records in
+    /// file order.
+    shares: Vec<Vec<Stretch>>,
+}
+
+impl SharePlan {
+    /// The values of each array of a [`Share`] (tags, coordinates, element nodes), per
+    /// process: what each sends to the first.
+    pub fn counts(&self) -> [Vec<usize>; 3] {
+        let mut counts = [(); 3].map(|_| vec![0; self.shares.len()]);
+        for (p, share) in self.shares.iter().enumerate() {
+            for s in share {
+                let (array, values) = s.record.array();
+                counts[array][p] += values * s.records as usize;
+            }
+        }
+        counts
+    }
+
+    /// The stretches of process `p`.
+    pub fn share(&self, p: usize) -> &[Stretch] {
+        self.shares.get(p).map_or(&[], |s| &s[..])
+    }
+}
+
+/// What a process parsed: its records' values in file order.
+#[derive(Debug, Default, Clone, PartialEq)]
+pub struct Share {
+    pub tags: Vec<u64>,
+    /// x, y, z of each node.
+    pub coords: Vec<f64>,
+    /// The node tags of each element, as many as its kind has.
+    pub elements: Vec<u64>,
+}
+
+/// A block of `$Nodes` or `$Elements`, in file order.
+#[derive(Debug)]
+enum Block {
+    Nodes(usize),
+    Elements {
+        kind: Kind,
+        count: usize,
+        physicals: Vec<i32>,
+    },
+}
+
+/// The first process's knowledge of a file apart from its records: the other sections
+/// read, where the records lie.
+pub struct Scan {
+    builder: Builder,
+    blocks: Vec<Block>,
+    stretches: Vec<Stretch>,
+    binary: Option<Binary>,
+    name: String,
+}
+
+/// Reads every section of an MSH 4.1 file but the records of `$Nodes` and `$Elements`,
+/// whose place it finds: in ASCII by counting lines (a record is a line, as Gmsh writes
+/// them), in binary from the block headers. `None` for MSH 2.2 and on any fault.
+pub fn scan(bytes: &[u8], name: &str) -> Option<Scan> {
+    let mut r = Reader::new(bytes, name);
+    if read_mesh_format(&mut r).ok()? != Version::V41 {
+        return None;
+    }
+    let mut scan = Scan {
+        builder: Builder::default(),
+        blocks: Vec::new(),
+        stretches: Vec::new(),
+        binary: r.binary,
+        name: name.to_string(),
+    };
+    while r.next_section().ok()? {
+        match r.section.as_str() {
+            "$Nodes" => scan.nodes(&mut r)?,
+            "$Elements" => scan.elements(&mut r)?,
+            _ => read_section(&mut r, &mut scan.builder, Version::V41).ok()?,
+        }
+    }
+    Some(scan)
+}
+
+impl Scan {
+    fn nodes(&mut self, r: &mut Reader) -> Option<()> {
+        self.builder.start_nodes(r).ok()?;
+        let blocks = r.count("").ok()?;
+        let total = r.count("").ok()?;
+        r.size_t("").ok()?;
+        r.size_t("").ok()?;
+        let mut read = 0usize;
+        for _ in 0..blocks {
+            let dim = r.int("").ok()?;
+            r.int("").ok()?;
+            let parametric = r.int("").ok()?;
+            let count = r.count("").ok()?;
+            let extra = match (parametric, dim) {
+                (0, _) | (1, 0) => 0,
+                (1, 1..=3) => dim as u8,
+                _ => return None,
+            };
+            self.stretch(r, count, Record::Tag)?;
+            self.stretch(r, count, Record::Point { extra })?;
+            self.blocks.push(Block::Nodes(count));
+            read = read.checked_add(count)?;
+        }
+        (read == total).then_some(())?;
+        r.expect_end().ok()
+    }
+
+    fn elements(&mut self, r: &mut Reader) -> Option<()> {
+        self.builder.start_elements(r).ok()?;
+        let blocks = r.count("").ok()?;
+        let total = r.count("").ok()?;
+        r.size_t("").ok()?;
+        r.size_t("").ok()?;
+        let mut read = 0usize;
+        for _ in 0..blocks {
+            let at = r.mark();
+            let dim = r.int("").ok()?;
+            let entity = r.int("").ok()?;
+            let kind = super::element_kind(r.int("").ok()?).ok()?;
+            let count = r.count("").ok()?;
+            let physicals = self.builder.entity_physicals(r, at, dim, entity).ok()?;
+            let nodes = kind.nodes() as u8;
+            self.stretch(r, count, Record::Element { nodes })?;
+            self.blocks.push(Block::Elements {
+                kind,
+                count,
+                physicals,
+            });
+            read = read.checked_add(count)?;
+        }
+        (read == total).then_some(())?;
+        r.expect_end().ok()
+    }
+
+    /// Notes `count` records from the reader's position and moves past them.
+    fn stretch(&mut self, r: &mut Reader, count: usize, record: Record) -> Option<()> {
+        if count == 0 {
+            return Some(());
+        }
+        let start = match r.binary {
+            Some(_) => r.pos,
+            None => {
+                r.skip_space();
+                r.pos
+            }
+        };
+        let end = match r.binary {
+            Some(b) => start
+                .checked_add(count.checked_mul(record.bytes(b.size_t))?)
+                .filter(|&end| end <= r.bytes.len())?,
+            None => after_lines(r.bytes, start, count)?,
+        };
+        r.pos = end;
+        self.stretches.push(Stretch {
+            start: start as u64,
+            end: end as u64,
+            records: count as u64,
+            record,
+        });
+        Some(())
+    }
+
+    /// Cuts the records into `parts` shares of about as many bytes, at record
+    /// boundaries. `None` where the counts of a share would not fit the i32 of an MPI
+    /// gather.
+    pub fn plan(&self, bytes: &[u8], path: &Path, parts: usize) -> Option<SharePlan> {
+        let parts = parts.max(1);
+        let total: u64 = self.stretches.iter().map(|s| s.end - s.start).sum();
+        // Where each share but the first starts: (stretch, byte), in file order.
+        let mut cuts = Vec::with_capacity(parts);
+        let (mut i, mut before) = (0, 0u64);
+        for k in 1..parts {
+            let at = total * k as u64 / parts as u64;
+            while i < self.stretches.len() && before + self.len(i) <= at {
+                before += self.len(i);
+                i += 1;
+            }
+            let Some(s) = self.stretches.get(i) else {
+                break;
+            };
+            cuts.push((i, self.record_start(bytes, s, s.start + (at - before))));
+        }
+        let mut shares = vec![Vec::new(); parts];
+        let mut p = 0;
+        for (i, s) in self.stretches.iter().enumerate() {
+            let mut from = s.start;
+            while p < cuts.len() && cuts[p].0 == i {
+                let to = cuts[p].1;
+                if to > from {
+                    shares[p].push(self.piece(bytes, s, from, to));
+                    from = to;
+                }
+                p += 1;
+            }
+            if from < s.end {
+                shares[p].push(self.piece(bytes, s, from, s.end));
+            }
+        }
+        let plan = SharePlan {
+            path: path.to_path_buf(),
+            binary: self.binary,
+            shares,
+        };
+        let fits = |c: &Vec<usize>| c.iter().sum::<usize>() <= i32::MAX as usize;
+        plan.counts().iter().all(fits).then_some(plan)
+    }
+
+    fn len(&self, i: usize) -> u64 {
+        self.stretches[i].end - self.stretches[i].start
+    }
+
+    /// The first record boundary of `s` at or after `at`.
+    fn record_start(&self, bytes: &[u8], s: &Stretch, at: u64) -> u64 {
+        match self.binary {
+            Some(b) => {
+                let size = s.record.bytes(b.size_t) as u64;
+                (s.start + (at - s.start).div_ceil(size) * size).min(s.end)
+            }
+            None if at == s.start || bytes[at as usize - 1] == b'\n' => at,
+            None => {
+                let rest = &bytes[at as usize..s.end as usize];
+                memchr::memchr(b'\n', rest).map_or(s.end, |nl| at + nl as u64 + 1)
+            }
+        }
+    }
+
+    fn piece(&self, bytes: &[u8], s: &Stretch, start: u64, end: u64) -> Stretch {
+        let records = match self.binary {
+            Some(b) => (end - start) / s.record.bytes(b.size_t) as u64,
+            None => memchr::memchr_iter(b'\n', &bytes[start as usize..end as usize]).count() as u64,
+        };
+        Stretch {
+            start,
+            end,
+            records,
+            record: s.record,
+        }
+    }
+
+    /// The mesh from every share's values, concatenated in process order: the same
+    /// [`Mesh`] as [`super::parse_msh`] reads from the file. `None` on a fault (a node
+    /// defined twice, an element on an unknown node, a count that does not match, or
+    /// anything [`super::parse_msh`] would refuse at the end).
+    pub fn assemble(self, tags: &[u64], coords: &[f64], elements: &[u64]) -> Option<Mesh> {
+        let Scan {
+            mut builder,
+            blocks,
+            name,
+            ..
+        } = self;
+        let nodes: usize = (blocks.iter())
+            .map(|b| match b {
+                Block::Nodes(n) => *n,
+                Block::Elements { .. } => 0,
+            })
+            .sum();
+        (tags.len() == nodes && coords.len() == 3 * nodes).then_some(())?;
+        builder.reserve_nodes(nodes);
+        let (mut t, mut e) = (0usize, 0usize);
+        for block in blocks {
+            match block {
+                Block::Nodes(count) => {
+                    for _ in 0..count {
+                        let tag = tags[t];
+                        if !builder.node_index.insert(tag, builder.nodes.len()) {
+                            return None;
+                        }
+                        builder
+                            .nodes
+                            .push([coords[3 * t], coords[3 * t + 1], coords[3 * t + 2]]);
+                        builder.node_tags.push(tag);
+                        t += 1;
+                    }
+                }
+                Block::Elements {
+                    kind,
+                    count,
+                    physicals,
+                } => {
+                    let k = kind.nodes();
+                    let mine = elements.get(e..e.checked_add(count.checked_mul(k)?)?)?;
+                    e += mine.len();
+                    if kind == Kind::Triangle {
+                        // Most of the records: looked up on the pool's threads.
+                        use rayon::prelude::*;
+                        let index = &builder.node_index;
+                        let triangles: Option<Vec<[usize; 3]>> = (mine.par_chunks_exact(3))
+                            .map(|t| Some([index.get(t[0])?, index.get(t[1])?, index.get(t[2])?]))
+                            .collect();
+                        let first = builder.triangles.len();
+                        builder.triangles.extend(triangles?);
+                        for &p in &physicals {
+                            let surface = builder.surfaces.entry(p).or_default();
+                            surface.extend(first..builder.triangles.len());
+                        }
+                        continue;
+                    }
+                    for record in mine.chunks_exact(k) {
+                        let mut nodes = [0; 3];
+                        for (node, &tag) in nodes.iter_mut().zip(record) {
+                            *node = builder.node_index.get(tag)?;
+                        }
+                        builder.add_element(kind, nodes, &physicals);
+                    }
+                }
+            }
+        }
+        (e == elements.len()).then_some(())?;
+        builder.finish(&name).ok()
+    }
+}
+
+/// Where the `n`-th line from `from` ends (past its newline): counted a block at a
+/// time, which a vector search does at many bytes per step.
+fn after_lines(bytes: &[u8], from: usize, n: usize) -> Option<usize> {
+    const BLOCK: usize = 1 << 16;
+    let (mut at, mut left) = (from, n);
+    while left > 0 {
+        let end = at.saturating_add(BLOCK).min(bytes.len());
+        let block = bytes.get(at..end).filter(|b| !b.is_empty())?;
+        let lines = memchr::memchr_iter(b'\n', block).count();
+        if lines >= left {
+            let nl = memchr::memchr_iter(b'\n', block).nth(left - 1)?;
+            return Some(at + nl + 1);
+        }
+        left -= lines;
+        at = end;
+    }
+    Some(at)
+}
+
+/// Parses process `p`'s share of `plan`, from `bytes` (the whole file) when given, else
+/// from the file itself (its share's bytes only), on the threads of the pool. `None` on
+/// any fault, a file that cannot be read included.
+pub fn read_share(plan: &SharePlan, p: usize, bytes: Option<&[u8]>) -> Option<Share> {
+    use std::os::unix::fs::FileExt;
+    let counts = plan.counts();
+    let mut share = Share {
+        tags: Vec::with_capacity(*counts[0].get(p)?),
+        coords: Vec::with_capacity(counts[1][p]),
+        elements: Vec::with_capacity(counts[2][p]),
+    };
+    let stretches = plan.share(p);
+    let file = match (bytes, stretches.is_empty()) {
+        (None, false) => Some(std::fs::File::open(&plan.path).ok()?),
+        _ => None,
+    };
+    let mut buffer = Vec::new();
+    for s in stretches {
+        let range = usize::try_from(s.start).ok()?..usize::try_from(s.end).ok()?;
+        let data = match (bytes, &file) {
+            (Some(b), _) => b.get(range)?,
+            (None, Some(f)) => {
+                buffer.resize(range.len(), 0);
+                f.read_exact_at(&mut buffer, s.start).ok()?;
+                &buffer[..]
+            }
+            (None, None) => return None,
+        };
+        let before = [share.tags.len(), share.coords.len(), share.elements.len()];
+        match plan.binary {
+            Some(b) => binary_stretch(data, s.record, b, &mut share)?,
+            None => ascii_stretch(data, s.record, &mut share)?,
+        }
+        let after = [share.tags.len(), share.coords.len(), share.elements.len()];
+        let (array, values) = s.record.array();
+        (after[array] - before[array] == values * s.records as usize).then_some(())?;
+    }
+    Some(share)
+}
+
+/// ASCII records, a line each, parsed on the pool's threads in pieces of whole lines.
+fn ascii_stretch(data: &[u8], record: Record, share: &mut Share) -> Option<()> {
+    use rayon::prelude::*;
+    let per = record.tokens();
+    let pieces = (4 * rayon::current_num_threads()).max(1);
+    let mut starts = vec![0];
+    for k in 1..pieces {
+        let at = (data.len() * k / pieces).max(*starts.last()?);
+        let next = memchr::memchr(b'\n', data.get(at..)?).map_or(data.len(), |nl| at + nl + 1);
+        if next > *starts.last()? && next < data.len() {
+            starts.push(next);
+        }
+    }
+    starts.push(data.len());
+    let parsed: Vec<Option<Share>> = starts
+        .par_windows(2)
+        .map(|w| {
+            let mut out = Share::default();
+            let piece = &data[w[0]..w[1]];
+            let piece = piece.strip_suffix(b"\n").unwrap_or(piece);
+            let mut tokens: Vec<&[u8]> = Vec::with_capacity(per + 1);
+            for line in piece.split(|&c| c == b'\n') {
+                tokens.clear();
+                tokens.extend(
+                    (line.split(|&c| is_space(c)))
+                        .filter(|t| !t.is_empty())
+                        .take(per + 1),
+                );
+                if tokens.len() != per {
+                    return None;
+                }
+                ascii_record(&tokens, record, &mut out)?;
+            }
+            Some(out)
+        })
+        .collect();
+    for piece in parsed {
+        let piece = piece?;
+        share.tags.extend(piece.tags);
+        share.coords.extend(piece.coords);
+        share.elements.extend(piece.elements);
+    }
+    Some(())
+}
+
+/// One record's tokens as the careful reading reads them (a whole token a number).
+fn ascii_record(t: &[&[u8]], record: Record, out: &mut Share) -> Option<()> {
+    match record {
+        Record::Tag => out.tags.push(ascii_u64(t[0])?),
+        Record::Point { .. } => {
+            for v in &t[..3] {
+                let v = ascii_number::<f64>(v)?;
+                // A non-finite coordinate gets its message from the careful reading.
+                v.is_finite().then_some(())?;
+                out.coords.push(v);
+            }
+            for v in &t[3..] {
+                ascii_number::<f64>(v)?;
+            }
+        }
+        Record::Element { .. } => {
+            ascii_u64(t[0])?;
+            for v in &t[1..] {
+                out.elements.push(ascii_u64(v)?);
+            }
+        }
+    }
+    Some(())
+}
+
+fn binary_stretch(data: &[u8], record: Record, b: Binary, share: &mut Share) -> Option<()> {
+    let size = record.bytes(b.size_t);
+    (data.len() % size == 0).then_some(())?;
+    let uint = |raw: &[u8]| -> u64 {
+        match (raw.len(), b.big_endian) {
+            (4, false) => u64::from(u32::from_le_bytes(raw.try_into().unwrap_or_default())),
+            (4, true) => u64::from(u32::from_be_bytes(raw.try_into().unwrap_or_default())),
+            (_, false) => u64::from_le_bytes(raw.try_into().unwrap_or_default()),
+            (_, true) => u64::from_be_bytes(raw.try_into().unwrap_or_default()),
+        }
+    };
+    let double = |raw: &[u8]| -> f64 {
+        let raw = raw.try_into().unwrap_or_default();
+        if b.big_endian {
+            f64::from_be_bytes(raw)
+        } else {
+            f64::from_le_bytes(raw)
+        }
+    };
+    for rec in data.chunks_exact(size) {
+        match record {
+            Record::Tag => share.tags.push(uint(rec)),
+            Record::Point { .. } => {
+                for raw in rec[..24].chunks_exact(8) {
+                    let v = double(raw);
+                    v.is_finite().then_some(())?;
+                    share.coords.push(v);
+                }
+            }
+            Record::Element { .. } => {
+                let tags = rec.chunks_exact(b.size_t).skip(1);
+                share.elements.extend(tags.map(uint));
+            }
+        }
+    }
+    Some(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The plan's shares, each parsed from the bytes, then put together.
+    fn shared(bytes: &[u8], parts: usize) -> Option<Mesh> {
+        let scan = scan(bytes, "m.msh")?;
+        let plan = scan.plan(bytes, Path::new("m.msh"), parts)?;
+        let mut all = Share::default();
+        for p in 0..parts {
+            let s = read_share(&plan, p, Some(bytes))?;
+            all.tags.extend(s.tags);
+            all.coords.extend(s.coords);
+            all.elements.extend(s.elements);
+        }
+        scan.assemble(&all.tags, &all.coords, &all.elements)
+    }
+
+    #[test]
+    fn lines_are_counted_across_blocks() {
+        let mut text = Vec::new();
+        for i in 0..100_000 {
+            text.extend_from_slice(format!("{i}\n").as_bytes());
+        }
+        let line_end = |n: usize| {
+            let mut k = 0;
+            text.iter().position(|&c| {
+                k += usize::from(c == b'\n');
+                k == n
+            })
+        };
+        for n in [1, 2, 9999, 70_000, 100_000] {
+            assert_eq!(after_lines(&text, 0, n), line_end(n).map(|p| p + 1), "{n}");
+        }
+        assert_eq!(after_lines(&text, 0, 100_001), None);
+        assert_eq!(after_lines(&text, 3, 0), Some(3));
+    }
+
+    #[test]
+    fn shares_are_whole_records_and_cover_every_record_once() {
+        let bytes = super::super::tests::big_ascii(60).into_bytes();
+        let scan = scan(&bytes, "m.msh").expect("an MSH 4.1 file");
+        for parts in [1, 2, 3, 4, 7, 64] {
+            let plan = scan.plan(&bytes, Path::new("m.msh"), parts).unwrap();
+            let mut covered = Vec::new();
+            for p in 0..parts {
+                for s in plan.share(p) {
+                    let data = &bytes[s.start as usize..s.end as usize];
+                    assert!(
+                        data.ends_with(b"\n"),
+                        "{parts} parts: a piece ends mid-line"
+                    );
+                    let at = s.start as usize;
+                    assert!(
+                        bytes[at - 1] == b'\n',
+                        "{parts} parts: a piece starts mid-line"
+                    );
+                    covered.push((s.start, s.end, s.records));
+                }
+            }
+            // Pieces follow each other within a stretch and count their lines.
+            for w in covered.windows(2) {
+                assert!(w[0].1 <= w[1].0);
+            }
+            let total: u64 = covered.iter().map(|c| c.2).sum();
+            let nodes = 61 * 61;
+            assert_eq!(total, 2 * nodes + 2 * 60 * 60 + 60, "{parts} parts");
+        }
+    }
+
+    #[test]
+    fn shared_reading_is_the_careful_one_in_every_encoding() {
+        let mut files = vec![(
+            "big ascii".to_string(),
+            super::super::tests::big_ascii(40).into_bytes(),
+        )];
+        files.extend(
+            super::super::tests::all_variants(&super::super::tests::square())
+                .into_iter()
+                .filter(|(name, _)| name.contains("4.1")),
+        );
+        assert!(
+            files.len() >= 4,
+            "{:?}",
+            files.iter().map(|f| &f.0).collect::<Vec<_>>()
+        );
+        for (name, bytes) in &files {
+            let careful = super::super::parse_msh(bytes, "m.msh").unwrap();
+            for parts in [1, 2, 3, 5] {
+                let mesh = shared(bytes, parts).unwrap_or_else(|| panic!("{name}, {parts}"));
+                assert_eq!(mesh, careful, "{name} in {parts} parts");
+            }
+        }
+    }
+
+    #[test]
+    fn msh22_is_not_shared_and_faults_give_none() {
+        let v22 = super::super::tests::all_variants(&super::super::tests::square());
+        for (name, bytes) in v22.iter().filter(|(n, _)| n.contains("2.2")) {
+            assert!(scan(bytes, "m.msh").is_none(), "{name}");
+        }
+        let good = super::super::tests::big_ascii(30);
+        assert!(shared(good.as_bytes(), 3).is_some());
+        for (from, to) in [
+            ("\n5\n", "\n5 6\n"),       // two tokens on a tag line
+            ("\n7\n", "\n7x\n"),        // a bad number
+            ("\n9\n", "\n8\n"),         // a node defined twice
+            ("2 1 0 961", "2 1 0 962"), // a block longer than it is
+        ] {
+            let bad = good.replacen(from, to, 1);
+            assert_ne!(bad, good, "{from}");
+            assert!(shared(bad.as_bytes(), 3).is_none(), "{from} -> {to}");
+            assert!(
+                super::super::parse_msh(bad.as_bytes(), "m.msh").is_err(),
+                "{from}"
+            );
+        }
+    }
+}

@@ -1,0 +1,201 @@
+//! A Gmsh file read by every rank (each parses a share of its nodes and elements, the
+//! first puts them together) gives the mesh the first rank reads alone: the same
+//! contact.csv and nodes.csv byte for byte on 2 to 4 ranks, ASCII and binary; a file the
+//! shares cannot take falls back to the first rank's reading; a malformed file gives
+//! the first rank's one-line error, exit code 2, on any number of ranks.
+
+mod common;
+use common::*;
+use std::path::Path;
+use tempfile::TempDir;
+
+/// The quarter disc of the fixtures pressed on y = 0 (`quarter_disc.toml`'s problem).
+const DISC: &str = r#"[mesh]
+file = "mesh.msh"
+[material]
+young = 1000.0
+poisson = 0.3
+[[dirichlet]]
+group = "axis"
+ux = 0.0
+[[dirichlet]]
+group = "top"
+uy = -0.01
+[contact]
+group = "contact"
+obstacle_point = [0.0, 0.0]
+obstacle_normal = [0.0, 1.0]
+friction = "coulomb"
+coefficient = 0.2
+[solver]
+tol = 1e-10
+"#;
+
+/// The 2 x 1 rectangle of the fixtures, sheared and pressed on y = -0.001.
+const RECT: &str = r#"[mesh]
+file = "mesh.msh"
+[material]
+young = 1000.0
+poisson = 0.3
+[[dirichlet]]
+group = "top"
+ux = 0.002
+uy = -0.01
+[contact]
+group = "bottom"
+obstacle_point = [0.0, -0.001]
+obstacle_normal = [0.0, 1.0]
+friction = "coulomb"
+coefficient = 0.3
+[solver]
+tol = 1e-10
+"#;
+
+/// A directory holding `case.toml` and its mesh `mesh.msh` (the given bytes).
+fn case_dir(case: &str, mesh: &[u8]) -> TempDir {
+    let dir = TempDir::new().unwrap();
+    std::fs::write(dir.path().join("case.toml"), case).unwrap();
+    std::fs::write(dir.path().join("mesh.msh"), mesh).unwrap();
+    dir
+}
+
+fn fixture(name: &str) -> Vec<u8> {
+    std::fs::read(gmsh_dir().join(name)).unwrap()
+}
+
+/// Runs the case of `dir` on `np` ranks into `out`; returns its read line.
+fn run(dir: &Path, np: usize, out: &str, extra: &[&str]) -> String {
+    let mut args = vec!["case.toml", "--out", out, "--nodes-csv", "--no-plots"];
+    args.extend_from_slice(extra);
+    let (code, stdout, stderr) = run_on_ranks(dir, np, &args);
+    assert_eq!(code, 0, "{np} ranks {extra:?}: {stderr}");
+    let line = stdout.lines().find(|l| l.starts_with("read "));
+    line.unwrap_or_else(|| panic!("no read line:\n{stdout}"))
+        .to_string()
+}
+
+fn same_outputs(dir: &Path, a: &str, b: &str, what: &str) {
+    for f in ["contact.csv", "nodes.csv"] {
+        let x = std::fs::read(dir.join(a).join(f)).unwrap();
+        let y = std::fs::read(dir.join(b).join(f)).unwrap();
+        assert!(x == y, "{what}: {f} differs between {a} and {b}");
+    }
+}
+
+#[test]
+fn every_rank_reading_gives_the_first_ranks_mesh_ascii_and_binary() {
+    for (case, mesh) in [
+        (DISC, "quarter_disc_v41_ascii.msh"),
+        (RECT, "rect_v41_binary.msh"),
+        (RECT, "rect_v41_ascii.msh"),
+    ] {
+        let dir = case_dir(case, &fixture(mesh));
+        let p = dir.path();
+        let line = run(p, 1, "one", &[]);
+        assert!(!line.contains("ranks"), "{mesh}, one rank: {line}");
+        for np in 2..=4 {
+            let (shared, alone) = (format!("shared{np}"), format!("alone{np}"));
+            let line = run(p, np, &shared, &["--mesh-read", "shared"]);
+            assert!(
+                line.contains(&format!("mesh read on {np} ranks")),
+                "{mesh}: {line}"
+            );
+            let line = run(p, np, &alone, &["--mesh-read", "first"]);
+            assert!(!line.contains("read on"), "{mesh}, first rank: {line}");
+            // On one node the default is the first rank's reading.
+            let line = run(p, np, &format!("auto{np}"), &[]);
+            assert!(
+                !line.contains("read on"),
+                "{mesh}, auto on one node: {line}"
+            );
+            same_outputs(p, &shared, &alone, &format!("{mesh} on {np} ranks"));
+        }
+    }
+}
+
+/// The last triangle of the disc's `$Elements` written over two lines: the careful
+/// reading takes it (tokens are tokens), the shares (a record a line) do not.
+fn disc_with_a_record_over_two_lines() -> Vec<u8> {
+    let text = String::from_utf8(fixture("quarter_disc_v41_ascii.msh")).unwrap();
+    let end = text.find("$EndElements").unwrap();
+    let last = text[..end - 1].rfind('\n').unwrap() + 1;
+    let line = &text[last..end];
+    let split = line.trim_end().replacen(' ', "\n", 1) + "\n";
+    format!("{}{split}{}", &text[..last], &text[end..]).into_bytes()
+}
+
+#[test]
+fn a_file_the_shares_cannot_take_is_read_by_the_first_rank_alone() {
+    let dir = case_dir(DISC, &disc_with_a_record_over_two_lines());
+    let p = dir.path();
+    let line = run(p, 3, "fallback", &["--mesh-read", "shared"]);
+    assert!(line.contains("read by the first rank alone"), "{line}");
+    run(p, 3, "alone", &["--mesh-read", "first"]);
+    same_outputs(p, "fallback", "alone", "a record over two lines");
+    // And the same mesh as the fixture read by the shares.
+    let plain = case_dir(DISC, &fixture("quarter_disc_v41_ascii.msh"));
+    run(plain.path(), 3, "shared", &["--mesh-read", "shared"]);
+    for f in ["contact.csv", "nodes.csv"] {
+        let x = std::fs::read(p.join("fallback").join(f)).unwrap();
+        let y = std::fs::read(plain.path().join("shared").join(f)).unwrap();
+        assert!(x == y, "{f}: the fallback read another mesh");
+    }
+}
+
+/// The error lines of a run that must fail with exit code 2.
+fn refused(dir: &Path, np: usize) -> Vec<String> {
+    let out = dir.join(format!("refused{np}"));
+    let args = ["case.toml", "--out", out.to_str().unwrap(), "--no-plots"];
+    let shared = ["--mesh-read", "shared"];
+    let args = [&args[..], &shared[..]].concat();
+    let (code, _, stderr) = run_on_ranks(dir, np, &args);
+    assert_eq!(code, 2, "{np} ranks: {stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(!out.join("contact.csv").exists());
+    // mpirun adds notes of its own on a failed job.
+    stderr
+        .lines()
+        .filter(|l| l.starts_with("contact-par"))
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn a_malformed_file_gives_the_first_ranks_one_line_on_any_number_of_ranks() {
+    let text = String::from_utf8(fixture("quarter_disc_v41_ascii.msh")).unwrap();
+    let nodes = text.find("$Nodes").unwrap();
+    let elements = text.find("$Elements").unwrap();
+    // A coordinate at the end of $Nodes (so in the last rank's share), a node tag
+    // missing from $Nodes, a file cut in $Elements.
+    let line_before = |tag: &str| {
+        let at = text.find(tag).unwrap();
+        text[..at - 1].rfind('\n').unwrap() + 1
+    };
+    let last_point = line_before("$EndNodes");
+    let first_token = last_point + text[last_point..].find(' ').unwrap();
+    let mut bad_number = text.clone();
+    bad_number.replace_range(last_point..first_token, "0.5x");
+    let last_triangle = line_before("$EndElements");
+    let tag_end = last_triangle + text[last_triangle..].find(' ').unwrap();
+    let mut unknown_node = text.clone();
+    unknown_node.insert_str(tag_end + 1, "99999");
+    let truncated = text[..elements + (text.len() - elements) / 2].to_string();
+    assert!(nodes < last_point && last_point < elements);
+    for (what, bad, expect) in [
+        ("a bad number", bad_number, "bad number '0.5x'"),
+        (
+            "an unknown node",
+            unknown_node,
+            "which is not defined in $Nodes",
+        ),
+        ("a truncated file", truncated, "truncated"),
+    ] {
+        let dir = case_dir(DISC, bad.as_bytes());
+        let one = refused(dir.path(), 1);
+        assert_eq!(one.len(), 1, "{what}: {one:?}");
+        assert!(one[0].contains(expect), "{what}: {one:?}");
+        for np in [2, 3] {
+            assert_eq!(refused(dir.path(), np), one, "{what} on {np} ranks");
+        }
+    }
+}
