@@ -137,20 +137,7 @@ fn two_elastic_cylinders_against_hertz() {
         check_kkt(&rows, Law::None, 1e-7, &what);
         assert_action_reaction(&run, &what);
         let (a, p0) = hertz(&run);
-        let last = rows.iter().rposition(|r| r.p_n > 0.0).expect("no contact");
-        assert!(
-            rows[..last].iter().all(|r| r.p_n > 0.0),
-            "{what}: the contact zone is not one interval"
-        );
-        let e_a = (0.5 * (rows[last].x + rows[last + 1].x) - a) / a;
-        let pmax = rows.iter().map(|r| r.p_n).fold(0.0, f64::max);
-        let e_p = (pmax - p0) / p0;
-        let profile = (rows.iter().filter(|r| r.x < 0.8 * a))
-            .map(|r| (r.p_n - p0 * (1.0 - (r.x / a).powi(2)).sqrt()).abs() / p0)
-            .fold(0.0, f64::max);
-        println!(
-            "{what}: a = {a}, p0 = {p0}: half-width {e_a:+.3e}, peak {e_p:+.3e}, profile {profile:.3e}"
-        );
+        let (e_a, e_p, profile) = hertz_errors_of(&rows, a, p0, &what);
         assert!(e_p.abs() <= 0.015, "{what}: peak off by {e_p:e}");
         assert!(
             e_a.abs() < previous.0 && profile < previous.1,

@@ -84,27 +84,7 @@ fn gmsh_quarter_disc_coulomb_kkt() {
 
 /// The 2 x 1 rectangle of the Gmsh fixtures, sheared and pressed on y = -0.001.
 fn rect_case(file: &str) -> String {
-    format!(
-        r#"[mesh]
-file = "{}"
-[material]
-young = 1000.0
-poisson = 0.3
-[[dirichlet]]
-group = "top"
-ux = 0.002
-uy = -0.01
-[contact]
-group = "bottom"
-obstacle_point = [0.0, -0.001]
-obstacle_normal = [0.0, 1.0]
-friction = "coulomb"
-coefficient = 0.3
-[solver]
-tol = 1e-10
-"#,
-        gmsh_dir().join(file).display()
-    )
+    rect_case_on(&gmsh_dir().join(file).display().to_string())
 }
 
 fn contact_text(file: &str) -> (String, Vec<Row>, serde_json::Value) {

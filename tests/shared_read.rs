@@ -31,26 +31,6 @@ coefficient = 0.2
 tol = 1e-10
 "#;
 
-/// The 2 x 1 rectangle of the fixtures, sheared and pressed on y = -0.001.
-const RECT: &str = r#"[mesh]
-file = "mesh.msh"
-[material]
-young = 1000.0
-poisson = 0.3
-[[dirichlet]]
-group = "top"
-ux = 0.002
-uy = -0.01
-[contact]
-group = "bottom"
-obstacle_point = [0.0, -0.001]
-obstacle_normal = [0.0, 1.0]
-friction = "coulomb"
-coefficient = 0.3
-[solver]
-tol = 1e-10
-"#;
-
 /// A directory holding `case.toml` and its mesh `mesh.msh` (the given bytes).
 fn case_dir(case: &str, mesh: &[u8]) -> TempDir {
     let dir = TempDir::new().unwrap();
@@ -84,10 +64,11 @@ fn same_outputs(dir: &Path, a: &str, b: &str, what: &str) {
 
 #[test]
 fn every_rank_reading_gives_the_first_ranks_mesh_ascii_and_binary() {
+    let rect = rect_case_on("mesh.msh");
     for (case, mesh) in [
         (DISC, "quarter_disc_v41_ascii.msh"),
-        (RECT, "rect_v41_binary.msh"),
-        (RECT, "rect_v41_ascii.msh"),
+        (rect.as_str(), "rect_v41_binary.msh"),
+        (rect.as_str(), "rect_v41_ascii.msh"),
     ] {
         let dir = case_dir(case, &fixture(mesh));
         let p = dir.path();

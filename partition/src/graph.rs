@@ -115,15 +115,7 @@ pub(crate) fn dual_from_stars(
                 }
                 // Two triangles with the same three nodes meet once per common edge, and
                 // METIS rejects multi-edges.
-                let row = &mut adjncy[row_start..];
-                row.sort_unstable();
-                let mut kept = row.len().min(1);
-                for i in 1..row.len() {
-                    if row[i] != row[kept - 1] {
-                        row[kept] = row[i];
-                        kept += 1;
-                    }
-                }
+                let kept = sort_and_dedup(&mut adjncy[row_start..]);
                 adjncy.truncate(row_start + kept);
                 row_len.push(kept as Idx);
             }
@@ -147,6 +139,19 @@ pub(crate) fn dual_from_stars(
         vwgt: None,
         adjwgt: None,
     })
+}
+
+/// Sorts `row` and moves its distinct values to its head; returns how many there are.
+fn sort_and_dedup(row: &mut [Idx]) -> usize {
+    row.sort_unstable();
+    let mut kept = row.len().min(1);
+    for i in 1..row.len() {
+        if row[i] != row[kept - 1] {
+            row[kept] = row[i];
+            kept += 1;
+        }
+    }
+    kept
 }
 
 /// `graph` with an edge between the first triangles around the two nodes of each tie
@@ -179,15 +184,7 @@ pub(crate) fn with_ties(
         let start = adjncy.len();
         adjncy.extend_from_slice(&graph.adjncy[graph.range(v)]);
         adjncy.append(more);
-        let row = &mut adjncy[start..];
-        row.sort_unstable();
-        let mut kept = row.len().min(1);
-        for i in 1..row.len() {
-            if row[i] != row[kept - 1] {
-                row[kept] = row[i];
-                kept += 1;
-            }
-        }
+        let kept = sort_and_dedup(&mut adjncy[start..]);
         adjncy.truncate(start + kept);
         xadj.push(to_idx(adjncy.len())?);
     }

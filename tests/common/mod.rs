@@ -464,3 +464,56 @@ pub fn builtin_with_friction(name: &str, level: u32, friction: &str) -> String {
     }
     out
 }
+
+/// Against Hertz's half-width `a` and peak `p0`: the relative errors of the half-width
+/// (the midpoint between the last node in contact and the next), of the peak pressure,
+/// and the largest error of the profile p0 sqrt(1 - x^2/a^2) over x < 0.8 a, relative to
+/// p0. Checks first that the contact zone is one interval from x = 0 and that a lies
+/// between those two nodes (within 3%). `rows` sorted by x.
+pub fn hertz_errors_of(rows: &[Row], a: f64, p0: f64, what: &str) -> (f64, f64, f64) {
+    let last = rows.iter().rposition(|r| r.p_n > 0.0).expect("no contact");
+    assert!(
+        rows[..last].iter().all(|r| r.p_n > 0.0),
+        "{what}: the contact zone is not one interval"
+    );
+    let (x_in, x_out) = (rows[last].x, rows[last + 1].x);
+    assert!(
+        x_in <= a * 1.03 && x_out >= a * 0.97,
+        "{what}: a = {a} not between the nodes {x_in}, {x_out}"
+    );
+    let e_a = (0.5 * (x_in + x_out) - a) / a;
+    let pmax = rows.iter().map(|r| r.p_n).fold(0.0, f64::max);
+    let e_p = (pmax - p0) / p0;
+    let profile = (rows.iter().filter(|r| r.x < 0.8 * a))
+        .map(|r| (r.p_n - p0 * (1.0 - (r.x / a).powi(2)).sqrt()).abs() / p0)
+        .fold(0.0, f64::max);
+    println!(
+        "{what}: a = {a}, p0 = {p0}: half-width {e_a:+.3e}, peak {e_p:+.3e}, profile {profile:.3e}"
+    );
+    (e_a, e_p, profile)
+}
+
+/// The 2 x 1 rectangle of the Gmsh fixtures (`tests/data/gmsh/rect_*`) on the mesh file
+/// `mesh`, its top sheared and pressed, on the line y = -0.001 with Coulomb 0.3.
+pub fn rect_case_on(mesh: &str) -> String {
+    format!(
+        r#"[mesh]
+file = "{mesh}"
+[material]
+young = 1000.0
+poisson = 0.3
+[[dirichlet]]
+group = "top"
+ux = 0.002
+uy = -0.01
+[contact]
+group = "bottom"
+obstacle_point = [0.0, -0.001]
+obstacle_normal = [0.0, 1.0]
+friction = "coulomb"
+coefficient = 0.3
+[solver]
+tol = 1e-10
+"#
+    )
+}
