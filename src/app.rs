@@ -21,7 +21,7 @@ use crate::fem::{AssemblyFigures, Material, Materials};
 use crate::host;
 use crate::linear::Ordering;
 use crate::mesh::{builtin, gmsh, Mesh};
-use crate::output::plot::{Foundation, ALONG_OBSTACLES};
+use crate::output::plot::{Foundation, ACROSS_NORMALS, ALONG_OBSTACLES};
 use crate::output::{
     self, blocks, BodySummary, Gathered, PieceRows, PlotFacts, RankStats, RunFacts, SharedFile,
     SubdomainSolution, Written,
@@ -385,6 +385,7 @@ fn write_plots(ctx: &Subdomain, all: &Gathered, o: &Outcome) -> Written {
 /// What the pictures say of the run beside the rows.
 fn plot_facts<'a>(ctx: &Subdomain<'a>) -> PlotFacts<'a> {
     let case = &ctx.setup.case;
+    let bodies_only = case.contacts.iter().all(|c| c.master.is_some());
     PlotFacts {
         title: if case.title.is_empty() {
             &case.origin
@@ -399,9 +400,16 @@ fn plot_facts<'a>(ctx: &Subdomain<'a>) -> PlotFacts<'a> {
                     tangent: tangent_of(normal),
                 }
                 .axis_label(),
+                _ if bodies_only => ACROSS_NORMALS,
                 _ => ALONG_OBSTACLES,
             },
+            _ if bodies_only => ACROSS_NORMALS,
             _ => ALONG_OBSTACLES,
+        },
+        along: match &case.contacts[..] {
+            _ if bodies_only => "between the bodies",
+            [_] => "along the foundation",
+            _ => "along the obstacles",
         },
         friction: format!("friction {}", case.friction_name()),
         frictional: Problem::is_frictional(case),

@@ -72,6 +72,10 @@ impl Foundation {
 /// The abscissa's name where the obstacles are not one straight foundation.
 pub const ALONG_OBSTACLES: &str = "s, along each obstacle (arc length)";
 
+/// The abscissa's name where every contact is between two bodies: each slave node's
+/// position across its contact's mean normal.
+pub const ACROSS_NORMALS: &str = "s, across each contact's mean normal";
+
 /// One contact pair's curves, its nodes in the order of their position s along the
 /// foundation.
 #[derive(Debug, Clone, PartialEq)]

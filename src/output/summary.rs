@@ -137,6 +137,9 @@ pub struct PlotFacts<'a> {
     pub pairs: Vec<String>,
     /// The name of the abscissa s (see `plot::Foundation::axis_label`).
     pub abscissa: &'a str,
+    /// Where the contact is, for the picture's title: "along the foundation", "along
+    /// the obstacles", "between the bodies".
+    pub along: &'a str,
     /// The friction law, as the first line names it ("friction none", ...).
     pub friction: String,
     pub frictional: bool,
@@ -196,7 +199,7 @@ impl Gathered {
             let pairs: Vec<_> = (facts.pairs.iter().enumerate())
                 .map(|(i, name)| pair_series(name, i as u32, &self.contact, facts.frictional))
                 .collect();
-            let what = format!("Contact along the foundation: {}, {state}", facts.friction);
+            let what = format!("Contact {}: {}, {state}", facts.along, facts.friction);
             contact_png([&what, facts.title], facts.abscissa, &pairs)
         };
         let convergence = || {
