@@ -3,33 +3,10 @@
 mod common;
 use common::*;
 
-/// The unstructured Gmsh quarter disc (radius 1, centre (0, 1), groups contact, axis,
-/// top) pressed on y = 0 through its top, symmetry on the axis.
+/// The unstructured Gmsh quarter disc of the fixtures with `friction`.
 fn quarter_disc_case(friction: &str) -> String {
     let mesh = gmsh_dir().join("quarter_disc_v41_ascii.msh");
-    format!(
-        r#"title = "Gmsh quarter disc"
-[mesh]
-file = "{}"
-[material]
-young = 1000.0
-poisson = 0.3
-[[dirichlet]]
-group = "axis"
-ux = 0.0
-[[dirichlet]]
-group = "top"
-uy = -0.01
-[contact]
-group = "contact"
-obstacle_point = [0.0, 0.0]
-obstacle_normal = [0.0, 1.0]
-{friction}
-[solver]
-tol = 1e-10
-"#,
-        mesh.display()
-    )
+    quarter_disc_case_on(&mesh.display().to_string(), friction)
 }
 
 #[test]

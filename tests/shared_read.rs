@@ -9,27 +9,10 @@ use common::*;
 use std::path::Path;
 use tempfile::TempDir;
 
-/// The quarter disc of the fixtures pressed on y = 0 (`quarter_disc.toml`'s problem).
-const DISC: &str = r#"[mesh]
-file = "mesh.msh"
-[material]
-young = 1000.0
-poisson = 0.3
-[[dirichlet]]
-group = "axis"
-ux = 0.0
-[[dirichlet]]
-group = "top"
-uy = -0.01
-[contact]
-group = "contact"
-obstacle_point = [0.0, 0.0]
-obstacle_normal = [0.0, 1.0]
-friction = "coulomb"
-coefficient = 0.2
-[solver]
-tol = 1e-10
-"#;
+/// The quarter disc of the fixtures pressed on y = 0 with Coulomb 0.2, on `mesh.msh`.
+fn disc_case() -> String {
+    quarter_disc_case_on("mesh.msh", "friction = \"coulomb\"\ncoefficient = 0.2")
+}
 
 /// A directory holding `case.toml` and its mesh `mesh.msh` (the given bytes).
 fn case_dir(case: &str, mesh: &[u8]) -> TempDir {
@@ -64,9 +47,9 @@ fn same_outputs(dir: &Path, a: &str, b: &str, what: &str) {
 
 #[test]
 fn every_rank_reading_gives_the_first_ranks_mesh_ascii_and_binary() {
-    let rect = rect_case_on("mesh.msh");
+    let (disc, rect) = (disc_case(), rect_case_on("mesh.msh"));
     for (case, mesh) in [
-        (DISC, "quarter_disc_v41_ascii.msh"),
+        (disc.as_str(), "quarter_disc_v41_ascii.msh"),
         (rect.as_str(), "rect_v41_binary.msh"),
         (rect.as_str(), "rect_v41_ascii.msh"),
     ] {
@@ -107,14 +90,14 @@ fn disc_with_a_record_over_two_lines() -> Vec<u8> {
 
 #[test]
 fn a_file_the_shares_cannot_take_is_read_by_the_first_rank_alone() {
-    let dir = case_dir(DISC, &disc_with_a_record_over_two_lines());
+    let dir = case_dir(&disc_case(), &disc_with_a_record_over_two_lines());
     let p = dir.path();
     let line = run(p, 3, "fallback", &["--mesh-read", "shared"]);
     assert!(line.contains("read by the first rank alone"), "{line}");
     run(p, 3, "alone", &["--mesh-read", "first"]);
     same_outputs(p, "fallback", "alone", "a record over two lines");
     // And the same mesh as the fixture read by the shares.
-    let plain = case_dir(DISC, &fixture("quarter_disc_v41_ascii.msh"));
+    let plain = case_dir(&disc_case(), &fixture("quarter_disc_v41_ascii.msh"));
     run(plain.path(), 3, "shared", &["--mesh-read", "shared"]);
     for f in ["contact.csv", "nodes.csv"] {
         let x = std::fs::read(p.join("fallback").join(f)).unwrap();
@@ -171,7 +154,7 @@ fn a_malformed_file_gives_the_first_ranks_one_line_on_any_number_of_ranks() {
         ),
         ("a truncated file", truncated, "truncated"),
     ] {
-        let dir = case_dir(DISC, bad.as_bytes());
+        let dir = case_dir(&disc_case(), bad.as_bytes());
         let one = refused(dir.path(), 1);
         assert_eq!(one.len(), 1, "{what}: {one:?}");
         assert!(one[0].contains(expect), "{what}: {one:?}");

@@ -156,13 +156,20 @@ pub fn scan(bytes: &[u8], name: &str) -> Option<Scan> {
     Some(scan)
 }
 
+/// The head of an MSH 4.1 `$Nodes` or `$Elements` section: its block count and record
+/// count (the tag range after them is not needed).
+fn section_header(r: &mut Reader) -> Option<(usize, usize)> {
+    let blocks = r.count("").ok()?;
+    let total = r.count("").ok()?;
+    r.size_t("").ok()?;
+    r.size_t("").ok()?;
+    Some((blocks, total))
+}
+
 impl Scan {
     fn nodes(&mut self, r: &mut Reader) -> Option<()> {
         self.builder.start_nodes(r).ok()?;
-        let blocks = r.count("").ok()?;
-        let total = r.count("").ok()?;
-        r.size_t("").ok()?;
-        r.size_t("").ok()?;
+        let (blocks, total) = section_header(r)?;
         let mut read = 0usize;
         for _ in 0..blocks {
             let dim = r.int("").ok()?;
@@ -185,10 +192,7 @@ impl Scan {
 
     fn elements(&mut self, r: &mut Reader) -> Option<()> {
         self.builder.start_elements(r).ok()?;
-        let blocks = r.count("").ok()?;
-        let total = r.count("").ok()?;
-        r.size_t("").ok()?;
-        r.size_t("").ok()?;
+        let (blocks, total) = section_header(r)?;
         let mut read = 0usize;
         for _ in 0..blocks {
             let at = r.mark();

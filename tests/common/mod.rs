@@ -517,3 +517,31 @@ tol = 1e-10
 "#
     )
 }
+
+/// The unstructured Gmsh quarter disc of the fixtures (radius 1, centre (0, 1), groups
+/// contact, axis, top) on the mesh file `mesh`, pressed on y = 0 through its top,
+/// symmetry on the axis, with the contact's `friction` lines.
+pub fn quarter_disc_case_on(mesh: &str, friction: &str) -> String {
+    format!(
+        r#"title = "Gmsh quarter disc"
+[mesh]
+file = "{mesh}"
+[material]
+young = 1000.0
+poisson = 0.3
+[[dirichlet]]
+group = "axis"
+ux = 0.0
+[[dirichlet]]
+group = "top"
+uy = -0.01
+[contact]
+group = "contact"
+obstacle_point = [0.0, 0.0]
+obstacle_normal = [0.0, 1.0]
+{friction}
+[solver]
+tol = 1e-10
+"#
+    )
+}
