@@ -23,10 +23,10 @@ use crate::linear::Ordering;
 use crate::mesh::{builtin, gmsh, Mesh};
 use crate::output::plot::{Foundation, ACROSS_NORMALS, ALONG_OBSTACLES};
 use crate::output::{
-    self, blocks, BodySummary, Gathered, PieceRows, PlotFacts, RankStats, RunFacts, SharedFile,
-    SubdomainSolution, Written,
+    self, blocks, BodySummary, ContactRow, Gathered, PieceRows, PlotFacts, RankStats, RunFacts,
+    SharedFile, SubdomainSolution, Written,
 };
-use crate::problem::{self, contact_modulus, Problem};
+use crate::problem::{self, contact_modulus, free_at_answer, NodeAtAnswer, Problem};
 use crate::split_dir::{self, Facts, Split};
 use crate::timer::{self, Phase, Timer, Timings};
 use serde::Serialize;
@@ -338,7 +338,11 @@ fn write(ctx: &Subdomain, sub: &SubProblem, solved: &Solved) -> Result<Timings> 
     let timings = timer.finish();
     let summary = tables.and_then(|all| match all {
         Some((all, written)) => {
-            let facts = run_facts(ctx);
+            let mut facts = run_facts(ctx);
+            facts.warnings = free_at_answer(&ctx.setup.facts.holding, &at_answer(&all.contact));
+            for w in &facts.warnings {
+                eprintln!("contact-par: warning: {w}");
+            }
             let summary = all.write_summary(&opts.out, facts, &solved.outcome, timings)?;
             Ok(written + summary)
         }
@@ -836,6 +840,7 @@ fn partition_problem(
         free_dofs: prob.fixed.iter().filter(|f| f.is_none()).count(),
         contact_nodes: prob.contact_nodes.len(),
         partition: part.quality.to_string(),
+        holding: prob.holding.clone(),
     };
     Ok((facts, subs))
 }
@@ -1377,7 +1382,21 @@ fn run_facts(ctx: &Subdomain) -> RunFacts {
         partition: setup.facts.partition.clone(),
         subdomains: ctx.mpi.size,
         subdomains_per_rank: setup.per_rank,
+        warnings: Vec::new(),
     }
+}
+
+/// The contact rows as [`free_at_answer`] reads them.
+fn at_answer(rows: &[ContactRow]) -> Vec<NodeAtAnswer> {
+    (rows.iter())
+        .map(|r| NodeAtAnswer {
+            part: r.part,
+            at: [r.x, r.y],
+            normal: r.normal,
+            pressed: r.status != Status::Free,
+            sticks: r.status == Status::Stick,
+        })
+        .collect()
 }
 
 /// The closing lines: the outcome with the contact totals over all subdomains

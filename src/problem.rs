@@ -9,10 +9,87 @@ use crate::contact::{tangent_of, ContactNodes, Friction};
 use crate::error::{input, Error, Result};
 use crate::fem::assembly::{add_body_force, add_edge_traction, edge_length};
 use crate::fem::{Hypothesis, Material};
-use crate::mesh::validate::{self, Free, Holds};
+use crate::mesh::validate::{self, ContactHold, Free, Holds};
 use crate::mesh::{renumber, Mesh};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
+
+/// What tells, at the answer, whether each separate part of the mesh is held (see
+/// [`free_at_answer`]): its Dirichlet conditions as lines of action, and a node of it to
+/// name it by.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Holding {
+    pub dirichlet: Vec<Holds>,
+    pub first: Vec<[f64; 2]>,
+}
+
+/// The part of the master nodes of a node against an obstacle (`ContactNodes::part`).
+pub const NO_PART: u32 = u32::MAX;
+
+/// A contact node at the answer, as [`free_at_answer`] reads it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NodeAtAnswer {
+    /// Its part and its master nodes' ([`NO_PART`] against an obstacle).
+    pub part: [u32; 2],
+    pub at: [f64; 2],
+    pub normal: [f64; 2],
+    pub pressed: bool,
+    pub sticks: bool,
+}
+
+/// The parts of the mesh that the answer leaves free to move rigidly without work, one
+/// message each. Before the run every contact node counts as holding ([`check_held`]);
+/// at the answer only a pressed node holds along its normal and a sticking one along its
+/// tangent (an open node is free, a slipping one carries its threshold whatever the
+/// slip). A rigid motion that the Dirichlet conditions and those lines leave free moves
+/// the body at no cost until an open node touches, so the answer is one of many along
+/// it: an iterative method drifts along such a motion, and two runs may differ along it
+/// by far more than `tol` (the thin half ring of docs/performance-history.md, standing
+/// frictionless on one node: 792 sweeps on one thread, 178 on two, answers 1e-3 apart).
+pub fn free_at_answer(holding: &Holding, nodes: &[NodeAtAnswer]) -> Vec<String> {
+    let count = holding.dirichlet.len();
+    let known = |p: u32| (p as usize) < count;
+    if count == 0
+        || !nodes
+            .iter()
+            .all(|n| known(n.part[0]) && (n.part[1] == NO_PART || known(n.part[1])))
+    {
+        return Vec::new();
+    }
+    let rows: Vec<ContactHold> = (nodes.iter().filter(|n| n.pressed))
+        .map(|n| ContactHold {
+            part: n.part[0] as usize,
+            master: (n.part[1] != NO_PART).then_some(n.part[1] as usize),
+            at: n.at,
+            normal: n.normal,
+            tangent: n.sticks,
+        })
+        .collect();
+    let mut holds = holding.dirichlet.clone();
+    validate::hold_parts(&mut holds, &rows);
+    let with_friction = nodes.iter().any(|n| n.sticks);
+    let by = match with_friction {
+        true => "its Dirichlet conditions, its pressed contact nodes' normals and its sticking nodes' tangents",
+        false => "its Dirichlet conditions and its pressed contact nodes' normals",
+    };
+    (holds.iter().enumerate())
+        .filter_map(|(p, h)| Some((p, h.free()?)))
+        .map(|(p, free)| {
+            let body = match count {
+                1 => "the body".to_string(),
+                _ => format!("the part of the mesh with the node at ({}, {})", holding.first[p][0], holding.first[p][1]),
+            };
+            let motion = match free {
+                Free::Turn { centre } => format!("turn about ({}, {})", centre[0], centre[1]),
+                Free::Slide { along } => format!("slide along ({}, {})", along[0], along[1]),
+                Free::SlideAndTurn { .. } | Free::Everything => "move rigidly".to_string(),
+            };
+            format!(
+                "at the answer {body} is held only by {by}, and these leave it free to {motion} without work until an open contact node touches: the answer is one of many along that motion (runs may differ along it by far more than tol); hold it there with a [[dirichlet]] condition or friction"
+            )
+        })
+        .collect()
+}
 
 /// The discrete problem on the whole mesh.
 #[derive(Debug, Clone)]
@@ -39,6 +116,8 @@ pub struct Problem {
     /// The bodies of the triangles that touch a contact node, increasing: the scales of
     /// r are theirs ([`contact_modulus`]).
     pub contact_bodies: Vec<u32>,
+    /// The separate parts' Dirichlet conditions, for the check of the answer.
+    pub holding: Holding,
 }
 
 impl Problem {
@@ -333,12 +412,12 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
 
     let ContactGeometry {
         nodes: contact_nodes,
-        contact,
+        mut contact,
         h: contact_h,
         masters: contact_masters,
     } = contact_geometry(case, &mesh, &boundary)?;
 
-    check_held(
+    let (holding, parts) = check_held(
         case,
         &mesh,
         &fixed,
@@ -346,6 +425,7 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         &contact,
         &contact_masters,
     )?;
+    contact.part = parts;
     // Checked here so that every fault of the input is reported before any work; the
     // bodies are found again in the new numbering below.
     bodies(case, &mesh)?;
@@ -362,6 +442,7 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         file_node: (0..n).collect(),
         body: Vec::new(),
         contact_bodies: Vec::new(),
+        holding,
     };
     let mut prob = in_locality_order(prob);
     prob.body = bodies(case, &prob.mesh)?;
@@ -493,6 +574,7 @@ fn contact_geometry(
         pair: contact_nodes.iter().map(|v| contact_of(v) as u32).collect(),
         friction: Vec::new(),
         fixed_threshold: Vec::new(),
+        part: Vec::new(),
     };
     let masters: Vec<Vec<(usize, f64)>> = (contact_nodes.iter())
         .map(|v| rows.get(v).map_or_else(Vec::new, |r| r.1.masters.clone()))
@@ -722,7 +804,7 @@ pub fn check_held(
     contact_nodes: &[usize],
     contact: &ContactNodes,
     masters: &[Vec<(usize, f64)>],
-) -> Result<()> {
+) -> Result<(Holding, Vec<[u32; 2]>)> {
     let (part, count) = validate::parts(mesh);
     let tol = validate::SAME_LINE * validate::size(mesh);
     let mut holds = vec![Holds::new(tol); count];
@@ -734,69 +816,55 @@ pub fn check_held(
         holds[part[node]].add(mesh.nodes[node], dir);
         kinds[part[node]][c] = true;
     }
-    let frictional = Problem::is_frictional(case);
-    // Per part: whether another body holds it (a contact with a master line).
-    let mut on_body = vec![false; count];
-    let mut hold = |holds: &mut [Holds], p: usize, k: usize| {
-        let (node, m, pair) = (
-            contact_nodes[k],
-            contact.normal[k],
-            contact.pair[k] as usize,
-        );
-        on_body[p] |= case.contacts[pair].master.is_some();
-        holds[p].add(mesh.nodes[node], m);
-        kinds[p][2] = true;
-        // A frictionless contact among frictional ones holds along its normals only.
-        if case.contacts[pair].friction != Friction::None {
-            holds[p].add(mesh.nodes[node], tangent_of(m));
-            kinds[p][3] = true;
-        }
-    };
-    for (k, &node) in contact_nodes.iter().enumerate() {
-        if masters.get(k).is_none_or(Vec::is_empty) {
-            hold(&mut holds, part[node], k);
-        }
+    let mut first = vec![usize::MAX; count];
+    for (node, &p) in part.iter().enumerate().rev() {
+        first[p] = node;
     }
-    // A contact between two parts holds one of them once the other is held (along the
-    // same lines of action): repeated until nothing changes, so that a chain of bodies
-    // resting on each other is held from its held end, and two bodies that only hold
-    // each other are not.
-    let mut done = vec![[false; 2]; contact_nodes.len()];
-    loop {
-        let mut changed = false;
-        for (k, row) in masters.iter().enumerate() {
-            let Some(&(first, _)) = row.first() else {
-                continue;
-            };
-            let (ps, pm) = (part[contact_nodes[k]], part[first]);
-            for (side, (from, to)) in [(pm, ps), (ps, pm)].into_iter().enumerate() {
-                if from != to && !done[k][side] && holds[from].free().is_none() {
-                    hold(&mut holds, to, k);
-                    done[k][side] = true;
-                    changed = true;
-                }
-            }
-        }
-        if !changed {
-            break;
-        }
+    let holding = Holding {
+        dirichlet: holds.clone(),
+        first: first.iter().map(|&n| mesh.nodes[n]).collect(),
+    };
+    let frictional = Problem::is_frictional(case);
+    let rows: Vec<ContactHold> = (contact_nodes.iter().enumerate())
+        .map(|(k, &node)| ContactHold {
+            part: part[node],
+            master: masters
+                .get(k)
+                .and_then(|m| m.first())
+                .map(|&(m, _)| part[m]),
+            at: mesh.nodes[node],
+            normal: contact.normal[k],
+            // A frictionless contact among frictional ones holds along its normals only.
+            tangent: case.contacts[contact.pair[k] as usize].friction != Friction::None,
+        })
+        .collect();
+    let parts_of = (rows.iter())
+        .map(|r| [r.part as u32, r.master.map_or(NO_PART, |m| m as u32)])
+        .collect();
+    let touched = validate::hold_parts(&mut holds, &rows);
+    for (k, t) in kinds.iter_mut().zip(&touched) {
+        k[2] |= t[0];
+        k[3] |= t[1];
+    }
+    if holds.iter().all(|h| h.free().is_none()) {
+        return Ok((holding, parts_of));
     }
     let Some((p, free)) = holds
         .iter()
         .enumerate()
         .find_map(|(p, h)| h.free().map(|f| (p, f)))
     else {
-        return Ok(());
+        return Ok((holding, parts_of));
     };
     let origin = &case.origin;
+    let on_body = touched[p][2];
     let body = if count == 1 {
         "the body".to_string()
     } else {
-        let first = part.iter().position(|&q| q == p).unwrap_or(0);
-        let x = mesh.nodes[first];
+        let x = mesh.nodes[first[p]];
         format!(
             "the part of the mesh with node {} at ({}, {}) (one of {count} separate parts)",
-            first + 1,
+            first[p] + 1,
             x[0],
             x[1]
         )
@@ -814,7 +882,7 @@ pub fn check_held(
         Free::Everything => format!(
             "{origin}: {body} has no [[dirichlet]] condition and no contact node, so nothing holds it (singular problem); fix ux and uy on one of its groups with [[dirichlet]] ({groups})"
         ),
-        Free::Slide { along } if kinds[p][2] && !frictional && on_body[p] => {
+        Free::Slide { along } if kinds[p][2] && !frictional && on_body => {
             let comp = component(along);
             format!(
                 "{origin}: nothing stops {body} from sliding on the body it rests on (singular problem): frictionless contact holds it only along the contact normals and no [[dirichlet]] fixes {comp}; add a [[dirichlet]] with {comp} = 0.0 on a symmetry line or on one node (a point group), or use friction = \"tresca\" or \"coulomb\" ({groups})"
@@ -909,5 +977,47 @@ mod tests {
         let lone = builtin_case("block", 0).unwrap();
         let m = lone.materials[0].material;
         assert_eq!(contact_modulus(&lone, &[0]), effective_modulus(&m));
+    }
+
+    #[test]
+    fn an_answer_held_by_lines_through_one_point_is_not_unique() {
+        // ux fixed along the line y = 1 (at two nodes of it): with one pressed node below,
+        // every line of action passes through (0, 1).
+        let mut ux = Holds::new(1e-9);
+        ux.add([-1.0, 1.0], [1.0, 0.0]);
+        ux.add([1.0, 1.0], [1.0, 0.0]);
+        let holding = Holding {
+            dirichlet: vec![ux],
+            first: vec![[-1.0, 1.0]],
+        };
+        let node = |x: f64, pressed, sticks| NodeAtAnswer {
+            part: [0, NO_PART],
+            at: [x, 0.0],
+            normal: [0.0, 1.0],
+            pressed,
+            sticks,
+        };
+        let one = free_at_answer(&holding, &[node(0.0, true, false), node(0.5, false, false)]);
+        assert_eq!(one.len(), 1);
+        assert!(
+            one[0].contains("the body") && one[0].contains("free to turn about (0, 1)"),
+            "{}",
+            one[0]
+        );
+        // A second pressed node, or a sticking one, holds it.
+        assert!(
+            free_at_answer(&holding, &[node(0.0, true, false), node(0.5, true, false)]).is_empty()
+        );
+        assert!(free_at_answer(&holding, &[node(0.0, true, true)]).is_empty());
+        // Nothing pressed: free to move rigidly.
+        let none = free_at_answer(&holding, &[node(0.0, false, false)]);
+        assert!(none[0].contains("free to move rigidly"), "{}", none[0]);
+        // Parts not known (an older split, a row without them): no verdict.
+        let unknown = NodeAtAnswer {
+            part: [NO_PART; 2],
+            ..node(0.0, true, false)
+        };
+        assert!(free_at_answer(&holding, &[unknown]).is_empty());
+        assert!(free_at_answer(&Holding::default(), &[node(0.0, true, false)]).is_empty());
     }
 }

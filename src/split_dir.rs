@@ -20,7 +20,7 @@ use crate::contact::Friction;
 use crate::dd::split::SubProblem;
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
-use crate::problem::Lengths;
+use crate::problem::{Holding, Lengths};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 /// The manifest's file name in a split directory.
 pub const MANIFEST: &str = "split.json";
 /// Bumped whenever the part files or the manifest change layout.
-const FORMAT: u32 = 4;
+const FORMAT: u32 = 5;
 const MAGIC: &[u8; 8] = b"CPSPLIT\x01";
 
 /// What partitioning and splitting a case fixes, whoever did it (the first rank of a run,
@@ -50,6 +50,8 @@ pub struct Facts {
     pub contact_nodes: usize,
     /// The partition's quality report.
     pub partition: String,
+    /// The separate parts' Dirichlet conditions, for the check of the answer.
+    pub holding: Holding,
 }
 
 /// A split directory checked against the case of the run.

@@ -84,6 +84,11 @@ pub struct ContactNodes {
     /// node; empty otherwise. Filled from the case at each run, like `friction`.
     #[serde(default)]
     pub fixed_threshold: Vec<f64>,
+    /// Each node's separate part of the mesh and its master nodes' part
+    /// (`problem::NO_PART` against an obstacle), for the check of the answer
+    /// (`problem::free_at_answer`); empty where not known.
+    #[serde(default)]
+    pub part: Vec<[u32; 2]>,
 }
 
 /// The tangent of a unit normal: m turned clockwise.
@@ -107,6 +112,10 @@ impl ContactNodes {
             fixed_threshold: keep
                 .iter()
                 .filter_map(|&k| self.fixed_threshold.get(k).copied())
+                .collect(),
+            part: keep
+                .iter()
+                .filter_map(|&k| self.part.get(k).copied())
                 .collect(),
         }
     }

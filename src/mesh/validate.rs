@@ -485,14 +485,14 @@ pub enum Free {
 /// Frictionless contact holds the body along m only (by the augmentation of the linear
 /// step; physically only when the load presses the body onto the foundation), so it
 /// always leaves the sliding along t to the Dirichlet conditions.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Holds {
     tol: f64,
     classes: Vec<Class>,
 }
 
 /// The lines of one direction: the first one, and whether another, distinct one exists.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 struct Class {
     dir: [f64; 2],
     point: [f64; 2],
@@ -559,6 +559,63 @@ impl Holds {
                     })
                     .then_some(Free::Turn { centre })
             }
+        }
+    }
+}
+
+/// A contact node as a condition on the separate parts of a mesh ([`hold_parts`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactHold {
+    /// The node's part.
+    pub part: usize,
+    /// The part of its master nodes; `None` against an obstacle.
+    pub master: Option<usize>,
+    pub at: [f64; 2],
+    pub normal: [f64; 2],
+    /// Whether it holds along its tangent too (friction).
+    pub tangent: bool,
+}
+
+/// Adds the lines of action of contact nodes to `holds`, each part's conditions so far
+/// (its Dirichlet conditions). A node against an obstacle holds its own part. A node of
+/// a contact between two parts holds one of them once the other is held, along the same
+/// lines: repeated until nothing changes, so that a chain of bodies resting on each
+/// other is held from its held end, and two bodies that only hold each other are not.
+/// Returns per part whether some node held it along a normal, along a tangent, and
+/// through another part.
+pub fn hold_parts(holds: &mut [Holds], nodes: &[ContactHold]) -> Vec<[bool; 3]> {
+    let mut kinds = vec![[false; 3]; holds.len()];
+    let mut hold = |holds: &mut [Holds], p: usize, c: &ContactHold| {
+        holds[p].add(c.at, c.normal);
+        kinds[p][0] = true;
+        kinds[p][2] |= c.master.is_some();
+        if c.tangent {
+            holds[p].add(c.at, [c.normal[1], -c.normal[0]]);
+            kinds[p][1] = true;
+        }
+    };
+    for c in nodes.iter().filter(|c| c.master.is_none()) {
+        hold(holds, c.part, c);
+    }
+    let mut done = vec![[false; 2]; nodes.len()];
+    loop {
+        // Whether each part is held, once per pass: a part's test costs its directions.
+        let held: Vec<bool> = holds.iter().map(|h| h.free().is_none()).collect();
+        let mut changed = false;
+        for (k, c) in nodes.iter().enumerate() {
+            let Some(m) = c.master else {
+                continue;
+            };
+            for (side, (from, to)) in [(m, c.part), (c.part, m)].into_iter().enumerate() {
+                if from != to && !done[k][side] && held[from] {
+                    hold(holds, to, c);
+                    done[k][side] = true;
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            return kinds;
         }
     }
 }
@@ -862,5 +919,46 @@ mod tests {
         // rotation is still free.
         let held = free(&[([0., 1.0], X), ([4., 1.0 + 1e-15], X), ([2., 7.], Y)]);
         assert!(matches!(held, Some(Free::Turn { .. })), "{held:?}");
+    }
+
+    #[test]
+    fn contacts_hold_their_part_and_through_a_held_part_the_other() {
+        let (x, y) = ([1.0, 0.0], [0.0, 1.0]);
+        let node = |part, master, at| ContactHold {
+            part,
+            master,
+            at,
+            normal: y,
+            tangent: false,
+        };
+        // Part 1 is clamped along two lines; part 0 rests on it by two mortar rows, and
+        // part 2 on an obstacle by one node.
+        let mut clamped = Holds::new(1e-9);
+        clamped.add([0.0, 0.0], x);
+        clamped.add([0.0, 0.0], y);
+        clamped.add([1.0, 0.0], y);
+        let mut holds = vec![Holds::new(1e-9), clamped, Holds::new(1e-9)];
+        let rows = [
+            node(0, Some(1), [0.0, 1.0]),
+            node(0, Some(1), [1.0, 1.0]),
+            node(2, None, [5.0, 0.0]),
+        ];
+        let kinds = hold_parts(&mut holds, &rows);
+        assert_eq!(
+            kinds,
+            [[true, false, true], [false; 3], [true, false, false]]
+        );
+        // Frictionless rows hold part 0 along y only: it can slide along x.
+        assert_eq!(holds[0].free(), Some(Free::Slide { along: [-1.0, 0.0] }));
+        assert!(holds[1].free().is_none());
+        assert!(matches!(holds[2].free(), Some(Free::SlideAndTurn { .. })));
+        // Two parts that only hold each other are not held.
+        let mut two = vec![Holds::new(1e-9), Holds::new(1e-9)];
+        hold_parts(
+            &mut two,
+            &[node(0, Some(1), [0.0, 1.0]), node(0, Some(1), [1.0, 1.0])],
+        );
+        assert_eq!(two[0].free(), Some(Free::Everything));
+        assert_eq!(two[1].free(), Some(Free::Everything));
     }
 }

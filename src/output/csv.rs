@@ -35,6 +35,9 @@ pub struct ContactRow {
     /// The share of the node's contact force that its master nodes take back (the sum
     /// of its mortar row's coefficients, `contact::mortar`: one); 0 against an obstacle.
     pub to_master: f64,
+    /// The node's separate part of the mesh and its master nodes' part
+    /// (`problem::NO_PART` against an obstacle, or both where not known).
+    pub part: [u32; 2],
 }
 
 /// A contact status as one byte on the wire.
@@ -159,6 +162,7 @@ mod tests {
             s: x,
             normal: [0.0, 1.0],
             to_master: 0.0,
+            part: [0, crate::problem::NO_PART],
         }
     }
 

@@ -9,6 +9,7 @@ use crate::dd::split::SubProblem;
 use crate::error::{Error, Result};
 use crate::fem::{self, Materials};
 use crate::mesh::Mesh;
+use crate::problem::NO_PART;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -154,6 +155,7 @@ impl SubdomainSolution<'_> {
                     normal: sub.contact.normal[k],
                     to_master: (sub.contact_masters.get(k))
                         .map_or(0.0, |m| m.iter().map(|e| e.1).sum()),
+                    part: (sub.contact.part.get(k)).map_or([NO_PART; 2], |&p| p),
                 }
             })
             .collect()
@@ -183,6 +185,7 @@ mod tests {
                 s: -1.5,
                 normal: [0.6, -0.8],
                 to_master: 0.0,
+                part: [1, NO_PART],
             })
             .collect();
         let bytes = crate::dd::comm::encode(&rows).unwrap();

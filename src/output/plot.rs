@@ -758,6 +758,7 @@ mod tests {
             s: x,
             normal: [0.0, 1.0],
             to_master: 0.0,
+            part: [0, crate::problem::NO_PART],
         }
     }
 

@@ -87,6 +87,8 @@ pub struct RunFacts {
     /// Each body (its `[[material]]` entry, or the one `[material]`), by body index: the
     /// `body` cell array of the .vtu pieces.
     pub bodies: Vec<BodySummary>,
+    /// What the run warns of about its answer (`problem::free_at_answer`), one line each.
+    pub warnings: Vec<String>,
 }
 
 /// One body in summary.json.
