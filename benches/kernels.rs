@@ -566,6 +566,7 @@ fn plots(c: &mut Criterion) {
                     mistuned_n: 0,
                     unsettled: 0,
                     uncertain: 0,
+                    pattern: 0,
                     retunes: (k / 8).min(4),
                     refused: k / 100,
                 }

@@ -255,3 +255,17 @@ fn an_answer_free_to_turn_is_reported_as_not_unique() {
     assert!(!coulomb.stderr.contains("warning"), "{}", coulomb.stderr);
     assert_eq!(coulomb.summary()["warnings"], serde_json::json!([]));
 }
+
+/// Retunes whose statuses cycle end at the reference r: the shallow Coulomb arch
+/// (arch.msh, `make_cases.py --heldout`) alternated between two sets of statuses at
+/// every retune until the budget of 100 was spent (179 sweeps); now its retunes end at
+/// the third return (20 retunes, 83 sweeps), with the same answer on 1 and 3 ranks.
+#[test]
+fn retunes_that_cycle_end() {
+    check("arch.toml", &[], "arch");
+    let run = run_args(&[&case("arch.toml")]);
+    run.expect_code(0);
+    let retunes = run.summary()["r_retunes"].as_u64().unwrap();
+    println!("arch: {} sweeps, {retunes} retunes", sweeps(&run));
+    assert!(retunes <= 30, "{retunes} retunes");
+}

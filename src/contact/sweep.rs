@@ -48,6 +48,11 @@ pub struct Sweep {
     /// to its status boundary (the gap, the slip threshold) than the estimated error of
     /// the sweep before.
     pub uncertain: usize,
+    /// A fingerprint of the statuses in this sweep's image (a sum over the contact nodes
+    /// of [`status_tag`]): equal for the same statuses whatever the ranks, for the
+    /// retune's test of a cycle (`retune::retuned`).
+    #[serde(default)]
+    pub pattern: u64,
     /// Retunes of r before this sweep.
     pub retunes: usize,
     /// Accelerated points the safeguard refused so far, this sweep's included (a sweep
@@ -177,6 +182,8 @@ pub(super) struct SweepSums {
     pub(super) uncertain: f64,
     pub(super) mistuned_n: f64,
     pub(super) unsettled: f64,
+    /// The sum of [`status_tag`]: whole numbers, exact in the all-reduce's sum.
+    pub(super) pattern: f64,
 }
 
 /// The floor of each quantity's scale, as a fraction of the other quantities' sizes of
@@ -199,7 +206,7 @@ pub const ROUNDOFF: f64 = 16.0 * f64::EPSILON;
 
 impl SweepSums {
     /// The numbers [`SweepSums::pack`] puts in the all-reduce.
-    pub(super) const LEN: usize = 17;
+    pub(super) const LEN: usize = 18;
 
     pub(super) fn pack(&self) -> [f64; Self::LEN] {
         [
@@ -220,11 +227,12 @@ impl SweepSums {
             self.uncertain,
             self.mistuned_n,
             self.unsettled,
+            self.pattern,
         ]
     }
 
     pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
-        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain, mistuned_n, unsettled] =
+        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain, mistuned_n, unsettled, pattern] =
             v;
         SweepSums {
             force_change_n,
@@ -244,6 +252,7 @@ impl SweepSums {
             uncertain,
             mistuned_n,
             unsettled,
+            pattern,
         }
     }
 
@@ -317,6 +326,7 @@ impl SweepSums {
             mistuned_n: self.mistuned_n as usize,
             unsettled: self.unsettled as usize,
             uncertain: self.uncertain as usize,
+            pattern: self.pattern as u64,
             retunes,
             refused: 0,
         }
@@ -549,9 +559,38 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             let settled = tuned(held, frictional, r, self.mesh_stiffness, true);
             s.unsettled += f64::from(u8::from(aug.r_n[i] != settled.0))
                 + f64::from(u8::from(aug.r_t[i] != settled.1));
+            s.pattern += status_tag(self.nodes, i, held);
         }
         s
     }
+}
+
+/// Node i's share of a sweep's status fingerprint ([`Sweep::pattern`]): a 20-bit whole
+/// number hashed from the node (its weight, gap, position and normal, the same on every
+/// rank) and its status, so that a sum over up to 2^33 nodes stays exact in an f64 and
+/// two sets of statuses that differ at a few nodes give the same sum with a chance of
+/// about 2^-20.
+pub(super) fn status_tag(nodes: &ContactNodes, i: usize, held: Held) -> f64 {
+    let code = u64::from(held.n) | u64::from(held.t) << 1 | u64::from(held.loose) << 2;
+    let [mx, my] = nodes.normal.get(i).copied().unwrap_or_default();
+    let at = |v: &[f64]| v.get(i).copied().unwrap_or_default().to_bits();
+    let words = [
+        at(&nodes.w),
+        at(&nodes.g),
+        at(&nodes.s),
+        mx.to_bits(),
+        my.to_bits(),
+        code,
+    ];
+    let mut h: u64 = 0x9e37_79b9_7f4a_7c15;
+    for w in words {
+        // splitmix64's finaliser over each word in turn.
+        h = (h ^ w).wrapping_add(0x9e37_79b9_7f4a_7c15);
+        h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        h ^= h >> 31;
+    }
+    (h >> 44) as f64
 }
 
 #[cfg(test)]

@@ -814,6 +814,7 @@ mod tests {
             mistuned_n: 0,
             unsettled: 0,
             uncertain: 0,
+            pattern: 0,
             retunes,
             refused,
         }
