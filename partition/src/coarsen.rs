@@ -11,6 +11,11 @@
 
 use crate::graph::Graph;
 use metis::Idx;
+use rayon::prelude::*;
+
+/// Vertices per block of [`coarsen`]: a fixed size, so that the coarse graph (and the
+/// partition) is the same on any number of threads.
+const BLOCK: usize = 1 << 14;
 
 /// Matches every vertex, in increasing order, with its unmatched neighbour across the
 /// heaviest edge (the first one on ties), and contracts each pair to one vertex.
@@ -20,72 +25,52 @@ use metis::Idx;
 /// Ties go to the first neighbour, which is the lowest-numbered one: on the first level
 /// (unit weights) this pairs the two triangles of a quad in the usual mesh numberings;
 /// on the next ones, the heaviest edge keeps the merged cells compact.
+///
+/// The vertices are matched and contracted in blocks of [`BLOCK`] consecutive vertices,
+/// on all threads: a vertex is matched within its block only, and the coarse vertices
+/// of a block follow those of the blocks before. In a numbering with locality (the
+/// program's, along a Hilbert curve) a block is a compact piece of the mesh, and the
+/// pairs it forgoes across its border are a few per cent of its vertices.
 pub(crate) fn coarsen(graph: &Graph) -> (Graph, Vec<Idx>, Vec<[Idx; 2]>) {
     let n = graph.num_vertices();
-    let mut cmap = vec![-1 as Idx; n];
-    let mut members: Vec<[Idx; 2]> = Vec::with_capacity(n / 2 + 1);
-    for v in 0..n {
-        if cmap[v] >= 0 {
-            continue;
-        }
-        let c = members.len() as Idx;
-        cmap[v] = c;
-        let mut mate = -1;
-        let mut heaviest = 0;
-        for k in graph.range(v) {
-            let u = graph.adjncy[k];
-            let w = graph.edge_weight(k);
-            if cmap[u as usize] < 0 && w > heaviest {
-                mate = u;
-                heaviest = w;
-            }
-        }
-        if mate >= 0 {
-            cmap[mate as usize] = c;
-        }
-        members.push([v as Idx, mate]);
+    let blocks: Vec<std::ops::Range<usize>> = (0..n)
+        .step_by(BLOCK)
+        .map(|s| s..(s + BLOCK).min(n))
+        .collect();
+    let matched: Vec<Vec<[Idx; 2]>> = blocks.par_iter().map(|r| matching(graph, r)).collect();
+    let mut first = Vec::with_capacity(blocks.len() + 1);
+    first.push(0usize);
+    for m in &matched {
+        first.push(first[first.len() - 1] + m.len());
     }
-
+    let mut cmap = vec![-1 as Idx; n];
+    cmap.par_chunks_mut(BLOCK)
+        .zip(&blocks)
+        .zip(matched.par_iter().zip(&first))
+        .for_each(|((cmap, r), (pairs, &c0))| {
+            for (k, pair) in pairs.iter().enumerate() {
+                for &v in pair.iter().filter(|&&v| v >= 0) {
+                    cmap[v as usize - r.start] = (c0 + k) as Idx;
+                }
+            }
+        });
+    let rows: Vec<Rows> = matched
+        .par_iter()
+        .map(|pairs| contract(graph, &cmap, pairs))
+        .collect();
+    let members: Vec<[Idx; 2]> = matched.concat();
     let nc = members.len();
     let mut xadj = Vec::with_capacity(nc + 1);
     xadj.push(0 as Idx);
-    // Contraction never lengthens the lists, and the untouched tail of an overestimate
-    // costs no memory traffic, unlike a reallocation.
-    let mut adjncy = Vec::with_capacity(graph.adjncy.len());
-    let mut adjwgt = Vec::with_capacity(graph.adjncy.len());
+    let entries: usize = rows.iter().map(|r| r.adjncy.len()).sum();
+    let (mut adjncy, mut adjwgt) = (Vec::with_capacity(entries), Vec::with_capacity(entries));
     let mut vwgt = Vec::with_capacity(nc);
-    // slot[d]: position of coarse neighbour d in the row being built, or -1.
-    let mut slot = vec![-1 as Idx; nc];
-    for (c, pair) in members.iter().enumerate() {
-        let row_start = adjncy.len();
-        let mut weight = 0;
-        for &w in pair {
-            if w < 0 {
-                continue;
-            }
-            let w = w as usize;
-            weight += graph.vertex_weight(w);
-            for k in graph.range(w) {
-                let d = cmap[graph.adjncy[k] as usize];
-                if d as usize == c {
-                    continue;
-                }
-                let ew = graph.edge_weight(k);
-                match slot[d as usize] {
-                    -1 => {
-                        slot[d as usize] = adjncy.len() as Idx;
-                        adjncy.push(d);
-                        adjwgt.push(ew);
-                    }
-                    s => adjwgt[s as usize] += ew,
-                }
-            }
-        }
-        for &d in &adjncy[row_start..] {
-            slot[d as usize] = -1;
-        }
-        vwgt.push(weight);
-        xadj.push(adjncy.len() as Idx);
+    for r in rows {
+        let base = adjncy.len() as Idx;
+        xadj.extend(r.ends.iter().map(|&e| base + e));
+        adjncy.extend(r.adjncy);
+        adjwgt.extend(r.adjwgt);
+        vwgt.extend(r.vwgt);
     }
     let coarse = Graph {
         xadj,
@@ -94,6 +79,79 @@ pub(crate) fn coarsen(graph: &Graph) -> (Graph, Vec<Idx>, Vec<[Idx; 2]>) {
         adjwgt: Some(adjwgt),
     };
     (coarse, cmap, members)
+}
+
+/// The pairs of the vertices `r` (see [`coarsen`]), matched within `r`.
+fn matching(graph: &Graph, r: &std::ops::Range<usize>) -> Vec<[Idx; 2]> {
+    let mut taken = vec![false; r.len()];
+    let mut pairs = Vec::with_capacity(r.len() / 2 + 1);
+    for v in r.clone() {
+        if taken[v - r.start] {
+            continue;
+        }
+        taken[v - r.start] = true;
+        let mut mate = -1;
+        let mut heaviest = 0;
+        for k in graph.range(v) {
+            let u = graph.adjncy[k] as usize;
+            let w = graph.edge_weight(k);
+            if r.contains(&u) && !taken[u - r.start] && w > heaviest {
+                mate = u as Idx;
+                heaviest = w;
+            }
+        }
+        if mate >= 0 {
+            taken[mate as usize - r.start] = true;
+        }
+        pairs.push([v as Idx, mate]);
+    }
+    pairs
+}
+
+/// The coarse rows of one block's pairs: each row's end (from the block's first entry),
+/// neighbours, edge weights and vertex weights.
+struct Rows {
+    ends: Vec<Idx>,
+    adjncy: Vec<Idx>,
+    adjwgt: Vec<Idx>,
+    vwgt: Vec<Idx>,
+}
+
+fn contract(graph: &Graph, cmap: &[Idx], pairs: &[[Idx; 2]]) -> Rows {
+    let mut rows = Rows {
+        ends: Vec::with_capacity(pairs.len()),
+        adjncy: Vec::new(),
+        adjwgt: Vec::new(),
+        vwgt: Vec::with_capacity(pairs.len()),
+    };
+    for pair in pairs {
+        let c = cmap[pair[0] as usize];
+        let row_start = rows.adjncy.len();
+        let mut weight = 0;
+        for &w in pair.iter().filter(|&&w| w >= 0) {
+            let w = w as usize;
+            weight += graph.vertex_weight(w);
+            for k in graph.range(w) {
+                let d = cmap[graph.adjncy[k] as usize];
+                if d == c {
+                    continue;
+                }
+                let ew = graph.edge_weight(k);
+                // A coarse row has a handful of entries: a scan finds d as fast as a
+                // lookup table, which each block would need of the whole coarse size.
+                match rows.adjncy[row_start..].iter().position(|&e| e == d) {
+                    Some(s) => rows.adjwgt[row_start + s] += ew,
+                    None => {
+                        rows.adjncy.push(d);
+                        rows.adjwgt.push(ew);
+                    }
+                }
+            }
+        }
+        rows.vwgt.push(weight);
+        rows.ends.push(rows.adjncy.len() as Idx);
+    }
+    rows
 }
 
 /// How far [`refine`] looks, in vertices, for another path between the neighbours of a

@@ -255,7 +255,8 @@ fn deterministic_across_threads() {
 #[test]
 fn same_graph_and_parts_on_any_number_of_threads() {
     // The dual graph is built in blocks of triangles on rayon's threads: 234 000
-    // triangles make several blocks, and past 200 000 the coarsening runs as well.
+    // triangles make several blocks, and past 200 000 the coarsening runs as well, in
+    // blocks of its own.
     let (nx, ny) = (450, 260);
     let mesh = rectangle(nx, ny);
     let on = |threads: usize| {
