@@ -612,7 +612,7 @@ fn validate(raw: RawCase, origin: &str, dir: &Path) -> Result<Case> {
     if let Some(m) = s.anderson_memory {
         if !(1..=50).contains(&m) {
             return input(format!(
-                "{origin}: solver.anderson_memory = {m} must lie in 1..=50 (10 is a good value)"
+                "{origin}: solver.anderson_memory = {m} must lie in 1..=50 (20 is a good value)"
             ));
         }
         if let Acceleration::Anderson { memory } = &mut solver.acceleration {
