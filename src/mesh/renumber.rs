@@ -85,26 +85,28 @@ pub fn order_by_nodes(triangles: &[[usize; 3]], num_nodes: usize) -> Vec<usize> 
     debug_assert!(num_nodes < 1 << 42);
     // Up to 2^21 nodes the triple packs into 64 bits, and the pairs (key, index) take
     // half the memory that the sort moves.
-    if num_nodes <= 1 << 21 && triangles.len() <= u32::MAX as usize {
-        let mut keyed: Vec<(u64, u32)> = triangles
-            .par_iter()
-            .enumerate()
-            .map(|(i, t)| {
-                let mut k = t.map(|v| v as u64);
-                k.sort_unstable();
-                ((k[0] << 42) | (k[1] << 21) | k[2], i as u32)
-            })
-            .collect();
-        keyed.par_sort_unstable();
-        return keyed.into_par_iter().map(|(_, i)| i as usize).collect();
+    if num_nodes <= 1 << 21 {
+        sorted_by_key(triangles, |k| (k[0] << 42) | (k[1] << 21) | k[2])
+    } else {
+        sorted_by_key(triangles, |k| {
+            let k = k.map(u128::from);
+            (k[0] << 84) | (k[1] << 42) | k[2]
+        })
     }
-    let mut keyed: Vec<(u128, usize)> = triangles
+}
+
+/// The order of `triangles` by `pack` of their sorted node triples, on all threads.
+fn sorted_by_key<K: Ord + Send>(
+    triangles: &[[usize; 3]],
+    pack: impl Fn([u64; 3]) -> K + Sync,
+) -> Vec<usize> {
+    let mut keyed: Vec<(K, usize)> = triangles
         .par_iter()
         .enumerate()
         .map(|(i, t)| {
-            let mut k = t.map(|v| v as u128);
+            let mut k = t.map(|v| v as u64);
             k.sort_unstable();
-            ((k[0] << 84) | (k[1] << 42) | k[2], i)
+            (pack(k), i)
         })
         .collect();
     keyed.par_sort_unstable();
