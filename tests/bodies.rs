@@ -42,8 +42,11 @@ fn forces(run: &Run) -> ([f64; 2], [f64; 2]) {
 }
 
 /// Action equals reaction: what the rows put on the master nodes is minus what they put
-/// on the slave, to round-off.
+/// on the slave, to round-off. And every body of these cases is held at the answer,
+/// through the other body where it rests on it: no warning of an answer that is not
+/// unique (`problem::free_at_answer`).
 fn assert_action_reaction(run: &Run, what: &str) {
+    assert_eq!(run.summary()["warnings"], serde_json::json!([]), "{what}");
     let (on_slave, on_master) = forces(run);
     let scale = on_slave[0].hypot(on_slave[1]);
     for c in 0..2 {

@@ -90,6 +90,8 @@ fn check(file: &str, args: &[&str], what: &str) {
     let tight_args = with(TIGHT);
     let tight = run_args(&tight_args.iter().map(String::as_str).collect::<Vec<_>>());
     tight.expect_code(0);
+    // Each of these answers is unique: the run must not say otherwise.
+    assert_eq!(tight.summary()["warnings"], serde_json::json!([]), "{what}");
     let loose_args = with(&TOL.to_string());
     let loose = run_args(&loose_args.iter().map(String::as_str).collect::<Vec<_>>());
     loose.expect_code(0);
