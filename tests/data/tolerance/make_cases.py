@@ -290,6 +290,12 @@ def heldout(scale, out):
                   70000.0, 0.33, "plane_stress", '[[dirichlet]]\ngroup = "left"\nux = 0.0\n',
                   '[[traction]]\ngroup = "left"\nt = [0.0, -0.5]\n\n[[traction]]\ngroup = "right"\nt = [0.0, -0.5]\n\n[body_force]\nf = [0.0, -2.65e-5]\n',
                   (0.0, 0.0), (0.0, 1.0), 'friction = "coulomb"\ncoefficient = 0.4'))
+    # Its frictionless variant has no unique answer: standing on one node and held along x
+    # on the line through its centre only, it can turn about the centre (the run warns).
+    cases.append(("ring_none", "The thin half ring, frictionless: free to turn about its centre, an answer that is not unique.",
+                  70000.0, 0.33, "plane_stress", '[[dirichlet]]\ngroup = "left"\nux = 0.0\n',
+                  '[[traction]]\ngroup = "left"\nt = [0.0, -0.5]\n\n[[traction]]\ngroup = "right"\nt = [0.0, -0.5]\n\n[body_force]\nf = [0.0, -2.65e-5]\n',
+                  (0.0, 0.0), (0.0, 1.0), 'friction = "none"', "ring.msh"))
     # The slab: 1000 x 20 mm of concrete, 0.01 mm above a 3-degree slope, held at its
     # upper end face along x.
     a = math.radians(3.0)
