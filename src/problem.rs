@@ -79,13 +79,21 @@ pub fn free_at_answer(holding: &Holding, nodes: &[NodeAtAnswer]) -> Vec<String> 
                 1 => "the body".to_string(),
                 _ => format!("the part of the mesh with the node at ({}, {})", holding.first[p][0], holding.first[p][1]),
             };
-            let motion = match free {
-                Free::Turn { centre } => format!("turn about ({}, {})", centre[0], centre[1]),
-                Free::Slide { along } => format!("slide along ({}, {})", along[0], along[1]),
-                Free::SlideAndTurn { .. } | Free::Everything => "move rigidly".to_string(),
+            let (motion, fix) = match free {
+                Free::Turn { centre } => (
+                    format!("turn about ({}, {})", centre[0], centre[1]),
+                    format!("fix ux or uy at a node away from ({}, {})", centre[0], centre[1]),
+                ),
+                Free::Slide { along } => (
+                    format!("slide along ({}, {})", along[0], along[1]),
+                    format!("fix {} at a node", component(along)),
+                ),
+                Free::SlideAndTurn { .. } | Free::Everything => {
+                    ("move rigidly".to_string(), "fix ux and uy at a node".to_string())
+                }
             };
             format!(
-                "at the answer {body} is held only by {by}, and these leave it free to {motion} without work until an open contact node touches: the answer is one of many along that motion (runs may differ along it by far more than tol); hold it there with a [[dirichlet]] condition or friction"
+                "at the answer {body} is held only by {by}, and these leave it free to {motion} without work until an open contact node touches: the answer is one of many along that motion (runs may differ along it by far more than tol); {fix} with a [[dirichlet]] condition, or give the contact friction"
             )
         })
         .collect()
