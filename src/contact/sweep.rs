@@ -416,6 +416,8 @@ pub(super) struct Sweeper<'a, S: LinearStep> {
     /// How close (a length) a state may come to its status boundary before its status
     /// counts as uncertain: the estimated error of the last sweep.
     pub(super) margin: f64,
+    /// Each node's key for the status fingerprint ([`node_key`]).
+    keys: Vec<u64>,
     force_n: Vec<f64>,
     force_t: Vec<f64>,
     pub(super) un: Vec<f64>,
@@ -439,6 +441,7 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             aug: Augmentation::uniform(n, r),
             last_held: Vec::new(),
             margin: f64::INFINITY,
+            keys: (0..n).map(|i| node_key(nodes, i)).collect(),
             force_n: vec![0.0; n],
             force_t: vec![0.0; n],
             un: vec![0.0; n],
@@ -559,38 +562,43 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             let settled = tuned(held, frictional, r, self.mesh_stiffness, true);
             s.unsettled += f64::from(u8::from(aug.r_n[i] != settled.0))
                 + f64::from(u8::from(aug.r_t[i] != settled.1));
-            s.pattern += status_tag(self.nodes, i, held);
+            s.pattern += status_tag(self.keys[i], held);
         }
         s
     }
 }
 
-/// Node i's share of a sweep's status fingerprint ([`Sweep::pattern`]): a 20-bit whole
-/// number hashed from the node (its weight, gap, position and normal, the same on every
-/// rank) and its status, so that a sum over up to 2^33 nodes stays exact in an f64 and
-/// two sets of statuses that differ at a few nodes give the same sum with a chance of
-/// about 2^-20.
-pub(super) fn status_tag(nodes: &ContactNodes, i: usize, held: Held) -> f64 {
-    let code = u64::from(held.n) | u64::from(held.t) << 1 | u64::from(held.loose) << 2;
+/// Node i's key for [`status_tag`]: a hash of its weight, gap, position and normal, the
+/// same on every rank; computed once per run.
+fn node_key(nodes: &ContactNodes, i: usize) -> u64 {
     let [mx, my] = nodes.normal.get(i).copied().unwrap_or_default();
     let at = |v: &[f64]| v.get(i).copied().unwrap_or_default().to_bits();
-    let words = [
+    [
         at(&nodes.w),
         at(&nodes.g),
         at(&nodes.s),
         mx.to_bits(),
         my.to_bits(),
-        code,
-    ];
-    let mut h: u64 = 0x9e37_79b9_7f4a_7c15;
-    for w in words {
-        // splitmix64's finaliser over each word in turn.
-        h = (h ^ w).wrapping_add(0x9e37_79b9_7f4a_7c15);
-        h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        h ^= h >> 31;
-    }
-    (h >> 44) as f64
+    ]
+    .into_iter()
+    .fold(0x9e37_79b9_7f4a_7c15, mix)
+}
+
+/// splitmix64's finaliser over `h` and the next word.
+fn mix(h: u64, word: u64) -> u64 {
+    let mut h = (h ^ word).wrapping_add(0x9e37_79b9_7f4a_7c15);
+    h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    h ^ (h >> 31)
+}
+
+/// A node's share of a sweep's status fingerprint ([`Sweep::pattern`]): a 20-bit whole
+/// number hashed from the node's key ([`node_key`]) and its status, so that a sum over
+/// up to 2^33 nodes stays exact in an f64 and two sets of statuses that differ at a few
+/// nodes give the same sum with a chance of about 2^-20.
+pub(super) fn status_tag(key: u64, held: Held) -> f64 {
+    let code = u64::from(held.n) | u64::from(held.t) << 1 | u64::from(held.loose) << 2;
+    (mix(key, code) >> 44) as f64
 }
 
 #[cfg(test)]

@@ -919,6 +919,11 @@ mod tests {
     const ANDERSON: Acceleration = Acceleration::Anderson { memory: 5 };
 
     fn run_with(friction: Friction, acc: Acceleration, f: [f64; 2], g: f64) -> Outcome {
+        one_spring(2.0, friction, acc, f, g)
+    }
+
+    /// One contact node on a spring of stiffness `k`, weight 0.5, r w = 5.
+    fn one_spring(k: f64, friction: Friction, acc: Acceleration, f: [f64; 2], g: f64) -> Outcome {
         let nodes = ContactNodes {
             w: vec![0.5],
             g: vec![g],
@@ -926,7 +931,7 @@ mod tests {
             ..Default::default()
         };
         let mut s = Springs {
-            k: vec![2.0],
+            k: vec![k],
             rw: vec![5.0],
             f: vec![f],
             calls: 0,
@@ -950,27 +955,7 @@ mod tests {
     /// A node that nothing holds but the contact (k ~ 0), pushed by f = 2 towards the
     /// foundation at the gap `g`: while open, each sweep moves it by f / (r w) = 0.4.
     fn floating_node(g: f64, acc: Acceleration) -> Outcome {
-        let nodes = ContactNodes {
-            w: vec![0.5],
-            g: vec![g],
-            s: vec![0.0; 1],
-            ..Default::default()
-        };
-        let mut s = Springs {
-            k: vec![1e-13],
-            rw: vec![5.0],
-            f: vec![[2.0, 0.0]],
-            calls: 0,
-            kick: None,
-        };
-        let o = solve(
-            &mut s,
-            &NoComm,
-            &nodes,
-            &params(Friction::None, acc),
-            &mut |_| {},
-        )
-        .unwrap();
+        let o = one_spring(1e-13, Friction::None, acc, [2.0, 0.0], g);
         assert!(o.converged);
         assert!(o.iterations <= 20, "{} sweeps", o.iterations);
         assert!((o.un[0] - g).abs() < 1e-9);
