@@ -271,3 +271,19 @@ fn retunes_that_cycle_end() {
     println!("arch: {} sweeps, {retunes} retunes", sweeps(&run));
     assert!(retunes <= 30, "{retunes} retunes");
 }
+
+/// A body standing on one node under Tresca friction settles in few sweeps: the thin
+/// steel tube (tube.msh, `make_cases.py --heldout --scale 2`) stands on one sticking node,
+/// and every open node of its arc slips at the threshold. Those open tangents carry a
+/// fixed force, and their springs alone held the tube's bending modes (the loop
+/// contracted by 0.999 on its last piece): 110 sweeps, where the built-in block of about
+/// its size takes 30. Lowered like the open normals once the statuses settle, 22; within
+/// twice the block is issue 24's target. The answer stays within tol on 1 and 3 ranks.
+#[test]
+fn a_tube_on_one_node_under_tresca_friction_settles() {
+    check("tube.toml", &[], "tube");
+    let block = sweeps(&run_builtin("block", 1, &[]));
+    let tube = sweeps(&run_args(&[&case("tube.toml")]));
+    println!("tube {tube} sweeps, block {block}");
+    assert!(tube <= 2 * block, "{tube} sweeps against the block's {block}");
+}

@@ -127,7 +127,7 @@ pub const MAX_RETUNES: usize = 100;
 /// The r of a node's normal and tangential directions for its statuses: raised where
 /// held (pressed, sticking), at least to the floors above in units of `mesh_stiffness`
 /// (E_eff / h, 0 when not known); lowered where free (open, slipping), further once
-/// `settled` for the directions that carry no force ([`SETTLED_FREE_FACTOR`]). Without
+/// `settled` for the directions that nothing but their spring holds ([`SETTLED_FREE_FACTOR`]). Without
 /// friction the tangent is not part of the method and keeps r.
 pub fn tuned(
     Held {
@@ -152,7 +152,12 @@ pub fn tuned(
     } else {
         r / NORMAL_FACTOR
     };
-    let t = if frictional && loose && settled {
+    // An open node's slipping tangent is free as a loose one is: its force is the
+    // threshold, which no normal force sets (Tresca), and only its spring holds its
+    // motion. A pressed node's slipping tangent is not lowered: its threshold follows
+    // the normal force (Coulomb) and its stick/slip status flips with it.
+    let free_t = loose || (!held_n && !held_t);
+    let t = if frictional && free_t && settled {
         free
     } else if frictional {
         pick(held_t, TANGENT_FACTOR, HELD_TANGENT_FLOOR)
@@ -484,7 +489,16 @@ mod tests {
         );
         let settled = r / SETTLED_FREE_FACTOR;
         assert_eq!(tuned(open, true, r, 0.0, true), (settled, settled));
-        // Held and slipping directions keep their factors.
+        // An open node slipping under Tresca: its force is the threshold, its motion
+        // free, so its tangent goes as low.
+        let open_tresca = Held::new(false, false);
+        assert_eq!(
+            tuned(open_tresca, true, r, 0.0, false),
+            (r / NORMAL_FACTOR, r / TANGENT_FACTOR)
+        );
+        assert_eq!(tuned(open_tresca, true, r, 0.0, true), (settled, settled));
+        // Held directions, and a pressed node's slipping tangent, keep their factors; so
+        // does an open node's sticking tangent.
         assert_eq!(
             tuned(Held::new(true, true), true, r, 0.0, true),
             (r * NORMAL_FACTOR, r * TANGENT_FACTOR)
@@ -492,6 +506,10 @@ mod tests {
         assert_eq!(
             tuned(Held::new(true, false), true, r, 0.0, true).1,
             r / TANGENT_FACTOR
+        );
+        assert_eq!(
+            tuned(Held::new(false, true), true, r, 0.0, true),
+            (settled, r * TANGENT_FACTOR)
         );
         // Settling is what the tangents' retune does; the normals' undoes it.
         let held = [open, Held::new(true, true)];
