@@ -285,5 +285,8 @@ fn a_tube_on_one_node_under_tresca_friction_settles() {
     let block = sweeps(&run_builtin("block", 1, &[]));
     let tube = sweeps(&run_args(&[&case("tube.toml")]));
     println!("tube {tube} sweeps, block {block}");
-    assert!(tube <= 2 * block, "{tube} sweeps against the block's {block}");
+    assert!(
+        tube <= 2 * block,
+        "{tube} sweeps against the block's {block}"
+    );
 }
