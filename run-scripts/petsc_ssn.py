@@ -59,6 +59,9 @@ def main():
                     help="pdas: semismooth Newton as a primal-dual active-set loop on the full "
                     "space (default); rsls: SNES vinewtonrsls on the reduced space")
     ap.add_argument("--trace", action="store_true", help="print each pdas step")
+    ap.add_argument("--start-active", action="store_true",
+                    help="pdas: start with every contact dof on the foundation (for a body "
+                    "that only its contact holds) instead of none")
     args = ap.parse_args()
     comm = PETSc.COMM_WORLD
     rank = comm.getRank()
@@ -193,7 +196,7 @@ def pdas(comm, a, rhs, kb, cdof, sign, g, lo, hi, args):
     row's residual. It stops when the active set repeats."""
     mine = (cdof >= lo) & (cdof < hi)
     c = float(np.mean(kb.diagonal()[cdof]))
-    active = np.zeros(len(cdof), dtype=bool)
+    active = np.full(len(cdof), args.start_active)
     x = a.createVecRight()
     res = a.createVecLeft()
     b = a.createVecLeft()
