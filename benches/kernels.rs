@@ -569,6 +569,7 @@ fn plots(c: &mut Criterion) {
                     pattern: 0,
                     retunes: (k / 8).min(4),
                     refused: k / 100,
+                    roundoff: 0.0,
                 }
             })
             .collect();

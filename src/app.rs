@@ -7,6 +7,7 @@ use crate::case::{self, BuiltinMesh, Case, MeshSource};
 use crate::checkpoint::CheckpointFiles;
 use crate::contact::obstacle::Obstacle;
 use crate::contact::operators::ContactDofs;
+use crate::contact::roundoff_warning;
 use crate::contact::tangent_of;
 use crate::contact::{
     self, Acceleration, CoulombMode, Friction, LinearStep, Outcome, Reduce, Status, Sweep,
@@ -340,6 +341,10 @@ fn write(ctx: &Subdomain, sub: &SubProblem, solved: &Solved) -> Result<Timings> 
         Some((all, written)) => {
             let mut facts = run_facts(ctx);
             facts.warnings = free_at_answer(&ctx.setup.facts.holding, &at_answer(&all.contact));
+            facts.warnings.extend(roundoff_warning(
+                solved.outcome.history.last(),
+                ctx.setup.case.solver.tol,
+            ));
             for w in &facts.warnings {
                 eprintln!("contact-par: warning: {w}");
             }

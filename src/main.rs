@@ -28,8 +28,8 @@ contact.csv: one row per contact node, sorted by x then y, with the index of its
     0,0,-0.0000000000000003219783990750409,0,7507.894399144059,0,0,0
     0.2052403205637102,0.0004212376662626599,0.0004212376662625075,-0.003400414774257441,7739.099958734696,0,0.0004212376662626599,0
 history.csv: one row per sweep; retunes (of r) and refused_accelerations count up to it
-    iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,uncertain_nodes,stiff_directions,soft_directions,retunes,refused_accelerations
-    1,0.9999999999999399,0.9999999999999399,0,0.9999371161615976,0,10,0,10,111,0,0,0,0
+    iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,uncertain_nodes,stiff_directions,soft_directions,retunes,refused_accelerations,roundoff_floor
+    1,0.9999999999999399,0.9999999999999399,0,0.9999371161615976,0,10,0,10,111,0,0,0,0,0.00000000000006004561171114102
 summary.json: the run's figures, among them
     "converged": true, "iterations": 9, "active_nodes": 17, "stick_nodes": null,
     "total_normal_force": 20178.66655210865, "r": 38623.28141784163, "r_retunes": 4,

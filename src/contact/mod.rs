@@ -14,7 +14,7 @@ pub mod uzawa;
 
 pub use law::{Acceleration, CoulombMode, Friction, DEFAULT_ANDERSON_MEMORY};
 pub use retune::Augmentation;
-pub use sweep::Sweep;
+pub use sweep::{roundoff_warning, Sweep};
 pub use uzawa::{solve, solve_with, Checkpoints, Outcome, Params, Snapshot};
 
 use crate::error::Result;

@@ -344,6 +344,7 @@ mod tests {
             pattern: 0,
             retunes,
             refused: 0,
+            roundoff: 0.0,
         }
     }
 

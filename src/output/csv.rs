@@ -112,7 +112,7 @@ pub fn push_node_rows(out: &mut String, nodes: &[[f64; 2]], u: &[[f64; 2]]) {
 }
 
 /// The header of `history.csv`.
-pub const HISTORY_HEADER: &str = "iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,uncertain_nodes,stiff_directions,soft_directions,retunes,refused_accelerations";
+pub const HISTORY_HEADER: &str = "iteration,error_estimate,pressure_change,traction_change,displacement_change,contraction,active_nodes,slip_nodes,changed_nodes,uncertain_nodes,stiff_directions,soft_directions,retunes,refused_accelerations,roundoff_floor";
 
 /// `history.csv`: `HISTORY_HEADER`, one row per sweep in the given order (the other
 /// fields of [`Sweep`] are not written).
@@ -123,7 +123,7 @@ pub fn history_csv(rows: &[Sweep]) -> String {
     for r in rows {
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.iter,
             r.error,
             r.pressure,
@@ -137,7 +137,8 @@ pub fn history_csv(rows: &[Sweep]) -> String {
             r.stiff,
             r.soft,
             r.retunes,
-            r.refused
+            r.refused,
+            r.roundoff
         );
     }
     out
@@ -300,6 +301,7 @@ mod tests {
                 pattern: 0,
                 retunes: 0,
                 refused: 0,
+                roundoff: 0.0,
             },
             Sweep {
                 iter: 2,
@@ -320,6 +322,7 @@ mod tests {
                 pattern: 0,
                 retunes: 1,
                 refused: 2,
+                roundoff: 3.1e-9,
             },
         ];
         let csv = history_csv(&rows);
@@ -327,11 +330,11 @@ mod tests {
         assert_eq!(lines.next(), Some(HISTORY_HEADER));
         assert_eq!(
             lines.next(),
-            Some(format!("1,0.5,0.25,{},0,0,10,0,4,3,0,0,0,0", 1e-300).as_str())
+            Some(format!("1,0.5,0.25,{},0,0,10,0,4,3,0,0,0,0,0", 1e-300).as_str())
         );
         assert_eq!(
             lines.next(),
-            Some("2,0.30000000000000004,0.1,0,2,0.5,12,3,0,0,12,5,1,2")
+            Some("2,0.30000000000000004,0.1,0,2,0.5,12,3,0,0,12,5,1,2,0.0000000031")
         );
         assert_eq!(lines.next(), None);
         assert!(csv.ends_with('\n'));

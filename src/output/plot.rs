@@ -817,6 +817,7 @@ mod tests {
             pattern: 0,
             retunes,
             refused,
+            roundoff: 0.0,
         }
     }
 

@@ -545,3 +545,16 @@ tol = 1e-10
 "#
     )
 }
+
+/// The warnings of `summary` that say the answer is not unique (`warnings` in
+/// summary.json), leaving out the one that says round-off bounds the accuracy.
+#[allow(dead_code)]
+pub fn not_unique_warnings(summary: &serde_json::Value) -> Vec<String> {
+    summary["warnings"]
+        .as_array()
+        .expect("warnings")
+        .iter()
+        .map(|w| w.as_str().expect("a warning").to_string())
+        .filter(|w| !w.starts_with("round-off"))
+        .collect()
+}
