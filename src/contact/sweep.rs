@@ -13,7 +13,7 @@ use crate::error::Result;
 /// its own size (see `SweepSums::changes`); `error` is their largest, divided by
 /// 1 - `contraction`: the estimated relative error of the reported answer, which the loop
 /// stops on (`error <= tol`).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Sweep {
     pub iter: usize,
     /// |lambda+ - lambda|_W / |lambda+|_W: the contact pressure p_n.
@@ -690,24 +690,9 @@ mod tests {
     fn round_off_above_tol_is_said() {
         let mut last = Sweep {
             iter: 9,
-            pressure: 0.0,
-            traction: 0.0,
-            displacement: 0.0,
-            contraction: 0.5,
-            error: 0.0,
             active: 3,
-            slip: 0,
-            changed: 0,
-            stiff: 0,
-            soft: 0,
-            mistuned: 0,
-            mistuned_n: 0,
-            unsettled: 0,
-            uncertain: 0,
-            pattern: 0,
-            retunes: 0,
-            refused: 0,
             roundoff: 2e-8,
+            ..Default::default()
         };
         assert_eq!(roundoff_warning(None, 1e-8), None);
         let w = roundoff_warning(Some(&last), 1e-8).expect("a warning");
