@@ -127,8 +127,9 @@ pub const MAX_RETUNES: usize = 100;
 /// The r of a node's normal and tangential directions for its statuses: raised where
 /// held (pressed, sticking), at least to the floors above in units of `mesh_stiffness`
 /// (E_eff / h, 0 when not known); lowered where free (open, slipping), further once
-/// `settled` for the directions that nothing but their spring holds ([`SETTLED_FREE_FACTOR`]). Without
-/// friction the tangent is not part of the method and keeps r.
+/// `settled` for the directions that nothing but their spring holds
+/// ([`SETTLED_FREE_FACTOR`]). Without friction the tangent is not part of the method
+/// and keeps r.
 pub fn tuned(
     Held {
         n: held_n,

@@ -58,9 +58,10 @@ pub struct Sweep {
     /// Accelerated points the safeguard refused so far, this sweep's included (a sweep
     /// that evaluated a refused point counts it).
     pub refused: usize,
-    /// The largest change, relative as the three changes are, that round-off alone
-    /// leaves in this sweep (changes below it count as none): the accuracy the run can
-    /// reach at best ([`SweepSums::changes`]).
+    /// The round-off floor, relative as the three changes are, of the quantities whose
+    /// change in this sweep was below their round-off and counted as none (0 where no
+    /// change was hidden, as at an exact fixed point): where it is hiding changes, the
+    /// accuracy the run can confirm at best ([`SweepSums::changes`]).
     #[serde(default)]
     pub roundoff: f64,
 }
@@ -268,8 +269,8 @@ impl SweepSums {
 
     /// The relative changes (p_n, p_t, u) of the sweep: each quantity's change over its
     /// own size plus [`SCALE_FLOOR`] times the other force (p_n, p_t), or the forces
-    /// over the reference r `r` (u).
-    /// With them, the largest relative change that round-off leaves ([`Sweep::roundoff`]).
+    /// over the reference r `r` (u); and the round-off floor of the sweep
+    /// ([`Sweep::roundoff`]).
     pub(super) fn changes(&self, r: f64, mesh_stiffness: f64) -> ([f64; 3], f64) {
         let (pn, pt) = (self.force_n.sqrt(), self.force_t.sqrt());
         let u = self.displacement_n.sqrt() + self.displacement_t.sqrt();
@@ -282,48 +283,31 @@ impl SweepSums {
             r
         };
         let noise = ROUNDOFF * (pn + pt + r_max * u);
-        let measured = |change: f64, noise: f64| (change - noise).max(0.0);
-        // The forces' floors are forces: r u (a length times the augmentation) is no
-        // scale of p_n or p_t. Where r u is far above the contact forces (a body that
-        // moves a lot before it touches: the cantilever of tests/data/tolerance, r u =
-        // 5000 p_n), a floor of 1e-3 r u was 5 p_n, and p_t stopped 15 times tol off.
-        let pressure = relative(
-            measured(self.force_change_n.sqrt(), noise),
-            pn + SCALE_FLOOR * pt,
-        );
-        let traction = relative(
-            measured(self.force_change_t.sqrt(), noise),
-            pt + SCALE_FLOOR * pn,
-        );
-        let displacement = relative(
-            measured(
-                self.state_change_n.sqrt() + self.state_change_t.sqrt(),
-                noise / r,
-            ),
-            u + SCALE_FLOOR * (pn + pt) / r,
-        );
-        // The floor of each quantity whose change round-off hid: there the loop can no
-        // longer tell its progress from noise. An exact fixed point (no change at all)
-        // hides nothing.
-        let hidden = |change: f64, noise: f64, scale: f64| {
-            if change > 0.0 && change <= noise {
-                relative(noise, scale)
-            } else {
-                0.0
-            }
-        };
-        let floor = hidden(self.force_change_n.sqrt(), noise, pn + SCALE_FLOOR * pt)
-            .max(hidden(
-                self.force_change_t.sqrt(),
-                noise,
-                pt + SCALE_FLOOR * pn,
-            ))
-            .max(hidden(
+        // (change, its noise, its scale) of p_n, p_t and u. The forces' floors are
+        // forces: r u (a length times the augmentation) is no scale of p_n or p_t. Where
+        // r u is far above the contact forces (a body that moves a lot before it
+        // touches: the cantilever of tests/data/tolerance, r u = 5000 p_n), a floor of
+        // 1e-3 r u was 5 p_n, and p_t stopped 15 times tol off.
+        let quantities = [
+            (self.force_change_n.sqrt(), noise, pn + SCALE_FLOOR * pt),
+            (self.force_change_t.sqrt(), noise, pt + SCALE_FLOOR * pn),
+            (
                 self.state_change_n.sqrt() + self.state_change_t.sqrt(),
                 noise / r,
                 u + SCALE_FLOOR * (pn + pt) / r,
-            ));
-        ([pressure, traction, displacement], floor)
+            ),
+        ];
+        let changes =
+            quantities.map(|(change, noise, scale)| relative((change - noise).max(0.0), scale));
+        // The floor of each quantity whose change round-off hid: there the loop can no
+        // longer tell its progress from noise. An exact fixed point (no change at all)
+        // hides nothing.
+        let floor = quantities
+            .iter()
+            .filter(|&&(change, noise, _)| change > 0.0 && change <= noise)
+            .map(|&(_, noise, scale)| relative(noise, scale))
+            .fold(0.0, f64::max);
+        (changes, floor)
     }
 
     /// The history line of sweep `iter` from the global sums, with the reference r `r`,
