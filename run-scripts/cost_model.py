@@ -5,17 +5,27 @@ predict a run of another size.
 
     python3 run-scripts/cost_model.py DIR1/summary-*.json DIR2/summary-*.json \\
         [--dofs 1e8 --ranks 512 --contact-nodes N --sweeps S \\
-         --flops F --bandwidth B --latency L --net-bandwidth W --mumps-efficiency E]
+         --flops F --bandwidth B --latency L --net-bandwidth W --mumps-efficiency E \\
+         --start DIR3/start.csv --node-cores K]
 
 The laws are fitted on the runs with at least --min-ranks subdomains (the regime they
 describe: subdomains with interface all round, the interface factored by MUMPS), and
 printed with the ratio model / measured on every run. Only work, sizes, bytes and
 memory are fitted: they are the same on an oversubscribed machine as on a cluster.
 Times follow from them and a node's parameters, which are arguments.
+
+With --start (the CSV of run-scripts/start_study.py), the start from one Gmsh file is
+predicted too: what the first rank does alone while every other rank waits (the scan,
+the assembly of the shares, the problem, the partition and split, the scatter), each
+piece's seconds per node on one core and the part of it that runs on the threads of
+the first rank's node (--node-cores), and the first rank's memory per node; against the
+run's other phases, its share of the whole run.
 """
+import csv
 import argparse
 import json
 import math
+import os
 import statistics
 import sys
 
@@ -150,6 +160,76 @@ class Model:
         ])
 
 
+START_PIECES = ("scan", "assembly", "problem", "partition", "scatter")
+
+
+class Start:
+    """The first rank's work alone from one Gmsh file, per piece p:
+      T_p(N, c) = t_p N (1 - f_p + f_p / c)   seconds, N nodes, c cores of its node
+    t_p from the runs where the first rank has one core (`--bind-to core`), f_p from
+    those where it has its node's k cores: T_k / T_1 = 1 - f + f / k. Those runs have
+    2 parts; the partition's growth with the parts and the first rank's peak memory
+    come from `contact-par split` on one core (split.csv): its seconds per node over
+    those at 2 parts, interpolated in log P, and its peak bytes per node."""
+
+    def __init__(self, directory):
+        with open(os.path.join(directory, "start.csv")) as fh:
+            rows = list(csv.DictReader(fh))
+        with open(os.path.join(directory, "split.csv")) as fh:
+            splits = list(csv.DictReader(fh))
+        one = [r for r in rows if r["cores"] == "1"]
+        many = [r for r in rows if r["cores"] != "1"]
+        if not one or not many or not splits:
+            sys.exit("cost_model.py: --start needs runs on one core, on the node's cores, and splits")
+        self.k = 2  # start_study.py on this project's 2-core machine
+        self.t, self.f = {}, {}
+        for p in START_PIECES:
+            key = p + "_s"
+            self.t[p] = fit_scale([(float(r["nodes"]), max(float(r[key]), 1e-6)) for r in one])
+            t1 = sum(float(r[key]) for r in one)
+            tk = sum(float(r[key]) for r in many)
+            self.f[p] = min(max((t1 - tk) / (t1 * (1 - 1 / self.k)), 0.0), 1.0) if t1 > 0 else 0.0
+        # The largest mesh's splits: seconds per node against the parts.
+        big = max(int(r["nodes"]) for r in splits)
+        own = sorted((int(r["parts"]), float(r["seconds"]) / big) for r in splits
+                     if int(r["nodes"]) == big)
+        self.split_per_node = own
+        # Peak bytes per node: the slope over the meshes (a process's own fixed tens of
+        # MB apart), or over the one mesh there is.
+        peaks = [(float(r["nodes"]), float(r["peak_bytes"])) for r in splits]
+        if len({n for n, _ in peaks}) >= 2:
+            self.m_0 = fit_linear(peaks)[1]
+        else:
+            self.m_0 = max(b / n for n, b in peaks)
+
+    def partition_extra(self, parts):
+        """Seconds per node the partition into `parts` costs over 2 parts (one core)."""
+        pts = [(math.log(p), s) for p, s in self.split_per_node]
+        base = dict(self.split_per_node).get(2, pts[0][1])
+        x = math.log(parts)
+        lo = max([q for q in pts if q[0] <= x], default=pts[0])
+        hi = min([q for q in pts if q[0] >= x], default=pts[-1])
+        if hi[0] == lo[0]:
+            # Beyond the last measured count: the last slope, extended.
+            (x0, y0), (x1, y1) = pts[-2], pts[-1]
+            y = y1 + (y1 - y0) / (x1 - x0) * (x - x1) if x > x1 else lo[1]
+        else:
+            y = lo[1] + (hi[1] - lo[1]) * (x - lo[0]) / (hi[0] - lo[0])
+        return max(y - base, 0.0)
+
+    def seconds(self, nodes, cores, parts):
+        s = {p: self.t[p] * nodes * (1 - self.f[p] + self.f[p] / cores) for p in START_PIECES}
+        s["partition"] += self.partition_extra(parts) * nodes * (1 - self.f["partition"] + self.f["partition"] / cores)
+        return s
+
+    def describe(self):
+        pieces = ", ".join(f"{p} {self.t[p] * 1e6:.3f} us/node ({self.f[p]:.0%} threaded)"
+                           for p in START_PIECES)
+        splits = ", ".join(f"{p} parts {s * 1e6:.2f}" for p, s in self.split_per_node)
+        return (f"  start at 2 parts: {pieces}\n  contact-par split, one core, us/node: {splits};"
+                f" its peak {self.m_0:.0f} B per node")
+
+
 def times(pr, P, sweeps, a):
     """Seconds on the critical path: factorization, one sweep, the loop."""
     factor = pr["F_s"] / a.flops + pr["share"] / (a.mumps_efficiency * a.flops)
@@ -182,6 +262,10 @@ def main():
     ap.add_argument("--net-bandwidth", type=float, default=10e9, help="network bytes/s per rank")
     ap.add_argument("--mumps-efficiency", type=float, default=0.3,
                     help="MUMPS's flop rate in the interface factorization over --flops")
+    ap.add_argument("--start", help="start_study.py's output directory (start.csv, split.csv): "
+                    "predict the start from one Gmsh file")
+    ap.add_argument("--node-cores", type=int, default=64,
+                    help="cores of the first rank's node, which it borrows for the start")
     a = ap.parse_args()
     runs = sorted((figures(json.load(open(p))) for p in a.summaries), key=lambda r: (r["n"], r["P"]))
     m = Model(runs, a.min_ranks)
@@ -218,7 +302,22 @@ def main():
         print(f"{P:>5} {a.dofs / P:>9.3g} {pr['b']:>6.0f} {pr['n_G']:>8.0f} {pr['F_s'] / 1e9:>8.1f} "
               f"{pr['share'] / 1e9:>8.2f} {(pr['F_s'] + pr['share']) / one:>9.5f} "
               f"{pr['M'] / 2**30:>10.2f} {m.r_0 * pr['M'] / 2**30:>9.2f} {f:>9.1f} {sw * 1e3:>9.2f} {loop:>7.1f}")
-
+    if a.start:
+        st = Start(a.start)
+        nodes = a.dofs / 2
+        print()
+        print(f"the start from one Gmsh file ({nodes:.3g} nodes): the first rank alone, on its node's "
+              f"{a.node_cores} cores, while the other ranks wait; fitted on {a.start}:")
+        print(st.describe())
+        print(f"  its peak memory: {st.m_0 * nodes / 2**30:.1f} GiB (the whole mesh and problem)")
+        print(f"{'P':>5} {'scan':>6} {'assembly':>9} {'problem':>8} {'partition':>10} {'scatter':>8} "
+              f"{'alone s':>8} {'factor + loop s':>15} {'serial share':>12}")
+        for P in sorted({64, 128, 256, a.ranks}):
+            secs = st.seconds(nodes, a.node_cores, P)
+            alone = sum(secs.values())
+            f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
+            print(f"{P:>5} " + " ".join(f"{secs[p]:>{w}.1f}" for p, w in zip(START_PIECES, (6, 9, 8, 10, 8)))
+                  + f" {alone:>8.1f} {f + loop:>15.1f} {alone / (alone + f + loop):>12.1%}")
 
 if __name__ == "__main__":
     sys.exit(main())

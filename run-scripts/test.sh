@@ -17,6 +17,11 @@ cargo clippy --release --workspace --all-targets -- -D warnings
 bash run-scripts/scaling.sh --smoke --out "$(mktemp -d)/smoke"
 bash run-scripts/scaling.sh --smoke --case-file tests/data/gmsh/quarter_disc.toml \
   --out "$(mktemp -d)/smoke-case-file"
+# The start study and the cost model's start on it (seconds).
+start_dir="$(mktemp -d)/start"
+python3 run-scripts/start_study.py tests/data/gmsh/quarter_disc.toml --runs 1 \
+  --split-parts 2,4 --out "$start_dir" >/dev/null
+python3 run-scripts/cost_model.py docs/data/scale-summaries/*.json --start "$start_dir" >/dev/null
 if cargo nextest --version >/dev/null 2>&1; then
   cargo nextest run --release --workspace --no-fail-fast
 else
