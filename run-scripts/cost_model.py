@@ -6,7 +6,7 @@ predict a run of another size.
     python3 run-scripts/cost_model.py DIR1/summary-*.json DIR2/summary-*.json \\
         [--dofs 1e8 --ranks 512 --contact-nodes N --sweeps S \\
          --flops F --bandwidth B --latency L --net-bandwidth W --mumps-efficiency E \\
-         --start DIR3/start.csv --node-cores K]
+         --start DIR3 --node-cores K]
 
 The laws are fitted on the runs with at least --min-ranks subdomains (the regime they
 describe: subdomains with interface all round, the interface factored by MUMPS), and
@@ -14,15 +14,15 @@ printed with the ratio model / measured on every run. Only work, sizes, bytes an
 memory are fitted: they are the same on an oversubscribed machine as on a cluster.
 Times follow from them and a node's parameters, which are arguments.
 
-With --start (the CSV of run-scripts/start_study.py), the start from one Gmsh file is
+With --start (the directory of run-scripts/start_study.py's CSV files), the start from one Gmsh file is
 predicted too: what the first rank does alone while every other rank waits (the scan,
 the assembly of the shares, the problem, the partition and split, the scatter), each
 piece's seconds per node on one core and the part of it that runs on the threads of
 the first rank's node (--node-cores), and the first rank's memory per node; against the
 run's other phases, its share of the whole run.
 """
-import csv
 import argparse
+import csv
 import json
 import math
 import os
@@ -167,7 +167,7 @@ class Start:
     """The first rank's work alone from one Gmsh file, per piece p:
       T_p(N, c) = t_p N (1 - f_p + f_p / c)   seconds, N nodes, c cores of its node
     t_p from the runs where the first rank has one core (`--bind-to core`), f_p from
-    those where it has its node's k cores: T_k / T_1 = 1 - f + f / k. Those runs have
+    those where it has its node's k cores (`--bind-to none`): T_k / T_1 = 1 - f + f / k. Those runs have
     2 parts; the partition's growth with the parts and the first rank's peak memory
     come from `contact-par split` on one core (split.csv): its seconds per node over
     those at 2 parts, interpolated in log P, and its peak bytes per node."""
@@ -177,18 +177,19 @@ class Start:
             rows = list(csv.DictReader(fh))
         with open(os.path.join(directory, "split.csv")) as fh:
             splits = list(csv.DictReader(fh))
-        one = [r for r in rows if r["cores"] == "1"]
-        many = [r for r in rows if r["cores"] != "1"]
+        one = [r for r in rows if r["bind"] == "core"]
+        many = [r for r in rows if r["bind"] == "none"]
         if not one or not many or not splits:
             sys.exit("cost_model.py: --start needs runs on one core, on the node's cores, and splits")
-        self.k = 2  # start_study.py on this project's 2-core machine
+        k = int(many[0]["cores"])
         self.t, self.f = {}, {}
         for p in START_PIECES:
             key = p + "_s"
             self.t[p] = fit_scale([(float(r["nodes"]), max(float(r[key]), 1e-6)) for r in one])
             t1 = sum(float(r[key]) for r in one)
             tk = sum(float(r[key]) for r in many)
-            self.f[p] = min(max((t1 - tk) / (t1 * (1 - 1 / self.k)), 0.0), 1.0) if t1 > 0 else 0.0
+            threaded = (t1 - tk) / (t1 * (1 - 1 / k)) if t1 > 0 and k > 1 else 0.0
+            self.f[p] = min(max(threaded, 0.0), 1.0)
         # The largest mesh's splits: seconds per node against the parts.
         big = max(int(r["nodes"]) for r in splits)
         own = sorted((int(r["parts"]), float(r["seconds"]) / big) for r in splits
@@ -203,24 +204,24 @@ class Start:
             self.m_0 = max(b / n for n, b in peaks)
 
     def partition_extra(self, parts):
-        """Seconds per node the partition into `parts` costs over 2 parts (one core)."""
+        """Seconds per node the partition into `parts` costs over 2 parts (one core):
+        linear in log P between the measured counts, the nearest segment extended
+        beyond them."""
         pts = [(math.log(p), s) for p, s in self.split_per_node]
-        base = dict(self.split_per_node).get(2, pts[0][1])
+        if len(pts) < 2:
+            return 0.0
         x = math.log(parts)
-        lo = max([q for q in pts if q[0] <= x], default=pts[0])
-        hi = min([q for q in pts if q[0] >= x], default=pts[-1])
-        if hi[0] == lo[0]:
-            # Beyond the last measured count: the last slope, extended.
-            (x0, y0), (x1, y1) = pts[-2], pts[-1]
-            y = y1 + (y1 - y0) / (x1 - x0) * (x - x1) if x > x1 else lo[1]
-        else:
-            y = lo[1] + (hi[1] - lo[1]) * (x - lo[0]) / (hi[0] - lo[0])
+        i = max(min(sum(px <= x for px, _ in pts) - 1, len(pts) - 2), 0)
+        (x0, y0), (x1, y1) = pts[i], pts[i + 1]
+        y = y0 + (y1 - y0) * (x - x0) / (x1 - x0)
+        base = dict(self.split_per_node).get(2, pts[0][1])
         return max(y - base, 0.0)
 
     def seconds(self, nodes, cores, parts):
-        s = {p: self.t[p] * nodes * (1 - self.f[p] + self.f[p] / cores) for p in START_PIECES}
-        s["partition"] += self.partition_extra(parts) * nodes * (1 - self.f["partition"] + self.f["partition"] / cores)
-        return s
+        """Each piece's seconds on `cores` cores, the partition's into `parts`."""
+        per_node = dict(self.t)
+        per_node["partition"] += self.partition_extra(parts)
+        return {p: per_node[p] * nodes * (1 - self.f[p] + self.f[p] / cores) for p in START_PIECES}
 
     def describe(self):
         pieces = ", ".join(f"{p} {self.t[p] * 1e6:.3f} us/node ({self.f[p]:.0%} threaded)"

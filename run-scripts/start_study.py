@@ -38,14 +38,13 @@ PHASE = re.compile(r"^(\w+)\s+done in\s+([\d.]+) s")
 TOTAL = re.compile(r"^total\s+([\d.]+)")
 
 FIELDS = [
-    "case", "nodes", "triangles", "ranks", "cores", "runs",
+    "case", "nodes", "triangles", "ranks", "bind", "cores", "runs",
     "scan_s", "shares_s", "assembly_s", "problem_s", "partition_s", "scatter_s",
     "alone_s", "total_s", "serial_share", "rank0_peak_bytes", "other_peak_bytes",
 ]
 
 
 def one_run(binary, case, ranks, bind, out):
-    env = dict(os.environ)
     if bind == "core" and (os.cpu_count() or 1) < ranks:
         # Open MPI refuses to bind more ranks than cores: the one-core figures are then
         # the unbound ones, and the fitted threaded shares zero.
@@ -55,7 +54,7 @@ def one_run(binary, case, ranks, bind, out):
         binary, case, "--mesh-read", "shared", "--threads", "1", "--no-plots",
         "--out", out,
     ]
-    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"start_study: {' '.join(cmd)} failed:\n{p.stderr}")
     row = {}
@@ -111,7 +110,10 @@ def main():
             med = {k: statistics.median(r[k] for r in rs) for k in rs[0]}
             med.update(
                 case=os.path.basename(case), ranks=a.ranks, runs=len(rs),
-                cores=1 if bind == "core" else "node",
+                bind=bind,
+                # The first rank's cores for its work alone (host::on_idle_cores): one
+                # when bound, else its node's ranks' share of the cores.
+                cores=1 if bind == "core" else max(min(a.ranks, os.cpu_count() or 1), 1),
                 nodes=rs[0]["nodes"], triangles=rs[0]["triangles"],
                 serial_share=statistics.median(r["alone_s"] / r["total_s"] for r in rs),
             )
