@@ -231,6 +231,40 @@ class Start:
                 f" its peak {self.m_0:.0f} B per node")
 
 
+class Cut:
+    """The partition by every rank (PT-Scotch, `--partitioner ptscotch`), fitted on
+    run-scripts/cut_study.py's cut.csv: the cut's seconds with a core per rank,
+    a T^g_T P^g_P in the triangles T and the ranks P (least squares in logs), and what
+    stays on the first rank (the dual graph, the ownership rules and the split), its
+    seconds per triangle on one core."""
+
+    def __init__(self, directory):
+        with open(os.path.join(directory, "cut.csv")) as fh:
+            rows = list(csv.DictReader(fh))
+        pts = [r for r in rows if r["partitioner"] == "ptscotch"]
+        if len({r["triangles"] for r in pts}) < 2 or len({r["ranks"] for r in pts}) < 2:
+            sys.exit("cost_model.py: --cut needs PT-Scotch runs of two meshes on two rank counts")
+        self.a, (self.g_t, self.g_p) = fit_power(
+            [([float(r["triangles"]), float(r["ranks"])], max(float(r["cut_rank_s"]), 1e-6))
+             for r in pts])
+        self.first = fit_scale([(float(r["triangles"]),
+                                 max(float(r["graph_s"]) + float(r["split_s"]), 1e-6)) for r in rows])
+        self.per_node = statistics.median(float(r["triangles"]) / float(r["nodes"]) for r in rows)
+        self.rows = pts
+
+    def seconds(self, nodes, P):
+        """The first rank's pieces alone and the cut on P ranks, in seconds."""
+        t = self.per_node * nodes
+        return self.first * t, self.a * t ** self.g_t * P ** self.g_p
+
+    def describe(self):
+        worst = max(abs(self.a * float(r["triangles"]) ** self.g_t * float(r["ranks"]) ** self.g_p
+                        / max(float(r["cut_rank_s"]), 1e-6) - 1) for r in self.rows)
+        return (f"  cut by PT-Scotch, a core per rank: {self.a:.3g} T^{self.g_t:.2f} P^{self.g_p:.2f} s"
+                f" (within {worst:.0%} of every measured row); the first rank's graph and split"
+                f" {self.first * 1e6:.3f} us per triangle; {self.per_node:.2f} triangles per node")
+
+
 def times(pr, P, sweeps, a):
     """Seconds on the critical path: factorization, one sweep, the loop."""
     factor = pr["F_s"] / a.flops + pr["share"] / (a.mumps_efficiency * a.flops)
@@ -265,6 +299,8 @@ def main():
                     help="MUMPS's flop rate in the interface factorization over --flops")
     ap.add_argument("--start", help="start_study.py's output directory (start.csv, split.csv): "
                     "predict the start from one Gmsh file")
+    ap.add_argument("--cut", help="cut_study.py's output directory (cut.csv): the start with the "
+                    "partition by every rank (needs --start)")
     ap.add_argument("--node-cores", type=int, default=64,
                     help="cores of the first rank's node, which it borrows for the start")
     a = ap.parse_args()
@@ -319,6 +355,22 @@ def main():
             f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
             print(f"{P:>5} " + " ".join(f"{secs[p]:>{w}.1f}" for p, w in zip(START_PIECES, (6, 9, 8, 10, 8)))
                   + f" {alone:>8.1f} {f + loop:>15.1f} {alone / (alone + f + loop):>12.1%}")
+        if a.cut:
+            cut = Cut(a.cut)
+            print()
+            print(f"the same start with the partition cut by every rank (--partitioner ptscotch);"
+                  f" fitted on {a.cut}:")
+            print(cut.describe())
+            print(f"{'P':>5} {'first rank: graph + split':>26} {'cut, all ranks':>15} "
+                  f"{'first rank alone s':>19} {'start s':>8} {'serial share':>12} {'start share':>11}")
+            for P in sorted({64, 128, 256, a.ranks}):
+                secs = st.seconds(nodes, a.node_cores, P)
+                first, on_ranks = cut.seconds(nodes, P)
+                alone = sum(v for k, v in secs.items() if k != "partition") + first
+                f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
+                whole = alone + on_ranks + f + loop
+                print(f"{P:>5} {first:>26.1f} {on_ranks:>15.1f} {alone:>19.1f} "
+                      f"{alone + on_ranks:>8.1f} {alone / whole:>12.1%} {(alone + on_ranks) / whole:>11.1%}")
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-PKGS="openmpi-bin libopenmpi-dev libmetis-dev libmumps-dev libclang-dev pkg-config python3-vtk9"
+PKGS="openmpi-bin libopenmpi-dev libmetis-dev libmumps-dev libptscotch-dev libclang-dev pkg-config python3-vtk9"
 missing=""
 for p in $PKGS; do
   dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"

@@ -22,6 +22,13 @@ start_dir="$(mktemp -d)/start"
 python3 run-scripts/start_study.py tests/data/gmsh/quarter_disc.toml --runs 1 \
   --split-parts 2,4 --out "$start_dir" >/dev/null
 python3 run-scripts/cost_model.py docs/data/scale-summaries/*.json --start "$start_dir" >/dev/null
+# The partition study (the first rank's METIS against PT-Scotch on the ranks) and the
+# cost model's cut on it, on two meshes (seconds).
+cut_dir="$(mktemp -d)/cut"
+python3 run-scripts/cut_study.py tests/data/gmsh/quarter_disc.toml tests/data/bodies/blocks.toml \
+  --ranks 2,3 --runs 1 --out "$cut_dir" >/dev/null
+python3 run-scripts/cost_model.py docs/data/scale-summaries/*.json --start "$start_dir" \
+  --cut "$cut_dir" >/dev/null
 if cargo nextest --version >/dev/null 2>&1; then
   cargo nextest run --release --workspace --no-fail-fast
 else

@@ -67,6 +67,37 @@ pub struct Options {
     pub mesh_split: Option<PathBuf>,
     /// Who reads a Gmsh file on several ranks.
     pub mesh_read: MeshRead,
+    /// Who cuts the mesh into subdomains (a run from one mesh, not from a split).
+    pub partitioner: Partitioner,
+}
+
+/// Who cuts the mesh's dual graph into subdomains in a run from one mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Partitioner {
+    /// [`Partitioner::PtScotch`] when the ranks span several nodes, else
+    /// [`Partitioner::Metis`]: on one node the first rank borrows every core the others
+    /// would cut on, and the two cut as fast (docs/performance.md); on a cluster the
+    /// first rank has its node's cores only, and into many parts METIS alone slows
+    /// down (docs/cost-model.md).
+    Auto,
+    /// The first rank alone: the graph coarsened, METIS on the coarsest, refined back
+    /// (the `partition` crate).
+    Metis,
+    /// Every rank: PT-Scotch on the graph spread over the ranks in consecutive ranges.
+    PtScotch,
+}
+
+impl Partitioner {
+    /// Whether the ranks cut the graph into `nparts` parts together.
+    fn on_ranks(self, mpi: &Mpi, nparts: usize) -> bool {
+        mpi.size > 1
+            && nparts > 1
+            && match self {
+                Partitioner::Auto => mpi.node_ranks < mpi.size,
+                Partitioner::Metis => false,
+                Partitioner::PtScotch => true,
+            }
+    }
 }
 
 /// Who reads a Gmsh mesh file when the job has several ranks.
@@ -160,18 +191,18 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     // not those of the pool the set-up borrows.
     let threads = rayon::current_num_threads();
     let early = read_together(opts, &mpi, &timer);
+    let layout = Layout {
+        ranks: mpi.size,
+        threads,
+    };
     let prepared = mpi.is_root().then(|| {
-        let layout = Layout {
-            ranks: mpi.size,
-            threads,
-        };
         host::on_idle_cores(mpi.node_ranks, || {
             prepare(opts, layout, &timer, print, early)
         })
     });
     mpi.barrier_sleeping();
-    let (setup, subs) = mpi.agree(prepared.transpose())?.unzip();
-    let subs = subs.flatten();
+    let prepared = mpi.agree(prepared.transpose())?;
+    let (setup, subs) = cut_and_split(opts, &mpi, layout, &timer, print, prepared)?;
 
     // 3. Distribute: the set-up to every rank, every subdomain of a rank on a thread of
     // its own (this one included), then each its subproblem (`run_subdomain`).
@@ -699,7 +730,7 @@ fn prepare(
     timer: &Timer,
     print: &Printer,
     early: Option<Early>,
-) -> Result<(Setup, Option<Vec<SubProblem>>)> {
+) -> Result<Prepared> {
     let Layout { ranks, threads } = layout;
     let read_line = |figure: String| {
         print.line(timer::phase_line(
@@ -734,7 +765,7 @@ fn prepare(
             f.contact_nodes,
             f.partition
         ));
-        return Ok((setup, None));
+        return Ok(Prepared::Ready(Box::new(setup)));
     }
     // 1. Read and validate the case and the mesh.
     let (case, prob, mesh_name, how) = timer.time(Phase::Read, || read(opts, early))?;
@@ -758,20 +789,192 @@ fn prepare(
         "{mesh_name}: {} nodes, {} triangles, {} contact nodes{how}",
         size.nodes, size.elements, size.contact_nodes
     ));
-    // 2. Partition the mesh into subdomains and split the problem along the cut.
+    // 2. The graph the partition cuts ([`cut_and_split`] cuts it).
+    let graph_start = Instant::now();
+    let graph = timer.time(Phase::Partition, || mesh_graph(&prob, &mesh_name, nparts))?;
+    let graph_s = graph_start.elapsed().as_secs_f64();
+    Ok(Prepared::Problem(Box::new(ToCut {
+        case,
+        prob,
+        mesh_name,
+        nparts,
+        per_rank,
+        graph,
+        graph_s,
+    })))
+}
+
+/// What the first rank has made of the case before the partition.
+enum Prepared {
+    /// A run from a split directory: nothing to cut.
+    Ready(Box<Setup>),
+    /// The problem, to cut into `nparts` subdomains.
+    Problem(Box<ToCut>),
+}
+
+struct ToCut {
+    case: Case,
+    prob: Problem,
+    mesh_name: String,
+    nparts: usize,
+    per_rank: usize,
+    graph: partition::MeshGraph,
+    /// Seconds the graph took.
+    graph_s: f64,
+}
+
+/// Phase 2, collective: the problem the first rank prepared cut into subdomains (by
+/// every rank, or by the first alone, [`Partitioner`]) and split along the cut; returns
+/// the set-up on the first rank and the subproblems it hands out.
+fn cut_and_split(
+    opts: &Options,
+    mpi: &Mpi,
+    layout: Layout,
+    timer: &Timer,
+    print: &Printer,
+    prepared: Option<Prepared>,
+) -> Result<(Option<Setup>, Option<Vec<SubProblem>>)> {
+    let asked = prepared.as_ref().map(|p| match p {
+        Prepared::Problem(t) if opts.partitioner.on_ranks(mpi, t.nparts) => {
+            Some((t.prob.mesh.triangles.len(), t.nparts))
+        }
+        _ => None,
+    });
+    let asked = match mpi.size {
+        1 => asked.flatten(),
+        _ => mpi.broadcast(asked)?,
+    };
+    let cut = match asked {
+        Some((triangles, nparts)) => {
+            let graph = match &prepared {
+                Some(Prepared::Problem(t)) => Some(&t.graph),
+                _ => None,
+            };
+            let start = Instant::now();
+            let parts = cut_on_ranks(mpi, graph, triangles, nparts)?;
+            let seconds = start.elapsed().as_secs_f64();
+            timer.add(Phase::Partition, if mpi.is_root() { seconds } else { 0.0 });
+            parts.map(|p| (p, seconds))
+        }
+        None => None,
+    };
+    let done = prepared.map(|p| match p {
+        Prepared::Ready(setup) => Ok((*setup, None)),
+        Prepared::Problem(t) => host::on_idle_cores(mpi.node_ranks, || {
+            split_cut(opts, layout, timer, print, *t, cut)
+        }),
+    });
+    mpi.barrier_sleeping();
+    let (setup, subs) = mpi.agree(done.transpose())?.unzip();
+    Ok((setup, subs.flatten()))
+}
+
+/// The first rank's graph cut into `nparts` parts by PT-Scotch on every rank, each
+/// holding a consecutive range of its vertices (the triangles, in the problem's
+/// locality order, so that a range is a compact piece of the mesh): the triangles'
+/// parts on the first rank, `None` on the others. Collective.
+fn cut_on_ranks(
+    mpi: &Mpi,
+    graph: Option<&partition::MeshGraph>,
+    triangles: usize,
+    nparts: usize,
+) -> Result<Option<Vec<u32>>> {
+    let p = mpi.size;
+    let counts: Vec<usize> = (0..p)
+        .map(|r| triangles * (r + 1) / p - triangles * r / p)
+        .collect();
+    let csr = graph.and_then(partition::MeshGraph::csr);
+    // Each rank's number of graph entries, and which weights the graph has.
+    let spread = csr.map(|c| {
+        let mut start = 0;
+        let edges: Vec<usize> = (counts.iter())
+            .map(|&n| {
+                let e = (c.xadj[start + n] - c.xadj[start]) as usize;
+                start += n;
+                e
+            })
+            .collect();
+        (edges, c.adjwgt.is_some(), c.vwgt.is_some())
+    });
+    let (edges, edge_weights, vertex_weights) = mpi.broadcast(spread)?;
+    let degrees: Option<Vec<i32>> = csr.map(|c| c.xadj.windows(2).map(|w| w[1] - w[0]).collect());
+    let degrees = mpi.scatter_varcount(degrees.as_deref(), &counts);
+    let adjncy = mpi.scatter_varcount(csr.map(|c| c.adjncy), &edges);
+    let adjwgt = edge_weights.then(|| mpi.scatter_varcount(csr.and_then(|c| c.adjwgt), &edges));
+    let vwgt = vertex_weights.then(|| mpi.scatter_varcount(csr.and_then(|c| c.vwgt), &counts));
+    let mut xadj = Vec::with_capacity(degrees.len() + 1);
+    xadj.push(0);
+    for d in degrees {
+        xadj.push(xadj[xadj.len() - 1] + d);
+    }
+    let local = ptscotch::LocalGraph {
+        xadj: &xadj,
+        adjncy: &adjncy,
+        adjwgt: adjwgt.as_deref(),
+        vwgt: vwgt.as_deref(),
+    };
+    let parts = mpi.agree(mpi.part_graph(local, nparts, PART_IMBALANCE))?;
+    let all = mpi.gather_varcount(&parts, &counts);
+    Ok(all.map(|a| a.into_iter().map(|q| q as u32).collect()))
+}
+
+/// The load imbalance the partition allows: METIS's default (`ufactor` 30), which the
+/// first rank's partition uses too.
+const PART_IMBALANCE: f64 = 0.03;
+
+/// The first rank's end of phase 2: the graph cut (here, unless `cut` holds the parts
+/// the ranks found and their seconds), the ownership rules, the split, the set-up.
+fn split_cut(
+    opts: &Options,
+    layout: Layout,
+    timer: &Timer,
+    print: &Printer,
+    t: ToCut,
+    cut: Option<(Vec<u32>, f64)>,
+) -> Result<(Setup, Option<Vec<SubProblem>>)> {
+    let ToCut {
+        case,
+        prob,
+        mesh_name,
+        nparts,
+        per_rank,
+        graph,
+        graph_s,
+    } = t;
+    let by_ranks = cut.as_ref().map(|c| c.1);
+    let mut cut_s = by_ranks.unwrap_or(0.0);
+    let split_start = Instant::now();
     let (facts, subs) = timer.time(Phase::Partition, || {
-        partition_problem(&case, &prob, &mesh_name, nparts)
+        let element_part = match cut {
+            Some((parts, _)) => parts,
+            None => {
+                let start = Instant::now();
+                let parts = graph.cut(nparts);
+                cut_s = start.elapsed().as_secs_f64();
+                parts.map_err(|e| cannot_partition(&mesh_name, e))?
+            }
+        };
+        split_parts(&case, &prob, &mesh_name, graph, nparts, element_part)
     })?;
+    let split_s =
+        split_start.elapsed().as_secs_f64() - if by_ranks.is_some() { 0.0 } else { cut_s };
+    let who = match by_ranks {
+        Some(_) => format!("PT-Scotch on {} ranks", layout.ranks),
+        None => "the first rank".to_string(),
+    };
     let figure = match nparts {
         1 => "one subdomain, no partition".to_string(),
-        _ => facts.partition.clone(),
+        _ => format!(
+            "graph {graph_s:.3} s, cut {cut_s:.3} s ({who}), split {split_s:.3} s: {}",
+            facts.partition
+        ),
     };
     print.line(timer::phase_line(
         Phase::Partition,
         timer.seconds(Phase::Partition),
         &figure,
     ));
-    let setup = Setup::new(opts, case, facts, None, ranks, per_rank);
+    let setup = Setup::new(opts, case, facts, None, layout.ranks, per_rank);
     Ok((setup, Some(subs)))
 }
 
@@ -821,19 +1024,50 @@ fn partition_problem(
     mesh_name: &str,
     nparts: usize,
 ) -> Result<(Facts, Vec<SubProblem>)> {
+    let graph = mesh_graph(prob, mesh_name, nparts)?;
+    let element_part = graph
+        .cut(nparts)
+        .map_err(|e| cannot_partition(mesh_name, e))?;
+    split_parts(case, prob, mesh_name, graph, nparts, element_part)
+}
+
+/// The graph the partition cuts (see [`partition::MeshGraph`]); none for one part.
+fn mesh_graph(prob: &Problem, mesh_name: &str, nparts: usize) -> Result<partition::MeshGraph> {
     // Each slave node of a contact between bodies tied to its master nodes: the parts
     // then keep a contact zone's two sides together (see `partition_mesh_with_ties`).
     let ties: Vec<[usize; 2]> = (prob.contact_nodes.iter().zip(&prob.contact_masters))
         .flat_map(|(&s, masters)| masters.iter().map(move |&(m, _)| [s, m]))
         .collect();
-    let part = partition::partition_mesh_with_ties(
+    partition::MeshGraph::new(
         prob.mesh.num_nodes(),
         &prob.mesh.triangles,
-        &prob.contact_nodes,
         &ties,
-        nparts,
+        nparts > 1,
     )
-    .map_err(|e| Error::Input(format!("{mesh_name}: cannot partition the mesh: {e}")))?;
+    .map_err(|e| cannot_partition(mesh_name, e))
+}
+
+fn cannot_partition(mesh_name: &str, e: partition::PartitionError) -> Error {
+    Error::Input(format!("{mesh_name}: cannot partition the mesh: {e}"))
+}
+
+/// The problem split along the triangles' parts `element_part`.
+fn split_parts(
+    case: &Case,
+    prob: &Problem,
+    mesh_name: &str,
+    graph: partition::MeshGraph,
+    nparts: usize,
+    element_part: Vec<u32>,
+) -> Result<(Facts, Vec<SubProblem>)> {
+    let part = graph
+        .finish(
+            &prob.mesh.triangles,
+            &prob.contact_nodes,
+            nparts,
+            element_part,
+        )
+        .map_err(|e| cannot_partition(mesh_name, e))?;
     let (subs, map) = split(prob, &part, Problem::is_frictional(case))?;
     let facts = Facts {
         lengths: prob.lengths(),

@@ -9,7 +9,7 @@
 //! 4 numerical failure, 5 outputs could not be written.
 
 use clap::Parser;
-use contact_par::app::{self, InterfaceMode, LinearMode, MeshRead, Options, Printer};
+use contact_par::app::{self, InterfaceMode, LinearMode, MeshRead, Options, Partitioner, Printer};
 use contact_par::case;
 use contact_par::contact::{Acceleration, CoulombMode, DEFAULT_ANDERSON_MEMORY};
 use contact_par::dd::comm::Mpi;
@@ -157,6 +157,11 @@ struct Cli {
     /// several nodes).
     #[arg(long, default_value = "auto", value_parser = parse_mesh_read)]
     mesh_read: MeshRead,
+    /// Who cuts a mesh read from one file into subdomains: metis (the first rank alone:
+    /// the dual graph coarsened, METIS, refined back), ptscotch (every rank: PT-Scotch
+    /// on the graph spread over the ranks) or auto (default: see docs/performance.md).
+    #[arg(long, default_value = "auto", value_parser = parse_partitioner)]
+    partitioner: Partitioner,
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -208,6 +213,15 @@ fn parse_mesh_read(s: &str) -> Result<MeshRead, String> {
         "first" => Ok(MeshRead::First),
         "shared" => Ok(MeshRead::Shared),
         _ => Err(format!("\"{s}\" is not auto, first or shared")),
+    }
+}
+
+fn parse_partitioner(s: &str) -> Result<Partitioner, String> {
+    match s {
+        "auto" => Ok(Partitioner::Auto),
+        "metis" => Ok(Partitioner::Metis),
+        "ptscotch" => Ok(Partitioner::PtScotch),
+        _ => Err(format!("\"{s}\" is not auto, metis or ptscotch")),
     }
 }
 
@@ -334,6 +348,7 @@ fn run() -> i32 {
         subdomains_per_rank: cli.subdomains_per_rank.map(|k| k as usize),
         mesh_split: cli.mesh_split,
         mesh_read: cli.mesh_read,
+        partitioner: cli.partitioner,
     };
     let print = Printer {
         enabled: rank == 0 && !opts.quiet,

@@ -368,32 +368,142 @@ pub fn partition_mesh_with_ties(
     nparts: usize,
 ) -> Result<Partition, PartitionError> {
     check_nparts(nparts, triangles.len())?;
-    validate_triangles(num_nodes, triangles)?;
-    if nparts == 1 {
-        // One part needs no dual graph: every triangle and node is part 0's.
-        let mesh = Connectivity::without_graph(num_nodes, triangles)?;
-        let element_part = vec![0; triangles.len()];
-        return build_partition(num_nodes, triangles, contact_nodes, 1, element_part, &mesh);
+    let graph = MeshGraph::new(num_nodes, triangles, ties, nparts > 1)?;
+    let element_part = graph.cut(nparts)?;
+    graph.finish(triangles, contact_nodes, nparts, element_part)
+}
+
+/// A mesh's dual graph, ties included (see [`partition_mesh_with_ties`]), to be cut by
+/// a partitioner elsewhere (one that runs on several processes), and what the ownership
+/// rules need afterwards ([`MeshGraph::finish`]). [`partition_mesh_with_ties`] is
+/// [`MeshGraph::new`], this crate's partition of [`MeshGraph::csr`], then `finish`.
+pub struct MeshGraph {
+    num_nodes: usize,
+    triangles: usize,
+    mesh: Connectivity,
+    /// The graph to cut (the dual graph with the ties); `None` for one part.
+    graph: Option<Graph>,
+}
+
+/// A graph in CSR form with 32-bit indices: the neighbours of vertex `v` are
+/// `adjncy[xadj[v]..xadj[v + 1]]`; absent weights are all 1.
+#[derive(Debug, Clone, Copy)]
+pub struct Csr<'a> {
+    pub xadj: &'a [i32],
+    pub adjncy: &'a [i32],
+    pub adjwgt: Option<&'a [i32]>,
+    pub vwgt: Option<&'a [i32]>,
+}
+
+impl MeshGraph {
+    /// The connectivity of `triangles`, and their dual graph with `ties` unless
+    /// `with_graph` is false (one part needs none).
+    ///
+    /// # Errors
+    /// As [`partition_mesh`].
+    pub fn new(
+        num_nodes: usize,
+        triangles: &[[usize; 3]],
+        ties: &[[usize; 2]],
+        with_graph: bool,
+    ) -> Result<Self, PartitionError> {
+        validate_triangles(num_nodes, triangles)?;
+        if !with_graph {
+            let mesh = Connectivity::without_graph(num_nodes, triangles)?;
+            return Ok(MeshGraph {
+                num_nodes,
+                triangles: triangles.len(),
+                mesh,
+                graph: None,
+            });
+        }
+        let mut mesh = Connectivity::new(num_nodes, triangles)?;
+        let dual = mesh
+            .graph
+            .take()
+            .expect("Connectivity::new builds the graph");
+        // The ownership rules' figures read the untied dual graph; with no ties it is
+        // the graph to cut, kept once (see `finish`).
+        let graph = match ties.is_empty() {
+            true => dual,
+            false => {
+                let tied = graph::with_ties(dual.clone(), &mesh.stars, ties)?;
+                mesh.graph = Some(dual);
+                tied
+            }
+        };
+        let graph = Some(graph);
+        Ok(MeshGraph {
+            num_nodes,
+            triangles: triangles.len(),
+            mesh,
+            graph,
+        })
     }
-    let mesh = Connectivity::new(num_nodes, triangles)?;
-    let tied = match ties {
-        [] => None,
-        _ => Some(graph::with_ties(mesh.graph()?.clone(), &mesh.stars, ties)?),
-    };
-    let graph = match &tied {
-        Some(g) => g,
-        None => mesh.graph()?,
-    };
-    let mut element_part = partition_graph(graph, nparts, METIS_MAX_VERTICES)?;
-    fill_empty_parts(&mut element_part, nparts);
-    build_partition(
-        num_nodes,
-        triangles,
-        contact_nodes,
-        nparts,
-        element_part,
-        &mesh,
-    )
+
+    /// The graph to cut: vertex `e` is triangle `e`. `None` without a graph.
+    pub fn csr(&self) -> Option<Csr<'_>> {
+        let g = self.graph.as_ref()?;
+        Some(Csr {
+            xadj: &g.xadj,
+            adjncy: &g.adjncy,
+            adjwgt: g.adjwgt.as_deref(),
+            vwgt: g.vwgt.as_deref(),
+        })
+    }
+
+    /// This crate's cut of the graph into `nparts` parts, on this process (see
+    /// [`partition_mesh`]): each triangle's part.
+    ///
+    /// # Errors
+    /// As [`partition_mesh`].
+    pub fn cut(&self, nparts: usize) -> Result<Vec<u32>, PartitionError> {
+        match &self.graph {
+            Some(g) => partition_graph(g, nparts, METIS_MAX_VERTICES),
+            None => Ok(vec![0; self.triangles]),
+        }
+    }
+
+    /// The [`Partition`] of the triangles' parts `element_part`, cut by any
+    /// partitioner: an empty part first takes a triangle of the largest (as in
+    /// [`partition_mesh`]), then the ownership rules apply.
+    ///
+    /// # Errors
+    /// As [`partition_mesh`], and [`PartitionError::PartOutOfRange`] for a part id
+    /// `>= nparts`.
+    ///
+    /// # Panics
+    /// If `element_part.len() != triangles.len()`.
+    pub fn finish(
+        mut self,
+        triangles: &[[usize; 3]],
+        contact_nodes: &[usize],
+        nparts: usize,
+        mut element_part: Vec<u32>,
+    ) -> Result<Partition, PartitionError> {
+        assert_eq!(element_part.len(), triangles.len());
+        check_nparts(nparts, triangles.len())?;
+        if let Some(element) = element_part.iter().position(|&p| p as usize >= nparts) {
+            let part = element_part[element];
+            return Err(PartitionError::PartOutOfRange {
+                element,
+                part,
+                nparts,
+            });
+        }
+        fill_empty_parts(&mut element_part, nparts);
+        if self.mesh.graph.is_none() {
+            self.mesh.graph = self.graph.take();
+        }
+        build_partition(
+            self.num_nodes,
+            triangles,
+            contact_nodes,
+            nparts,
+            element_part,
+            &self.mesh,
+        )
+    }
 }
 
 /// Builds a [`Partition`] from a given element-to-part map (e.g. one computed
@@ -633,12 +743,6 @@ impl Connectivity {
     fn without_graph(num_nodes: usize, triangles: &[[usize; 3]]) -> Result<Self, PartitionError> {
         let stars = Stars::new(num_nodes, triangles)?;
         Ok(Connectivity { stars, graph: None })
-    }
-
-    fn graph(&self) -> Result<&Graph, PartitionError> {
-        self.graph
-            .as_ref()
-            .ok_or_else(|| PartitionError::Metis("internal: no dual graph".into()))
     }
 }
 

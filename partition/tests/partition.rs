@@ -4,7 +4,8 @@ mod common;
 
 use common::{irregular, rectangle, two_bodies};
 use partition::{
-    dual_graph, partition_mesh, partition_mesh_with_ties, Partition, PartitionError, NO_PART,
+    dual_graph, partition_mesh, partition_mesh_with_ties, MeshGraph, Partition, PartitionError,
+    NO_PART,
 };
 use std::collections::BTreeSet;
 
@@ -481,4 +482,41 @@ fn ties_keep_two_bodies_in_contact_together() {
         partition_mesh_with_ties(mesh.0, &mesh.1, &mesh.2, &[], 2).unwrap(),
         alone
     );
+}
+
+/// The graph cut elsewhere: `MeshGraph` cut here and finished is `partition_mesh_with_ties`
+/// (ties included); parts from another partitioner go through the same ownership rules,
+/// an empty part is filled, a part id out of range is refused.
+#[test]
+fn a_mesh_graph_cut_elsewhere_gets_the_same_ownership_rules() {
+    let mesh = two_bodies(10, 5);
+    let ties = [[0, mesh.0 - 1], [3, mesh.0 - 4]];
+    for nparts in [1, 2, 5] {
+        let g = MeshGraph::new(mesh.0, &mesh.1, &ties, nparts > 1).unwrap();
+        let parts = g.cut(nparts).unwrap();
+        let via = g.finish(&mesh.1, &mesh.2, nparts, parts).unwrap();
+        let direct = partition_mesh_with_ties(mesh.0, &mesh.1, &mesh.2, &ties, nparts).unwrap();
+        assert_eq!(via, direct, "{nparts} parts");
+    }
+    let g = MeshGraph::new(mesh.0, &mesh.1, &ties, true).unwrap();
+    let csr = g.csr().expect("a graph for several parts");
+    assert_eq!(csr.xadj.len(), mesh.1.len() + 1);
+    // Halves by triangle index, part 2 left empty: it takes a triangle.
+    let half: Vec<u32> = (0..mesh.1.len())
+        .map(|e| u32::from(2 * e >= mesh.1.len()))
+        .collect();
+    let p = g.finish(&mesh.1, &mesh.2, 3, half).unwrap();
+    check_partition(&mesh, &p);
+    assert!(p.parts.iter().all(|q| !q.elements.is_empty()));
+    let g = MeshGraph::new(mesh.0, &mesh.1, &ties, true).unwrap();
+    let mut bad = vec![0u32; mesh.1.len()];
+    bad[7] = 3;
+    assert!(matches!(
+        g.finish(&mesh.1, &mesh.2, 3, bad),
+        Err(PartitionError::PartOutOfRange {
+            element: 7,
+            part: 3,
+            nparts: 3
+        })
+    ));
 }

@@ -473,6 +473,56 @@ impl Mpi {
         }
     }
 
+    /// The first rank's `all` cut by `counts` (rank r receives `counts[r]` values, in
+    /// rank order; `all` is ignored elsewhere): one MPI_Scatterv. For the set-up, before
+    /// any team exists (one subdomain per rank).
+    pub fn scatter_varcount<T>(&self, all: Option<&[T]>, counts: &[usize]) -> Vec<T>
+    where
+        T: mpi::datatype::Equivalence + Copy + Default,
+    {
+        assert_eq!(
+            self.per_rank(),
+            1,
+            "scatter_varcount: one subdomain per rank"
+        );
+        let mut mine = vec![T::default(); counts[self.mpi_rank]];
+        if self.mpi_size == 1 {
+            mine.copy_from_slice(all.expect("the first rank's values"));
+            return mine;
+        }
+        let root = self.world().process_at_rank(0);
+        if self.is_root() {
+            let all = all.expect("the first rank's values");
+            let (c, d) = counts_displs(counts);
+            count_sent(std::mem::size_of_val(all) - std::mem::size_of_val(&mine[..]));
+            let part = Partition::new(all, &c[..], &d[..]);
+            root.scatter_varcount_into_root(&part, &mut mine[..]);
+        } else {
+            root.scatter_varcount_into(&mut mine[..]);
+        }
+        mine
+    }
+
+    /// The parts of the vertices of a graph spread over the ranks (rank r holds the
+    /// r-th consecutive range, see [`ptscotch::LocalGraph`]), cut into `nparts` parts by
+    /// PT-Scotch on every rank at once. Collective; one subdomain per rank.
+    pub fn part_graph(
+        &self,
+        graph: ptscotch::LocalGraph<'_>,
+        nparts: usize,
+        imbalance: f64,
+    ) -> Result<Vec<i32>> {
+        assert_eq!(self.per_rank(), 1, "part_graph: one subdomain per rank");
+        ptscotch::part(
+            self.world().as_raw(),
+            self.mpi_size,
+            graph,
+            nparts,
+            imbalance,
+        )
+        .map_err(|e| Error::Numerical(format!("the partition on {} ranks: {e}", self.mpi_size)))
+    }
+
     /// Concatenation over subdomains of `local`, on the first subdomain only.
     pub fn gather_to_root(&self, local: &[f64], counts: &[usize], out: &mut Vec<f64>) {
         // One subdomain per rank (every sweep of a cluster job): no team, no copy.

@@ -4,7 +4,8 @@
 //! that calls MPI.
 //!
 //! ## Scheme
-//! Rank 0 partitions the mesh (METIS on the dual graph) into P = ranks x K subdomains
+//! Rank 0 partitions the mesh (METIS on the dual graph, or every rank with PT-Scotch,
+//! `--partitioner`) into P = ranks x K subdomains
 //! and sends each rank its K (K = `--subdomains-per-rank`, one per thread by default:
 //! `host::subdomains_per_rank`); a rank runs each of its subdomains on a thread of its
 //! own, and `comm` makes every collective one over subdomains. Below, "rank" stands for
