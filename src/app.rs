@@ -1018,19 +1018,6 @@ fn check_linear(opts: &Options, case: &Case) -> Result<()> {
 }
 
 /// Partitions `prob` into `nparts` subdomains and splits it along the cut.
-fn partition_problem(
-    case: &Case,
-    prob: &Problem,
-    mesh_name: &str,
-    nparts: usize,
-) -> Result<(Facts, Vec<SubProblem>)> {
-    let graph = mesh_graph(prob, mesh_name, nparts)?;
-    let element_part = graph
-        .cut(nparts)
-        .map_err(|e| cannot_partition(mesh_name, e))?;
-    split_parts(case, prob, mesh_name, graph, nparts, element_part)
-}
-
 /// The graph the partition cuts (see [`partition::MeshGraph`]); none for one part.
 fn mesh_graph(prob: &Problem, mesh_name: &str, nparts: usize) -> Result<partition::MeshGraph> {
     // Each slave node of a contact between bodies tied to its master nodes: the parts
@@ -1093,44 +1080,85 @@ pub struct SplitOptions {
     pub level: u32,
     pub parts: usize,
     pub out: PathBuf,
+    /// Who cuts the graph: on several ranks, every rank unless [`Partitioner::Metis`].
+    pub partitioner: Partitioner,
 }
 
 /// `contact-par split`: reads the case and its mesh, partitions and splits them into
 /// `parts` subdomains, the same as a run on that many would, and writes one file per
 /// part (see `split_dir`). Serial: one process holds the whole mesh, once.
-pub fn split_case(opts: &SplitOptions, print: &Printer) -> Result<()> {
-    let case = case_file_or_builtin(opts.case_file.as_deref(), &opts.builtin, opts.level)?;
-    let (mesh, mesh_name) = load_mesh(&case)?;
-    let prob = problem::build(&case, mesh, &mesh_name)?;
-    let triangles = prob.mesh.triangles.len();
-    if opts.parts > triangles {
-        return Err(Error::Input(format!(
-            "{mesh_name}: --parts {} for {triangles} triangles; use at most as many parts as triangles (better: thousands of triangles each)",
-            opts.parts
-        )));
-    }
-    let (facts, subs) = partition_problem(&case, &prob, &mesh_name, opts.parts)?;
-    drop(prob);
-    let split = split_dir::write(&opts.out, &case, &facts, &subs)?;
-    print.line(format!(
-        "split: {} nodes, {} triangles, {} contact nodes into {} parts ({}) in {}",
-        facts.nodes,
-        facts.elements,
-        facts.contact_nodes,
-        split.parts,
-        facts.partition,
-        opts.out.display()
-    ));
-    let case_arg = match &opts.case_file {
-        Some(p) => p.display().to_string(),
-        None => format!("--builtin {} --level {}", opts.builtin, opts.level),
+pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()> {
+    // The first rank reads and builds the problem while the others sleep; all cut the
+    // graph (PT-Scotch) when there are several; the first splits and writes the parts.
+    let prepared = mpi.is_root().then(|| {
+        host::on_idle_cores(mpi.node_ranks, || -> Result<_> {
+            let case =
+                case_file_or_builtin(opts.case_file.as_deref(), &opts.builtin, opts.level)?;
+            let (mesh, mesh_name) = load_mesh(&case)?;
+            let prob = problem::build(&case, mesh, &mesh_name)?;
+            let triangles = prob.mesh.triangles.len();
+            if opts.parts > triangles {
+                return Err(Error::Input(format!(
+                    "{mesh_name}: --parts {} for {triangles} triangles; use at most as many parts as triangles (better: thousands of triangles each)",
+                    opts.parts
+                )));
+            }
+            let graph = mesh_graph(&prob, &mesh_name, opts.parts)?;
+            Ok((case, prob, mesh_name, graph))
+        })
+    });
+    mpi.barrier_sleeping();
+    let prepared = mpi.agree(prepared.transpose())?;
+    let on_ranks = mpi.size > 1 && opts.parts > 1 && opts.partitioner != Partitioner::Metis;
+    let cut = match on_ranks {
+        true => {
+            let graph = prepared.as_ref().map(|p| &p.3);
+            let triangles = prepared.as_ref().map(|p| p.1.mesh.triangles.len());
+            let triangles = mpi.broadcast(triangles)?;
+            cut_on_ranks(mpi, graph, triangles, opts.parts)?
+        }
+        false => None,
     };
-    print.line(format!(
-        "run it with: mpirun -n N contact-par {case_arg} --mesh-split {}   (N dividing {})",
-        opts.out.display(),
-        split.parts
-    ));
-    Ok(())
+    let ranks = mpi.size;
+    let done = prepared.map(|(case, prob, mesh_name, graph)| {
+        host::on_idle_cores(mpi.node_ranks, || -> Result<()> {
+            let element_part = match cut {
+                Some(parts) => parts,
+                None => graph
+                    .cut(opts.parts)
+                    .map_err(|e| cannot_partition(&mesh_name, e))?,
+            };
+            let (facts, subs) =
+                split_parts(&case, &prob, &mesh_name, graph, opts.parts, element_part)?;
+            drop(prob);
+            let split = split_dir::write(&opts.out, &case, &facts, &subs)?;
+            let who = match on_ranks {
+                true => format!("cut by PT-Scotch on {ranks} ranks: "),
+                false => String::new(),
+            };
+            print.line(format!(
+                "split: {} nodes, {} triangles, {} contact nodes into {} parts ({who}{}) in {}",
+                facts.nodes,
+                facts.elements,
+                facts.contact_nodes,
+                split.parts,
+                facts.partition,
+                opts.out.display()
+            ));
+            let case_arg = match &opts.case_file {
+                Some(p) => p.display().to_string(),
+                None => format!("--builtin {} --level {}", opts.builtin, opts.level),
+            };
+            print.line(format!(
+                "run it with: mpirun -n N contact-par {case_arg} --mesh-split {}   (N dividing {})",
+                opts.out.display(),
+                split.parts
+            ));
+            Ok(())
+        })
+    });
+    mpi.barrier_sleeping();
+    mpi.agree(done.unwrap_or(Ok(())))
 }
 
 /// The case, its problem on its mesh, the mesh's name for messages, and for a Gmsh

@@ -187,6 +187,11 @@ struct SplitArgs {
     /// Refinement level of the built-in case.
     #[arg(long, default_value_t = 1)]
     level: u32,
+    /// Who cuts the mesh: metis (this process, or the first rank) or ptscotch (every
+    /// rank of `mpirun -n N contact-par split ...`, PT-Scotch); auto (default):
+    /// ptscotch on several ranks. The first rank reads the mesh and writes the parts.
+    #[arg(long, default_value = "auto", value_parser = parse_partitioner)]
+    partitioner: Partitioner,
 }
 
 fn parse_linear(s: &str) -> Result<LinearMode, String> {
@@ -289,7 +294,7 @@ fn run() -> i32 {
         }
     };
     if let Some(Command::Split(args)) = cli.command {
-        return split(args, world.size(), rank);
+        return split(args, Mpi::new(world));
     }
     if cli.print_case {
         if rank == 0 {
@@ -362,21 +367,19 @@ fn run() -> i32 {
 
 /// `contact-par split`: one process, as it holds the whole mesh (several would write the
 /// same files).
-fn split(args: SplitArgs, ranks: i32, rank: i32) -> i32 {
-    if ranks > 1 {
-        if rank == 0 {
-            eprintln!("contact-par: error: split runs on one process, it reads the whole mesh once; run it without mpirun, then mpirun -n N contact-par ... --mesh-split DIR");
-        }
-        return 2;
-    }
+fn split(args: SplitArgs, mpi: Mpi) -> i32 {
     let opts = app::SplitOptions {
         case_file: args.case,
         builtin: args.builtin,
         level: args.level,
         parts: args.parts as usize,
         out: args.out,
+        partitioner: args.partitioner,
     };
-    match app::split_case(&opts, &Printer { enabled: true }) {
+    let print = Printer {
+        enabled: mpi.is_root(),
+    };
+    match app::split_case(&opts, &mpi, &print) {
         Ok(()) => 0,
         Err(e) => report(e),
     }

@@ -1,5 +1,5 @@
-//! Split directories: a case read, partitioned and split once, serially (`contact-par
-//! split`), into one file per part, so that a run (`--mesh-split DIR`) has each subdomain
+//! Split directories: a case read, partitioned and split once (`contact-par split`, its
+//! first process; under mpirun every process cuts the graph), into one file per part, so that a run (`--mesh-split DIR`) has each subdomain
 //! read its own part and no rank reads the whole mesh.
 //!
 //! `DIR/split.json`, the manifest, is written last (a split cut short has none): how many

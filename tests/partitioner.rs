@@ -2,7 +2,9 @@
 //! of one rank, on 2, 3 and 4 ranks: a body against an obstacle with Coulomb friction
 //! (a Gmsh file) and two bodies in contact (whose ties the cut must see), compared node
 //! by node, with the contact conditions checked; the same parts run after run (the
-//! outputs byte for byte); and its parts as good as the first rank's METIS cut.
+//! outputs byte for byte); and its parts as good as the first rank's METIS cut. Also
+//! `contact-par split` on several ranks, which cut together: runs from its parts give
+//! the same answer.
 
 mod common;
 use common::*;
@@ -105,4 +107,37 @@ fn two_bodies_in_contact_cut_by_every_rank_agree_with_one_rank() {
     assert!(case.contains("coefficient = 0.3") && !case.contains("upper_left"));
     let dir = case_dir(&case, &bodies_dir().join("blocks.msh"), "blocks.msh");
     check(dir.path(), Law::Coulomb(0.3), "two blocks");
+}
+
+/// `mpirun -n 3 contact-par split` cuts with PT-Scotch on its 3 ranks (one line, from
+/// the first); runs from the split on 1 and 3 ranks agree with the unsplit run.
+#[test]
+fn a_split_cut_by_every_rank_gives_the_same_answer() {
+    let case = quarter_disc_case_on("mesh.msh", "friction = \"coulomb\"\ncoefficient = 0.2");
+    let mesh = gmsh_dir().join("quarter_disc_v41_ascii.msh");
+    let dir = case_dir(&case, &mesh, "mesh.msh");
+    let p = dir.path();
+    let split = ["split", "case.toml", "--parts", "3", "--out", "parts"];
+    let (code, stdout, stderr) = run_on_ranks(p, 3, &split);
+    assert_eq!(code, 0, "{stderr}");
+    let lines: Vec<&str> = stdout.lines().filter(|l| l.starts_with("split:")).collect();
+    assert_eq!(lines.len(), 1, "{stdout}");
+    assert!(lines[0].contains("cut by PT-Scotch on 3 ranks"), "{stdout}");
+    run(p, 1, "one", "metis");
+    let one = read_contact(&p.join("one/contact.csv"));
+    for np in [1, 3] {
+        let out = format!("from{np}");
+        let args = [
+            "case.toml",
+            "--out",
+            &out,
+            "--no-plots",
+            "--mesh-split",
+            "parts",
+        ];
+        let (code, _, stderr) = run_on_ranks(p, np, &args);
+        assert_eq!(code, 0, "{np} ranks: {stderr}");
+        let rows = read_contact(&p.join(&out).join("contact.csv"));
+        assert_same_columns(&one, &rows, 1e-8, &format!("split of 3, {np} ranks"));
+    }
 }
