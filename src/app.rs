@@ -1080,7 +1080,7 @@ pub struct SplitOptions {
     pub level: u32,
     pub parts: usize,
     pub out: PathBuf,
-    /// Who cuts the graph: on several ranks, every rank unless [`Partitioner::Metis`].
+    /// Who cuts the graph (as in a run).
     pub partitioner: Partitioner,
 }
 
@@ -1109,7 +1109,7 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
     });
     mpi.barrier_sleeping();
     let prepared = mpi.agree(prepared.transpose())?;
-    let on_ranks = mpi.size > 1 && opts.parts > 1 && opts.partitioner != Partitioner::Metis;
+    let on_ranks = opts.partitioner.on_ranks(mpi, opts.parts);
     let cut = match on_ranks {
         true => {
             let graph = prepared.as_ref().map(|p| &p.3);

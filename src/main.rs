@@ -188,8 +188,9 @@ struct SplitArgs {
     #[arg(long, default_value_t = 1)]
     level: u32,
     /// Who cuts the mesh: metis (this process, or the first rank) or ptscotch (every
-    /// rank of `mpirun -n N contact-par split ...`, PT-Scotch); auto (default):
-    /// ptscotch on several ranks. The first rank reads the mesh and writes the parts.
+    /// rank of `mpirun -n N contact-par split ...`, PT-Scotch); auto (default): as in a
+    /// run, ptscotch when the ranks span several nodes. The first rank reads the mesh
+    /// and writes the parts.
     #[arg(long, default_value = "auto", value_parser = parse_partitioner)]
     partitioner: Partitioner,
 }

@@ -109,15 +109,24 @@ fn two_bodies_in_contact_cut_by_every_rank_agree_with_one_rank() {
     check(dir.path(), Law::Coulomb(0.3), "two blocks");
 }
 
-/// `mpirun -n 3 contact-par split` cuts with PT-Scotch on its 3 ranks (one line, from
-/// the first); runs from the split on 1 and 3 ranks agree with the unsplit run.
+/// `mpirun -n 3 contact-par split --partitioner ptscotch` cuts on its 3 ranks (one line,
+/// from the first); runs from the split on 1 and 3 ranks agree with the unsplit run.
 #[test]
 fn a_split_cut_by_every_rank_gives_the_same_answer() {
     let case = quarter_disc_case_on("mesh.msh", "friction = \"coulomb\"\ncoefficient = 0.2");
     let mesh = gmsh_dir().join("quarter_disc_v41_ascii.msh");
     let dir = case_dir(&case, &mesh, "mesh.msh");
     let p = dir.path();
-    let split = ["split", "case.toml", "--parts", "3", "--out", "parts"];
+    let split = [
+        "split",
+        "case.toml",
+        "--parts",
+        "3",
+        "--out",
+        "parts",
+        "--partitioner",
+        "ptscotch",
+    ];
     let (code, stdout, stderr) = run_on_ranks(p, 3, &split);
     assert_eq!(code, 0, "{stderr}");
     let lines: Vec<&str> = stdout.lines().filter(|l| l.starts_with("split:")).collect();
