@@ -473,6 +473,29 @@ impl Mpi {
         }
     }
 
+    /// Every rank's `n`, in rank order. For the set-up (one subdomain per rank).
+    pub fn all_gather_counts(&self, n: usize) -> Vec<usize> {
+        assert_eq!(
+            self.per_rank(),
+            1,
+            "all_gather_counts: one subdomain per rank"
+        );
+        if self.mpi_size == 1 {
+            return vec![n];
+        }
+        let all = Leader { mpi: self }.all_gather_u64(n as u64);
+        all.into_iter().map(|c| c as usize).collect()
+    }
+
+    /// [`Leader::exchange`] for the set-up (one subdomain per rank).
+    pub fn exchange<T>(&self, send: Vec<Vec<T>>) -> Vec<Vec<T>>
+    where
+        T: mpi::datatype::Equivalence + Copy + Default,
+    {
+        assert_eq!(self.per_rank(), 1, "exchange: one subdomain per rank");
+        Leader { mpi: self }.exchange(send)
+    }
+
     /// The first rank's `all` cut by `counts` (rank r receives `counts[r]` values, in
     /// rank order; `all` is ignored elsewhere): one MPI_Scatterv. For the set-up, before
     /// any team exists (one subdomain per rank).

@@ -1,0 +1,203 @@
+//! The dual graph of a triangle mesh whose triangles are spread over the ranks in
+//! consecutive ranges (rank r holds triangles `first_r..first_r + n_r` of one global
+//! numbering, each as its three node tags), built by every rank at once, no rank
+//! holding more than its range and its share of the edges: each edge of a triangle is
+//! sent to the rank that a hash of its two node tags names ([`edge_rank`]); there the
+//! triangles that run it are matched ([`match_edges`]), and each learns its neighbours.
+//! The same matching finds the boundary edges (run by one triangle) and the folds (an
+//! edge run twice the same way, or by three triangles or more).
+//!
+//! Why: it is the first step of a start in which every rank builds its part of the
+//! problem from its share of the mesh file (docs/cost-model.md, "The start from one
+//! Gmsh file"): the graph the partition cuts, the boundary that the contact groups must
+//! lie on and the mesh check, without the whole mesh on one rank. Its rows are those of
+//! `partition::dual_graph` on the same triangles (tested on 1-4 ranks).
+
+use crate::dd::comm::Mpi;
+
+/// What the matching of the edges a rank was sent finds.
+#[derive(Debug, Default, Clone, PartialEq, Eq)]
+pub struct Matched {
+    /// Pairs of triangles (global ids) that share an edge; every pair of the triangles
+    /// of a non-manifold edge.
+    pub pairs: Vec<[u64; 2]>,
+    /// Edges run by one triangle: node tags (low, high), the triangle, and whether it
+    /// runs the edge from low to high.
+    pub boundary: Vec<BoundaryEdge>,
+    /// Edges that two triangles run the same way, or three or more share: node tags
+    /// (low, high) and two of the triangles.
+    pub folds: Vec<([u64; 2], [u64; 2])>,
+}
+
+/// An edge of the mesh's boundary (see [`Matched::boundary`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BoundaryEdge {
+    pub nodes: [u64; 2],
+    pub triangle: u64,
+    pub low_to_high: bool,
+}
+
+/// The rank of `procs` that matches the edge between node tags `low < high`: a mix of
+/// both tags (splitmix64), so that the edges spread evenly whatever the tags.
+pub fn edge_rank(low: u64, high: u64, procs: usize) -> usize {
+    let mut z = low
+        .wrapping_mul(0x9e37_79b9_7f4a_7c15)
+        .wrapping_add(high)
+        .wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    (z % procs as u64) as usize
+}
+
+/// The edge records of triangles `first..`: per edge (low tag, high tag, triangle << 1
+/// | 1 when the triangle runs it from low to high), in the order of the triangles.
+pub fn edge_records(first: u64, triangles: &[[u64; 3]]) -> impl Iterator<Item = [u64; 3]> + '_ {
+    triangles.iter().enumerate().flat_map(move |(i, t)| {
+        let id = first + i as u64;
+        [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])]
+            .map(move |(a, b)| [a.min(b), a.max(b), id << 1 | u64::from(a < b)])
+    })
+}
+
+/// Matches the edge records a rank was sent (see [`edge_records`]), in any order.
+pub fn match_edges(records: &mut [[u64; 3]]) -> Matched {
+    records.sort_unstable();
+    let mut m = Matched::default();
+    for run in records.chunk_by(|x, y| x[0] == y[0] && x[1] == y[1]) {
+        let nodes = [run[0][0], run[0][1]];
+        match run {
+            [one] => m.boundary.push(BoundaryEdge {
+                nodes,
+                triangle: one[2] >> 1,
+                low_to_high: one[2] & 1 == 1,
+            }),
+            [x, y] => {
+                m.pairs.push([x[2] >> 1, y[2] >> 1]);
+                if (x[2] ^ y[2]) & 1 == 0 {
+                    m.folds.push((nodes, [x[2] >> 1, y[2] >> 1]));
+                }
+            }
+            _ => {
+                for (k, x) in run.iter().enumerate() {
+                    for y in &run[k + 1..] {
+                        m.pairs.push([x[2] >> 1, y[2] >> 1]);
+                    }
+                }
+                m.folds.push((nodes, [run[0][2] >> 1, run[1][2] >> 1]));
+            }
+        }
+    }
+    m
+}
+
+/// A rank's part of the dual graph (see the module's documentation).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DistDual {
+    /// Global id of this rank's first triangle.
+    pub first: u64,
+    /// Rows of this rank's triangles: the neighbours of its `i`-th are
+    /// `adjncy[xadj[i]..xadj[i + 1]]`, global ids, increasing, without repeats.
+    pub xadj: Vec<usize>,
+    pub adjncy: Vec<u64>,
+    /// The boundary edges and folds this rank matched (each edge is matched on one rank).
+    pub boundary: Vec<BoundaryEdge>,
+    pub folds: Vec<([u64; 2], [u64; 2])>,
+}
+
+/// Builds the dual graph of the triangles spread over the ranks: this rank's are
+/// `triangles` (node tags), its share of one global numbering in rank order.
+/// Collective; one subdomain per rank.
+pub fn dual_graph(mpi: &Mpi, triangles: &[[u64; 3]]) -> DistDual {
+    let p = mpi.size;
+    let counts = mpi.all_gather_counts(triangles.len());
+    let starts: Vec<u64> = (counts.iter())
+        .scan(0u64, |acc, &c| {
+            let s = *acc;
+            *acc += c as u64;
+            Some(s)
+        })
+        .collect();
+    let first = starts[mpi.rank];
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
+    for r in edge_records(first, triangles) {
+        send[edge_rank(r[0], r[1], p)].extend_from_slice(&r);
+    }
+    let received = mpi.exchange(send);
+    let mut records: Vec<[u64; 3]> = (received.iter())
+        .flat_map(|v| v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]))
+        .collect();
+    let matched = match_edges(&mut records);
+    drop(records);
+    // Each pair to the owners of both triangles.
+    let owner = |t: u64| starts.partition_point(|&s| s <= t) - 1;
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
+    for &[a, b] in &matched.pairs {
+        send[owner(a)].extend_from_slice(&[a, b]);
+        send[owner(b)].extend_from_slice(&[b, a]);
+    }
+    let received = mpi.exchange(send);
+    let mut rows: Vec<Vec<u64>> = vec![Vec::new(); triangles.len()];
+    for pair in received.iter().flat_map(|v| v.chunks_exact(2)) {
+        rows[(pair[0] - first) as usize].push(pair[1]);
+    }
+    let mut xadj = Vec::with_capacity(triangles.len() + 1);
+    xadj.push(0);
+    let mut adjncy = Vec::new();
+    for mut row in rows {
+        row.sort_unstable();
+        row.dedup();
+        adjncy.extend(row);
+        xadj.push(adjncy.len());
+    }
+    DistDual {
+        first,
+        xadj,
+        adjncy,
+        boundary: matched.boundary,
+        folds: matched.folds,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn two_triangles_share_one_edge_the_rest_is_boundary() {
+        // 1-2-3 and 3-2-4 run the edge 2-3 opposite ways.
+        let mut r: Vec<[u64; 3]> = edge_records(10, &[[1, 2, 3], [3, 2, 4]]).collect();
+        r.reverse();
+        let m = match_edges(&mut r);
+        assert_eq!(m.pairs, vec![[10, 11]]);
+        assert!(m.folds.is_empty());
+        let mut b: Vec<[u64; 2]> = m.boundary.iter().map(|e| e.nodes).collect();
+        b.sort_unstable();
+        assert_eq!(b, vec![[1, 2], [1, 3], [2, 4], [3, 4]]);
+        let e13 = m.boundary.iter().find(|e| e.nodes == [1, 3]).unwrap();
+        assert_eq!((e13.triangle, e13.low_to_high), (10, false));
+    }
+
+    #[test]
+    fn an_edge_run_twice_the_same_way_or_by_three_is_a_fold() {
+        let mut r: Vec<[u64; 3]> = edge_records(0, &[[1, 2, 3], [2, 3, 4]]).collect();
+        let m = match_edges(&mut r);
+        assert_eq!(m.folds, vec![([2, 3], [0, 1])]);
+        let mut r: Vec<[u64; 3]> = edge_records(0, &[[1, 2, 3], [3, 2, 4], [2, 3, 5]]).collect();
+        let m = match_edges(&mut r);
+        assert_eq!(m.pairs, vec![[0, 1], [0, 2], [1, 2]]);
+        assert_eq!(m.folds.len(), 1);
+    }
+
+    #[test]
+    fn edges_spread_over_the_ranks_and_the_hash_is_symmetric_in_use() {
+        let mut hits = [0usize; 7];
+        for a in 0..200u64 {
+            for b in a + 1..a + 4 {
+                hits[edge_rank(a, b, 7)] += 1;
+            }
+        }
+        assert!(hits.iter().all(|&h| h > 50), "{hits:?}");
+        assert_eq!(edge_rank(5, 9, 1), 0);
+    }
+}

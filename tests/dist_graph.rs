@@ -1,0 +1,142 @@
+//! The dual graph built by every rank from its range of the triangles
+//! (`dd::dist_graph`) is the serial one (`partition::dual_graph`), on 1, 2, 3 and 4
+//! ranks: a structured rectangle whose triangles come shuffled and whose node tags are
+//! not their indices, spread unevenly (on 4 ranks one rank holds none); its boundary is
+//! the rectangle's outline, and a triangle turned round is found as a fold.
+//!
+//! The test binary runs itself under `mpirun` (`--oversubscribe`; as root, set
+//! OMPI_ALLOW_RUN_AS_ROOT=1 and OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1); each rank then runs
+//! [`child`] only.
+
+use contact_par::dd::comm::Mpi;
+use contact_par::dd::dist_graph;
+use mpi::collective::SystemOperation;
+use mpi::traits::*;
+use std::process::Command;
+
+const CHILD: &str = "DIST_GRAPH_TEST_CHILD";
+const NX: usize = 23;
+const NY: usize = 11;
+
+/// The rectangle's triangles (node indices), counter-clockwise, in a shuffled order.
+fn triangles() -> Vec<[usize; 3]> {
+    let id = |i: usize, j: usize| j * (NX + 1) + i;
+    let mut t = Vec::new();
+    for j in 0..NY {
+        for i in 0..NX {
+            t.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            t.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    // A fixed permutation: stride coprime with the count.
+    let n = t.len();
+    let stride = (1..n)
+        .rev()
+        .find(|s| gcd(*s, n) == 1 && *s < n / 2 + 7)
+        .unwrap();
+    (0..n).map(|k| t[(k * stride) % n]).collect()
+}
+
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+fn tag(node: usize) -> u64 {
+    3 * node as u64 + 7
+}
+
+/// Rank r's range of `n` triangles on `size` ranks: uneven, the last of 4 empty.
+fn range(r: usize, size: usize, n: usize) -> std::ops::Range<usize> {
+    let weight = |q: usize| if size == 4 && q == 3 { 0 } else { q + 1 };
+    let total: usize = (0..size).map(weight).sum();
+    let before: usize = (0..r).map(weight).sum();
+    n * before / total..n * (before + weight(r)) / total
+}
+
+fn child() {
+    let universe = mpi::initialize().expect("MPI");
+    let world = universe.world();
+    let (rank, size) = (world.rank() as usize, world.size() as usize);
+    let all = triangles();
+    let nodes = (NX + 1) * (NY + 1);
+    let serial = partition::dual_graph(nodes, &all).expect("a valid mesh");
+    let mine = range(rank, size, all.len());
+    let tags: Vec<[u64; 3]> = all[mine.clone()].iter().map(|t| t.map(tag)).collect();
+    let mpi = Mpi::new(world.duplicate());
+    let d = dist_graph::dual_graph(&mpi, &tags);
+    assert_eq!(d.first as usize, mine.start);
+    assert_eq!(d.xadj.len(), mine.len() + 1);
+    for (i, g) in mine.clone().enumerate() {
+        let row: Vec<usize> = d.adjncy[d.xadj[i]..d.xadj[i + 1]]
+            .iter()
+            .map(|&v| v as usize)
+            .collect();
+        assert_eq!(row, serial.neighbours(g), "triangle {g} on rank {rank}");
+    }
+    let mut edges = 0u64;
+    world.all_reduce_into(
+        &(d.boundary.len() as u64),
+        &mut edges,
+        SystemOperation::sum(),
+    );
+    assert_eq!(edges as usize, 2 * (NX + NY), "the outline");
+    for e in &d.boundary {
+        let on = |t: u64| {
+            let n = ((t - 7) / 3) as usize;
+            let (i, j) = (n % (NX + 1), n / (NX + 1));
+            (i == 0 || i == NX, j == 0 || j == NY)
+        };
+        let (a, b) = (on(e.nodes[0]), on(e.nodes[1]));
+        assert!((a.0 && b.0) || (a.1 && b.1), "{e:?} is not on the outline");
+    }
+    assert!(d.folds.is_empty(), "{:?}", d.folds);
+
+    // One triangle turned round (clockwise): its three edges are run twice one way,
+    // except on the outline.
+    let mut turned = tags.clone();
+    if rank == 0 && !turned.is_empty() {
+        turned[0].swap(1, 2);
+    }
+    let d = dist_graph::dual_graph(&mpi, &turned);
+    let mut folds = 0u64;
+    world.all_reduce_into(&(d.folds.len() as u64), &mut folds, SystemOperation::sum());
+    assert!((1..=3).contains(&folds), "{folds} folds");
+}
+
+#[test]
+fn the_dual_graph_built_on_1_to_4_ranks_is_the_serial_one() {
+    if std::env::var(CHILD).is_ok() {
+        child();
+        return;
+    }
+    let me = std::env::current_exe().unwrap();
+    let tmp = std::env::temp_dir().join(format!("dist-graph-test-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    for np in 1..=4 {
+        let out = Command::new("mpirun")
+            .env("TMPDIR", &tmp)
+            .args(["-n", &np.to_string(), "--oversubscribe"])
+            .arg(&me)
+            .args([
+                "--exact",
+                "the_dual_graph_built_on_1_to_4_ranks_is_the_serial_one",
+                "--nocapture",
+                "--test-threads",
+                "1",
+            ])
+            .env(CHILD, "1")
+            .output()
+            .expect("mpirun");
+        assert!(
+            out.status.success(),
+            "{np} ranks: {}\n{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+}
