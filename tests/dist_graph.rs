@@ -2,7 +2,8 @@
 //! (`dd::dist_graph`) is the serial one (`partition::dual_graph`), on 1, 2, 3 and 4
 //! ranks: a structured rectangle whose triangles come shuffled and whose node tags are
 //! not their indices, spread unevenly (on 4 ranks one rank holds none); its boundary is
-//! the rectangle's outline, and a triangle turned round is found as a fold.
+//! the rectangle's outline, its edge cut of given parts the serial count, and a triangle
+//! turned round is found as a fold.
 //!
 //! The test binary runs itself under `mpirun` (`--oversubscribe`; as root, set
 //! OMPI_ALLOW_RUN_AS_ROOT=1 and OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1); each rank then runs
@@ -94,6 +95,24 @@ fn child() {
         assert!((a.0 && b.0) || (a.1 && b.1), "{e:?} is not on the outline");
     }
     assert!(d.folds.is_empty(), "{:?}", d.folds);
+
+    // The edge cut of parts given by the global ids, counted across the ranks.
+    let part = |g: usize| ((g * 7) / all.len()) as i32;
+    let parts: Vec<i32> = mine.clone().map(part).collect();
+    let counts: Vec<usize> = (0..size).map(|r| range(r, size, all.len()).len()).collect();
+    let cut = dist_graph::edge_cut(&mpi, &d, &parts, &counts);
+    let serial_cut = (0..all.len())
+        .map(|g| {
+            serial
+                .neighbours(g)
+                .iter()
+                .filter(|&&h| part(h) != part(g))
+                .count()
+        })
+        .sum::<usize>()
+        / 2;
+    assert!(serial_cut > 0);
+    assert_eq!(cut, serial_cut, "rank {rank}");
 
     // One triangle turned round (clockwise): its three edges are run twice one way,
     // except on the outline.

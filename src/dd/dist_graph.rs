@@ -11,7 +11,11 @@
 //! problem from its share of the mesh file (docs/cost-model.md, "The start from one
 //! Gmsh file"): the graph the partition cuts, the boundary that the contact groups must
 //! lie on and the mesh check, without the whole mesh on one rank. Its rows are those of
-//! `partition::dual_graph` on the same triangles (tested on 1-4 ranks).
+//! `partition::dual_graph` on the same triangles (tested on 1-4 ranks). Runs do not use
+//! it yet: on the shares of a file in its own order (no locality), the graph took 0.7 s
+//! and PT-Scotch's cut 1.8 s on 2 ranks, against 0.12 s and 0.34 s for the first rank's
+//! graph in the locality order (docs/performance-history.md); the ranks need a locality
+//! order of their own first.
 
 use crate::dd::comm::Mpi;
 
@@ -157,6 +161,55 @@ pub fn dual_graph(mpi: &Mpi, triangles: &[[u64; 3]]) -> DistDual {
         boundary: matched.boundary,
         folds: matched.folds,
     }
+}
+
+/// The edges of the graph whose two triangles lie in different parts (`parts`: this
+/// rank's triangles'; `counts`: every rank's number of triangles): each rank asks the
+/// owners of its rows' other triangles for their parts, counts its rows' cut edges, and
+/// the counts are summed (each edge is in two rows). Collective; every rank gets it.
+pub fn edge_cut(mpi: &Mpi, dual: &DistDual, parts: &[i32], counts: &[usize]) -> usize {
+    let p = mpi.size;
+    let starts: Vec<u64> = (counts.iter())
+        .scan(0u64, |acc, &c| {
+            let s = *acc;
+            *acc += c as u64;
+            Some(s)
+        })
+        .collect();
+    let owner = |t: u64| starts.partition_point(|&s| s <= t) - 1;
+    let (first, mine) = (dual.first, parts.len() as u64);
+    let local = |t: u64| t >= first && t < first + mine;
+    let mut ask: Vec<Vec<u64>> = vec![Vec::new(); p];
+    for &t in dual.adjncy.iter().filter(|&&t| !local(t)) {
+        ask[owner(t)].push(t);
+    }
+    for a in &mut ask {
+        a.sort_unstable();
+        a.dedup();
+    }
+    let asked = mpi.exchange(ask.clone());
+    let answers: Vec<Vec<i32>> = (asked.iter())
+        .map(|ids| ids.iter().map(|&t| parts[(t - first) as usize]).collect())
+        .collect();
+    let got = mpi.exchange(answers);
+    let part_of = |t: u64| -> i32 {
+        if local(t) {
+            return parts[(t - first) as usize];
+        }
+        let q = owner(t);
+        let k = ask[q]
+            .binary_search(&t)
+            .expect("asked for every other triangle");
+        got[q][k]
+    };
+    let mut cut = 0usize;
+    for (i, &pi) in parts.iter().enumerate() {
+        let row = &dual.adjncy[dual.xadj[i]..dual.xadj[i + 1]];
+        cut += row.iter().filter(|&&t| part_of(t) != pi).count();
+    }
+    let mut total = [cut as f64];
+    crate::contact::Reduce::sum_in_place(mpi, &mut total);
+    total[0] as usize / 2
 }
 
 #[cfg(test)]
