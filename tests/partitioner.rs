@@ -1,10 +1,10 @@
 //! The mesh cut by PT-Scotch on every rank (`--partitioner ptscotch`) gives the answer
 //! of one rank, on 2, 3 and 4 ranks: a body against an obstacle with Coulomb friction
 //! (a Gmsh file) and two bodies in contact (whose ties the cut must see), compared node
-//! by node, with the contact conditions checked; the same parts run after run (the
-//! outputs byte for byte); and its parts as good as the first rank's METIS cut. Also
-//! `contact-par split` on several ranks, which cut together: runs from its parts give
-//! the same answer.
+//! by node (also two subdomains per rank), with the contact conditions checked; the
+//! same parts run after run (the outputs byte for byte); and its parts as good as the
+//! first rank's METIS cut. Also `contact-par split` on several ranks, which cut
+//! together: runs from its parts give the same answer.
 
 mod common;
 use common::*;
@@ -75,6 +75,24 @@ fn check(dir: &Path, law: Law, what: &str) {
         same_bytes(p, &out, &again);
         let metis = run(p, np, &format!("metis{np}"), "metis");
         assert!(metis.contains("(the first rank)"), "{what}: {metis}");
+        // More parts than ranks: PT-Scotch cuts 2 per rank.
+        let k2 = format!("pts{np}k2");
+        let args = [
+            "case.toml",
+            "--out",
+            &k2,
+            "--no-plots",
+            "--partitioner",
+            "ptscotch",
+            "--subdomains-per-rank",
+            "2",
+        ];
+        let (code, stdout, stderr) = run_on_ranks(p, np, &args);
+        assert_eq!(code, 0, "{what}, {np} ranks x 2: {stderr}");
+        let parts = format!("in {} parts", 2 * np);
+        assert!(stdout.contains(&parts), "{what}: {stdout}");
+        let rows = read_contact(&p.join(&k2).join("contact.csv"));
+        assert_same_columns(&one, &rows, 1e-8, &format!("{what}, 1 vs {np} ranks x 2"));
         // The fixtures are small (tens of cut edges): within a quarter plus two edges.
         let (pts, met) = (edge_cut(&line), edge_cut(&metis));
         assert!(
