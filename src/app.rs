@@ -943,8 +943,7 @@ fn split_cut(
         graph_s,
     } = t;
     let by_ranks = cut.as_ref().map(|c| c.1);
-    let mut cut_s = by_ranks.unwrap_or(0.0);
-    let split_start = Instant::now();
+    let (mut cut_s, mut split_s) = (by_ranks.unwrap_or(0.0), 0.0);
     let (facts, subs) = timer.time(Phase::Partition, || {
         let element_part = match cut {
             Some((parts, _)) => parts,
@@ -955,10 +954,11 @@ fn split_cut(
                 parts.map_err(|e| cannot_partition(&mesh_name, e))?
             }
         };
-        split_parts(&case, &prob, &mesh_name, graph, nparts, element_part)
+        let start = Instant::now();
+        let split = split_parts(&case, &prob, &mesh_name, graph, nparts, element_part);
+        split_s = start.elapsed().as_secs_f64();
+        split
     })?;
-    let split_s =
-        split_start.elapsed().as_secs_f64() - if by_ranks.is_some() { 0.0 } else { cut_s };
     let who = match by_ranks {
         Some(_) => format!("PT-Scotch on {} ranks", layout.ranks),
         None => "the first rank".to_string(),

@@ -483,14 +483,7 @@ impl MeshGraph {
     ) -> Result<Partition, PartitionError> {
         assert_eq!(element_part.len(), triangles.len());
         check_nparts(nparts, triangles.len())?;
-        if let Some(element) = element_part.iter().position(|&p| p as usize >= nparts) {
-            let part = element_part[element];
-            return Err(PartitionError::PartOutOfRange {
-                element,
-                part,
-                nparts,
-            });
-        }
+        check_part_ids(&element_part, nparts)?;
         fill_empty_parts(&mut element_part, nparts);
         if self.mesh.graph.is_none() {
             self.mesh.graph = self.graph.take();
@@ -531,13 +524,7 @@ pub fn partition_from_element_parts(
         triangles.len(),
         "one part id per triangle"
     );
-    if let Some(element) = element_part.iter().position(|&p| p as usize >= nparts) {
-        return Err(PartitionError::PartOutOfRange {
-            element,
-            part: element_part[element],
-            nparts,
-        });
-    }
+    check_part_ids(&element_part, nparts)?;
     validate_triangles(num_nodes, triangles)?;
     let mesh = Connectivity::new(num_nodes, triangles)?;
     build_partition(
@@ -548,6 +535,18 @@ pub fn partition_from_element_parts(
         element_part,
         &mesh,
     )
+}
+
+/// Every part id below `nparts`, else the first triangle whose is not.
+fn check_part_ids(element_part: &[u32], nparts: usize) -> Result<(), PartitionError> {
+    match element_part.iter().position(|&p| p as usize >= nparts) {
+        Some(element) => Err(PartitionError::PartOutOfRange {
+            element,
+            part: element_part[element],
+            nparts,
+        }),
+        None => Ok(()),
+    }
 }
 
 fn check_nparts(nparts: usize, elements: usize) -> Result<(), PartitionError> {

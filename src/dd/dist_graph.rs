@@ -95,6 +95,32 @@ pub fn match_edges(records: &mut [[u64; 3]]) -> Matched {
     m
 }
 
+/// The consecutive ranges of the triangles' global ids, rank after rank.
+struct Ranges {
+    /// The first id of each rank's range.
+    starts: Vec<u64>,
+}
+
+impl Ranges {
+    fn new(counts: &[usize]) -> Self {
+        let mut at = 0u64;
+        let starts = (counts.iter())
+            .map(|&c| {
+                let s = at;
+                at += c as u64;
+                s
+            })
+            .collect();
+        Ranges { starts }
+    }
+
+    /// The rank whose range holds `t` (the last of the ranks starting at or before it:
+    /// empty ranges share their start with the next).
+    fn owner(&self, t: u64) -> usize {
+        self.starts.partition_point(|&s| s <= t) - 1
+    }
+}
+
 /// A rank's part of the dual graph (see the module's documentation).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DistDual {
@@ -114,15 +140,8 @@ pub struct DistDual {
 /// Collective; one subdomain per rank.
 pub fn dual_graph(mpi: &Mpi, triangles: &[[u64; 3]]) -> DistDual {
     let p = mpi.size;
-    let counts = mpi.all_gather_counts(triangles.len());
-    let starts: Vec<u64> = (counts.iter())
-        .scan(0u64, |acc, &c| {
-            let s = *acc;
-            *acc += c as u64;
-            Some(s)
-        })
-        .collect();
-    let first = starts[mpi.rank];
+    let ranges = Ranges::new(&mpi.all_gather_counts(triangles.len()));
+    let first = ranges.starts[mpi.rank];
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
     for r in edge_records(first, triangles) {
         send[edge_rank(r[0], r[1], p)].extend_from_slice(&r);
@@ -134,7 +153,7 @@ pub fn dual_graph(mpi: &Mpi, triangles: &[[u64; 3]]) -> DistDual {
     let matched = match_edges(&mut records);
     drop(records);
     // Each pair to the owners of both triangles.
-    let owner = |t: u64| starts.partition_point(|&s| s <= t) - 1;
+    let owner = |t: u64| ranges.owner(t);
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
     for &[a, b] in &matched.pairs {
         send[owner(a)].extend_from_slice(&[a, b]);
@@ -169,14 +188,8 @@ pub fn dual_graph(mpi: &Mpi, triangles: &[[u64; 3]]) -> DistDual {
 /// the counts are summed (each edge is in two rows). Collective; every rank gets it.
 pub fn edge_cut(mpi: &Mpi, dual: &DistDual, parts: &[i32], counts: &[usize]) -> usize {
     let p = mpi.size;
-    let starts: Vec<u64> = (counts.iter())
-        .scan(0u64, |acc, &c| {
-            let s = *acc;
-            *acc += c as u64;
-            Some(s)
-        })
-        .collect();
-    let owner = |t: u64| starts.partition_point(|&s| s <= t) - 1;
+    let ranges = Ranges::new(counts);
+    let owner = |t: u64| ranges.owner(t);
     let (first, mine) = (dual.first, parts.len() as u64);
     let local = |t: u64| t >= first && t < first + mine;
     let mut ask: Vec<Vec<u64>> = vec![Vec::new(); p];
