@@ -15,6 +15,7 @@ use crate::contact::{
 use crate::dd::comm::Mpi;
 use crate::dd::full::{DirectStep, DirectSystem};
 use crate::dd::local_factor::LocalFactor;
+use crate::dd::share_cut::{cut_shares, ShareCut};
 use crate::dd::split::{split, SubProblem};
 use crate::dd::step::{CondensedStep, LocalSystem, StepSetup};
 use crate::error::{Error, Result};
@@ -191,11 +192,15 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     // that the cores of those on its node are its to use. `threads`: the rank's own,
     // not those of the pool the set-up borrows.
     let threads = rayon::current_num_threads();
-    let early = read_together(opts, &mpi, &timer);
     let layout = Layout {
         ranks: mpi.size,
         threads,
     };
+    let (mut early, shares) = read_together(opts, &mpi, layout, &timer);
+    let cut = shares.and_then(|s| timer.time(Phase::Partition, || s.cut(&mpi)));
+    if let Some(e) = early.as_mut() {
+        e.cut = cut;
+    }
     let prepared = mpi.is_root().then(|| {
         host::on_idle_cores(mpi.node_ranks, || {
             prepare(opts, layout, &timer, print, early)
@@ -769,6 +774,13 @@ fn prepare(
         return Ok(Prepared::Ready(Box::new(setup)));
     }
     // 1. Read and validate the case and the mesh.
+    let (early, share_cut) = match early {
+        Some(mut e) => {
+            let cut = e.cut.take();
+            (Some(e), cut)
+        }
+        None => (None, None),
+    };
     let (case, prob, mesh_name, how) = timer.time(Phase::Read, || read(opts, early))?;
     check_linear(opts, &case)?;
     let triangles = prob.mesh.triangles.len();
@@ -790,9 +802,18 @@ fn prepare(
         "{mesh_name}: {} nodes, {} triangles, {} contact nodes{how}",
         size.nodes, size.elements, size.contact_nodes
     ));
-    // 2. The graph the partition cuts ([`cut_and_split`] cuts it).
+    // 2. The graph the partition cuts ([`cut_and_split`] cuts it), unless the ranks cut
+    // the file from their shares: then only the triangles around each node, which the
+    // ownership rules read.
     let graph_start = Instant::now();
-    let graph = timer.time(Phase::Partition, || mesh_graph(&prob, &mesh_name, nparts))?;
+    let cut = share_cut.and_then(|c| ShareParts::of(c, &prob, nparts));
+    let graph = timer.time(Phase::Partition, || match &cut {
+        Some(_) => {
+            partition::MeshGraph::new(prob.mesh.num_nodes(), &prob.mesh.triangles, &[], false)
+                .map_err(|e| cannot_partition(&mesh_name, e))
+        }
+        None => mesh_graph(&prob, &mesh_name, nparts),
+    })?;
     let graph_s = graph_start.elapsed().as_secs_f64();
     Ok(Prepared::Problem(Box::new(ToCut {
         case,
@@ -802,7 +823,35 @@ fn prepare(
         per_rank,
         graph,
         graph_s,
+        cut,
     })))
+}
+
+/// The ranks' cut of the file's triangles ([`Shares::cut`]) in the problem's triangle
+/// order.
+struct ShareParts {
+    element_part: Vec<u32>,
+    edge_cut: usize,
+    /// Seconds of the ranks' locality order, graph, and cut.
+    seconds: [f64; 3],
+}
+
+impl ShareParts {
+    /// `None` where the problem does not match the cut: another number of parts, a
+    /// triangle the reading dropped as a repeat, ties between bodies. The first rank
+    /// then cuts the problem as it does without the shares.
+    fn of(cut: ShareCut, prob: &Problem, nparts: usize) -> Option<Self> {
+        let by_file = cut.parts?;
+        let tied = prob.contact_masters.iter().any(|m| !m.is_empty());
+        if cut.nparts != nparts || by_file.len() != prob.file_triangle.len() || tied {
+            return None;
+        }
+        Some(ShareParts {
+            element_part: prob.file_triangle.iter().map(|&f| by_file[f]).collect(),
+            edge_cut: cut.edge_cut,
+            seconds: cut.seconds,
+        })
+    }
 }
 
 /// What the first rank has made of the case before the partition.
@@ -822,6 +871,8 @@ struct ToCut {
     graph: partition::MeshGraph,
     /// Seconds the graph took.
     graph_s: f64,
+    /// The ranks' cut from their shares of the file, if they made it.
+    cut: Option<ShareParts>,
 }
 
 /// Phase 2, collective: the problem the first rank prepared cut into subdomains (by
@@ -836,7 +887,7 @@ fn cut_and_split(
     prepared: Option<Prepared>,
 ) -> Result<(Option<Setup>, Option<Vec<SubProblem>>)> {
     let asked = prepared.as_ref().map(|p| match p {
-        Prepared::Problem(t) if opts.partitioner.on_ranks(mpi, t.nparts) => {
+        Prepared::Problem(t) if t.cut.is_none() && opts.partitioner.on_ranks(mpi, t.nparts) => {
             Some((t.prob.mesh.triangles.len(), t.nparts))
         }
         _ => None,
@@ -941,27 +992,43 @@ fn split_cut(
         per_rank,
         graph,
         graph_s,
+        cut: from_shares,
     } = t;
     let by_ranks = cut.as_ref().map(|c| c.1);
     let (mut cut_s, mut split_s) = (by_ranks.unwrap_or(0.0), 0.0);
+    let shares_s = from_shares.as_ref().map(|c| c.seconds);
     let (facts, subs) = timer.time(Phase::Partition, || {
-        let element_part = match cut {
-            Some((parts, _)) => parts,
-            None => {
+        let (element_part, edge_cut) = match (cut, from_shares) {
+            (_, Some(c)) => (c.element_part, Some(c.edge_cut)),
+            (Some((parts, _)), None) => (parts, None),
+            (None, None) => {
                 let start = Instant::now();
                 let parts = graph.cut(nparts);
                 cut_s = start.elapsed().as_secs_f64();
-                parts.map_err(|e| cannot_partition(&mesh_name, e))?
+                (parts.map_err(|e| cannot_partition(&mesh_name, e))?, None)
             }
         };
         let start = Instant::now();
-        let split = split_parts(&case, &prob, &mesh_name, graph, nparts, element_part);
+        let cut = Cut {
+            nparts,
+            element_part,
+            edge_cut,
+        };
+        let split = split_parts(&case, &prob, &mesh_name, graph, cut);
         split_s = start.elapsed().as_secs_f64();
         split
     })?;
-    let who = match by_ranks {
-        Some(_) => format!("PT-Scotch on {} ranks", layout.ranks),
-        None => "the first rank".to_string(),
+    let who = match (by_ranks, shares_s) {
+        (_, Some([order, graph, cut])) => {
+            cut_s = order + graph + cut;
+            format!(
+                "PT-Scotch on {} ranks from their shares of the file: order {order:.3} s, \
+                 graph {graph:.3} s, cut {cut:.3} s",
+                layout.ranks
+            )
+        }
+        (Some(_), None) => format!("PT-Scotch on {} ranks", layout.ranks),
+        (None, None) => "the first rank".to_string(),
     };
     let figure = match nparts {
         1 => "one subdomain, no partition".to_string(),
@@ -1039,23 +1106,34 @@ fn cannot_partition(mesh_name: &str, e: partition::PartitionError) -> Error {
     Error::Input(format!("{mesh_name}: cannot partition the mesh: {e}"))
 }
 
-/// The problem split along the triangles' parts `element_part`.
+/// The triangles' parts.
+struct Cut {
+    nparts: usize,
+    element_part: Vec<u32>,
+    /// The edges cut, counted where the parts were cut from a graph that the first
+    /// rank does not hold ([`ShareParts`]); `None` where it does.
+    edge_cut: Option<usize>,
+}
+
+/// The problem split along the cut.
 fn split_parts(
     case: &Case,
     prob: &Problem,
     mesh_name: &str,
     graph: partition::MeshGraph,
-    nparts: usize,
-    element_part: Vec<u32>,
+    cut: Cut,
 ) -> Result<(Facts, Vec<SubProblem>)> {
-    let part = graph
-        .finish(
-            &prob.mesh.triangles,
-            &prob.contact_nodes,
-            nparts,
-            element_part,
-        )
-        .map_err(|e| cannot_partition(mesh_name, e))?;
+    let (triangles, contact) = (&prob.mesh.triangles, &prob.contact_nodes);
+    let Cut {
+        nparts,
+        element_part,
+        edge_cut,
+    } = cut;
+    let part = match edge_cut {
+        Some(cut) => graph.finish_cut(triangles, contact, nparts, element_part, cut),
+        None => graph.finish(triangles, contact, nparts, element_part),
+    }
+    .map_err(|e| cannot_partition(mesh_name, e))?;
     let (subs, map) = split(prob, &part, Problem::is_frictional(case))?;
     let facts = Facts {
         lengths: prob.lengths(),
@@ -1129,8 +1207,12 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
                     .cut(opts.parts)
                     .map_err(|e| cannot_partition(&mesh_name, e))?,
             };
-            let (facts, subs) =
-                split_parts(&case, &prob, &mesh_name, graph, opts.parts, element_part)?;
+            let cut = Cut {
+                nparts: opts.parts,
+                element_part,
+                edge_cut: None,
+            };
+            let (facts, subs) = split_parts(&case, &prob, &mesh_name, graph, cut)?;
             drop(prob);
             let split = split_dir::write(&opts.out, &case, &facts, &subs)?;
             let who = match on_ranks {
@@ -1203,11 +1285,35 @@ fn read(opts: &Options, early: Option<Early>) -> Result<(Case, Problem, String, 
     Ok((case, prob, mesh_name, how))
 }
 
-/// Phase 1 as far as the first rank has it before [`prepare`]: the case, and the Gmsh
-/// file when the ranks took part in reading it.
+/// Phase 1 as far as the first rank has it before [`prepare`]: the case, the Gmsh
+/// file when the ranks took part in reading it, and the partition when they cut it
+/// from their shares.
 struct Early {
     case: Result<Case>,
     mesh: Option<Together>,
+    cut: Option<ShareCut>,
+}
+
+/// Every rank's share of a Gmsh file read together, kept for the partition on the
+/// ranks ([`Shares::cut`]).
+struct Shares {
+    share: gmsh::shares::Share,
+    triangles: Vec<[u64; 3]>,
+    nparts: usize,
+}
+
+impl Shares {
+    /// The file's triangles cut into `nparts` parts by every rank from its share
+    /// (`dd::share_cut`). Collective.
+    fn cut(self, mpi: &Mpi) -> Option<ShareCut> {
+        let Shares {
+            share,
+            triangles,
+            nparts,
+        } = self;
+        let gmsh::shares::Share { tags, coords, .. } = share;
+        cut_shares(mpi, &tags, &coords, &triangles, nparts, PART_IMBALANCE)
+    }
 }
 
 /// A Gmsh file read by every rank: the file, and from the ranks its records' values.
@@ -1246,11 +1352,20 @@ impl Together {
 /// `None` on the other ranks, and where the first reads alone (one rank, a split
 /// directory, [`MeshRead`]): [`prepare`] then reads everything.
 ///
+/// Where the ranks will cut the mesh (PT-Scotch, [`Partitioner`]) and no contact ties
+/// two bodies (whose ties come from the problem), every rank also keeps its share
+/// ([`Shares`]), to cut the mesh from it before the first rank builds the problem.
+///
 /// Why: on a cluster the first rank has only its node's cores; here the cores of every
 /// node parse the numbers' text, most of the read. Any fault (a share that cannot be parsed, a file
 /// another rank cannot open, a layout the shares do not expect) sends every rank back to
 /// the first rank's reading, which names the fault as it always has.
-fn read_together(opts: &Options, mpi: &Mpi, timer: &Timer) -> Option<Early> {
+fn read_together(
+    opts: &Options,
+    mpi: &Mpi,
+    layout: Layout,
+    timer: &Timer,
+) -> (Option<Early>, Option<Shares>) {
     // On one node the first rank's reading borrows every core the others would parse
     // on, without the scan, the gathers and the assembly (docs/performance.md).
     let shared = match opts.mesh_read {
@@ -1259,7 +1374,7 @@ fn read_together(opts: &Options, mpi: &Mpi, timer: &Timer) -> Option<Early> {
         MeshRead::Shared => true,
     };
     if !shared || mpi.size == 1 || mpi.per_rank() > 1 || opts.mesh_split.is_some() {
-        return None;
+        return (None, None);
     }
     let _read = timer.phase(Phase::Read);
     let start = Instant::now();
@@ -1283,10 +1398,18 @@ fn read_together(opts: &Options, mpi: &Mpi, timer: &Timer) -> Option<Early> {
     });
     mpi.barrier_sleeping();
     let alone_s = start.elapsed().as_secs_f64();
-    let plan = first
-        .as_ref()
-        .map(|(_, _, s)| s.as_ref().map(|(_, plan)| plan.clone()));
+    let plan = first.as_ref().map(|(case, _, s)| {
+        s.as_ref().map(|(scan, plan)| {
+            let nparts = case
+                .as_ref()
+                .ok()
+                .and_then(|c| parts_from_shares(opts, mpi, layout, c, scan.triangles()));
+            (plan.clone(), nparts)
+        })
+    });
     let plan = mpi.broadcast(plan).ok().flatten();
+    let nparts = plan.as_ref().and_then(|p| p.1);
+    let plan = plan.map(|p| p.0);
     let (case, file, scanned) = match first {
         Some((case, file, scanned)) => (Some(case), file, scanned),
         None => (None, None, None),
@@ -1298,24 +1421,61 @@ fn read_together(opts: &Options, mpi: &Mpi, timer: &Timer) -> Option<Early> {
         }
         let share = share.unwrap_or_default();
         let [tags, coords, elements] = plan.counts();
-        let tags = mpi.gather_varcount(&share.tags, &tags);
-        let coords = mpi.gather_varcount(&share.coords, &coords);
-        let elements = mpi.gather_varcount(&share.elements, &elements);
-        Some((tags?, coords?, elements?))
+        let tags_all = mpi.gather_varcount(&share.tags, &tags);
+        let coords_all = mpi.gather_varcount(&share.coords, &coords);
+        let elements_all = mpi.gather_varcount(&share.elements, &elements);
+        let kept = nparts.map(|nparts| Shares {
+            triangles: share.triangles(plan.share(mpi.rank)),
+            share,
+            nparts,
+        });
+        Some((tags_all, coords_all, elements_all, kept))
     });
+    let (gathered, shares) = match gathered {
+        Some((tags, coords, elements, kept)) => (tags.zip(coords).zip(elements), kept),
+        None => (None, None),
+    };
     let together_s = start.elapsed().as_secs_f64() - alone_s;
-    let case = case?;
+    let Some(case) = case else {
+        return (None, shares);
+    };
     let mesh = file.map(|(bytes, path)| Together {
         name: path.display().to_string(),
         bytes,
         shared: scanned
             .zip(gathered)
-            .map(|((scan, _), (tags, coords, elements))| (scan, [tags, elements], coords)),
+            .map(|((scan, _), ((tags, coords), elements))| (scan, [tags, elements], coords)),
         ranks: mpi.size,
         alone_s,
         together_s,
     });
-    Some(Early { case, mesh })
+    let early = Early {
+        case,
+        mesh,
+        cut: None,
+    };
+    (Some(early), shares)
+}
+
+/// The number of subdomains the ranks cut a file of `triangles` triangle records into
+/// from their shares ([`Shares`]), as [`prepare`] will count them; `None` where the
+/// ranks do not cut ([`Partitioner`], one part), or a contact ties two bodies.
+fn parts_from_shares(
+    opts: &Options,
+    mpi: &Mpi,
+    layout: Layout,
+    case: &Case,
+    triangles: usize,
+) -> Option<usize> {
+    if case.contacts.iter().any(|c| c.master.is_some()) || opts.linear == LinearMode::Full {
+        return None;
+    }
+    let per_rank = match opts.subdomains_per_rank {
+        Some(k) => k.max(1),
+        None => host::subdomains_per_rank(layout.threads, layout.ranks, triangles),
+    };
+    let nparts = layout.ranks * per_rank;
+    (nparts <= triangles && opts.partitioner.on_ranks(mpi, nparts)).then_some(nparts)
 }
 
 /// The number of subdomains, `ranks` x `per_rank`, if the mesh has a triangle for each.

@@ -119,6 +119,10 @@ pub struct Problem {
     /// The mesh file's index of each node (the row of `nodes.csv`): the nodes are
     /// numbered along a Hilbert curve once the problem is built ([`renumber`]).
     pub file_node: Vec<usize>,
+    /// The mesh's index of each triangle as read (its record among the file's triangle
+    /// records, less any repeat the reading dropped): the triangles are numbered with
+    /// the nodes.
+    pub file_triangle: Vec<usize>,
     /// Each triangle's body: the index of its entry in `Case::materials`.
     pub body: Vec<u32>,
     /// The bodies of the triangles that touch a contact node, increasing: the scales of
@@ -402,6 +406,7 @@ fn line_group<'a>(case: &Case, mesh: &'a Mesh, what: &str, name: &str) -> Result
 pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
     let boundary = validate::check(&mut mesh, mesh_name)?;
     let n = mesh.num_nodes();
+    let triangles = mesh.triangles.len();
 
     let mut fixed: Vec<Option<f64>> = vec![None; 2 * n];
     for d in &case.dirichlet {
@@ -448,6 +453,7 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
         contact_masters,
         contact_h,
         file_node: (0..n).collect(),
+        file_triangle: (0..triangles).collect(),
         body: Vec::new(),
         contact_bodies: Vec::new(),
         holding,
@@ -753,7 +759,7 @@ fn per_dof<T: Copy>(old_of: &[usize], v: &[T]) -> Vec<T> {
 /// problem, its set-up walking memory in order. Done after every check, so that
 /// messages name nodes and triangles in the file's numbering.
 fn in_locality_order(prob: Problem) -> Problem {
-    let (mesh, old_of) = renumber::by_hilbert_curve(prob.mesh);
+    let (mesh, old_of, tri_old_of) = renumber::by_hilbert_curve(prob.mesh);
     let new_of = renumber::inverse(&old_of);
     let fixed = per_dof(&old_of, &prob.fixed);
     // Contact nodes stay in increasing order, now the new one.
@@ -777,6 +783,7 @@ fn in_locality_order(prob: Problem) -> Problem {
         contact_masters,
         contact_nodes: by_new.iter().map(|&(v, _)| v).collect(),
         file_node: old_of.iter().map(|&o| prob.file_node[o]).collect(),
+        file_triangle: tri_old_of.iter().map(|&o| prob.file_triangle[o]).collect(),
         mesh,
         fixed,
         ..prob

@@ -5,12 +5,22 @@
 //! the rectangle's outline, its edge cut of given parts the serial count, and a triangle
 //! turned round is found as a fold.
 //!
+//!
+//! The locality order the ranks find together (`dd::locality`) is one order of the
+//! whole mesh, whatever the ranks: its ranges put end to end are the triangles sorted
+//! by their first node's Hilbert key, from shares whose tags and coordinates end at
+//! different places; a triangle's first node that no rank holds makes every rank give
+//! up. The cut of the
+//! shares (`dd::share_cut`) reaches the first rank as a part per file triangle, its
+//! edge cut the serial count.
+//!
 //! The test binary runs itself under `mpirun` (`--oversubscribe`; as root, set
 //! OMPI_ALLOW_RUN_AS_ROOT=1 and OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1); each rank then runs
 //! [`child`] only.
 
 use contact_par::dd::comm::Mpi;
-use contact_par::dd::dist_graph;
+use contact_par::dd::{dist_graph, locality, share_cut};
+use contact_par::mesh::renumber::hilbert_keys;
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
 use std::process::Command;
@@ -128,25 +138,130 @@ fn child() {
 
 #[test]
 fn the_dual_graph_built_on_1_to_4_ranks_is_the_serial_one() {
+    on_1_to_4_ranks(
+        "the_dual_graph_built_on_1_to_4_ranks_is_the_serial_one",
+        child,
+    );
+}
+
+#[test]
+fn the_locality_order_and_the_cut_of_the_shares_on_1_to_4_ranks() {
+    on_1_to_4_ranks(
+        "the_locality_order_and_the_cut_of_the_shares_on_1_to_4_ranks",
+        locality_child,
+    );
+}
+
+/// The rectangle's node coordinates, by node index.
+fn xy(node: usize) -> [f64; 2] {
+    [
+        (node % (NX + 1)) as f64 * 0.7,
+        (node / (NX + 1)) as f64 * 0.4,
+    ]
+}
+
+/// Rank r's range of `n` items on `size` ranks, weighted `weight(r)`.
+fn weighted(
+    r: usize,
+    size: usize,
+    n: usize,
+    weight: impl Fn(usize) -> usize,
+) -> std::ops::Range<usize> {
+    let total: usize = (0..size).map(&weight).sum();
+    let before: usize = (0..r).map(&weight).sum();
+    n * before / total..n * (before + weight(r)) / total
+}
+
+fn locality_child() {
+    let universe = mpi::initialize().expect("MPI");
+    let world = universe.world();
+    let (rank, size) = (world.rank() as usize, world.size() as usize);
+    let mpi = Mpi::new(world.duplicate());
+    let all = triangles();
+    let nodes = (NX + 1) * (NY + 1);
+    // The file lists the nodes backwards; the shares of the tags and of the coordinates
+    // end at different nodes.
+    let file_node = |k: usize| nodes - 1 - k;
+    let tags_at = weighted(rank, size, nodes, |q| q + 1);
+    let coords_at = weighted(rank, size, nodes, |q| size - q);
+    let tags: Vec<u64> = tags_at.map(|k| tag(file_node(k))).collect();
+    let coords: Vec<f64> = (coords_at.map(file_node))
+        .flat_map(|n| [xy(n)[0], xy(n)[1], 0.0])
+        .collect();
+    let mine = range(rank, size, all.len());
+    let tris: Vec<[u64; 3]> = all[mine].iter().map(|t| t.map(tag)).collect();
+
+    let sorted = locality::sort_triangles(&mpi, &tags, &coords, &tris).expect("a mesh");
+    // The serial order: by the first node's key on the grid over all nodes, then by
+    // the file's index.
+    let points: Vec<[f64; 2]> = all.iter().map(|t| xy(t[0])).collect();
+    let bbox = [[0.0, 0.0], [NX as f64 * 0.7, NY as f64 * 0.4]];
+    let keys = hilbert_keys(&points, bbox);
+    let mut serial: Vec<usize> = (0..all.len()).collect();
+    serial.sort_by_key(|&i| (keys[i], i));
+    let n = sorted.file.len();
+    assert_eq!(sorted.counts[rank], n);
+    assert_eq!(sorted.counts.iter().sum::<usize>(), all.len());
+    let first = sorted.first as usize;
+    let expected: Vec<u64> = serial[first..first + n].iter().map(|&i| i as u64).collect();
+    assert_eq!(sorted.file, expected, "rank {rank}");
+    for (t, &f) in sorted.triangles.iter().zip(&sorted.file) {
+        assert_eq!(*t, all[f as usize].map(tag));
+    }
+    let mean = all.len() / size;
+    assert!(
+        n <= 2 * mean + 1,
+        "rank {rank}: {n} triangles of {}",
+        all.len()
+    );
+
+    // A triangle whose first node no rank holds: every rank gives up.
+    let mut bad = tris.clone();
+    if let Some(t) = bad.first_mut() {
+        t[0] = 1_000_000;
+    }
+    assert!(locality::sort_triangles(&mpi, &tags, &coords, &bad).is_none());
+
+    // The cut: a part per file triangle on the first rank, the serial edge cut.
+    let nparts = size + 1;
+    let cut = share_cut::cut_shares(&mpi, &tags, &coords, &tris, nparts, 0.03).expect("a cut");
+    assert_eq!(cut.nparts, nparts);
+    if rank == 0 {
+        let parts = cut.parts.expect("the parts on the first rank");
+        assert_eq!(parts.len(), all.len());
+        for q in 0..nparts as u32 {
+            assert!(parts.contains(&q), "part {q} is empty");
+        }
+        let serial_graph = partition::dual_graph(nodes, &all).expect("a valid mesh");
+        let serial_cut = (0..all.len())
+            .map(|g| {
+                (serial_graph.neighbours(g).iter())
+                    .filter(|&&h| parts[h] != parts[g])
+                    .count()
+            })
+            .sum::<usize>()
+            / 2;
+        assert_eq!(cut.edge_cut, serial_cut);
+    } else {
+        assert!(cut.parts.is_none());
+    }
+}
+
+/// Runs the test `name` on 1, 2, 3 and 4 ranks: each rank runs `child`.
+fn on_1_to_4_ranks(name: &str, child: fn()) {
     if std::env::var(CHILD).is_ok() {
         child();
         return;
     }
     let me = std::env::current_exe().unwrap();
-    let tmp = std::env::temp_dir().join(format!("dist-graph-test-{}", std::process::id()));
+    let tmp = std::env::temp_dir().join(format!("dist-graph-test-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
     for np in 1..=4 {
         let out = Command::new("mpirun")
             .env("TMPDIR", &tmp)
             .args(["-n", &np.to_string(), "--oversubscribe"])
             .arg(&me)
-            .args([
-                "--exact",
-                "the_dual_graph_built_on_1_to_4_ranks_is_the_serial_one",
-                "--nocapture",
-                "--test-threads",
-                "1",
-            ])
+            .args(["--exact", name, "--nocapture", "--test-threads", "1"])
             .env(CHILD, "1")
             .output()
             .expect("mpirun");

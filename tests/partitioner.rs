@@ -4,7 +4,10 @@
 //! by node (also two subdomains per rank), with the contact conditions checked; the
 //! same parts run after run (the outputs byte for byte); and its parts as good as the
 //! first rank's METIS cut. Also `contact-par split` on several ranks, which cut
-//! together: runs from its parts give the same answer.
+//! together: runs from its parts give the same answer. And the cut the ranks make from
+//! their shares of a Gmsh file read together (`--mesh-read shared`), before any rank
+//! holds the mesh: ASCII, binary and a shuffled copy, the one-rank answer on 2-4 ranks;
+//! two bodies, whose ties only the problem knows, are cut as before.
 
 mod common;
 use common::*;
@@ -25,7 +28,12 @@ fn case_dir(case: &str, from: &Path, file: &str) -> TempDir {
 
 /// Runs `dir`'s case on `np` ranks into `out`; returns its partition line.
 fn run(dir: &Path, np: usize, out: &str, partitioner: &str) -> String {
-    let args = [
+    run_with(dir, np, out, partitioner, &[])
+}
+
+/// [`run`] with `extra` arguments.
+fn run_with(dir: &Path, np: usize, out: &str, partitioner: &str, extra: &[&str]) -> String {
+    let mut args = vec![
         "case.toml",
         "--out",
         out,
@@ -34,8 +42,9 @@ fn run(dir: &Path, np: usize, out: &str, partitioner: &str) -> String {
         "--partitioner",
         partitioner,
     ];
+    args.extend_from_slice(extra);
     let (code, stdout, stderr) = run_on_ranks(dir, np, &args);
-    assert_eq!(code, 0, "{np} ranks, {partitioner}: {stderr}");
+    assert_eq!(code, 0, "{np} ranks, {partitioner} {extra:?}: {stderr}");
     let line = stdout.lines().find(|l| l.starts_with("partition "));
     line.unwrap_or_else(|| panic!("no partition line:\n{stdout}"))
         .to_string()
@@ -114,6 +123,15 @@ fn a_body_on_an_obstacle_cut_by_every_rank_agrees_with_one_rank() {
 /// alone (as in tests/bodies.rs): partial slip, so that every column moves.
 #[test]
 fn two_bodies_in_contact_cut_by_every_rank_agree_with_one_rank() {
+    let dir = case_dir(
+        &dragged_blocks(),
+        &bodies_dir().join("blocks.msh"),
+        "blocks.msh",
+    );
+    check(dir.path(), Law::Coulomb(0.3), "two blocks");
+}
+
+fn dragged_blocks() -> String {
     let case = std::fs::read_to_string(bodies_dir().join("blocks.toml")).unwrap();
     let case = case
         .replace("[[dirichlet]]\ngroup = \"upper_left\"\nux = 0.0\n\n", "")
@@ -123,8 +141,7 @@ fn two_bodies_in_contact_cut_by_every_rank_agree_with_one_rank() {
             "friction = \"coulomb\"\ncoefficient = 0.3\n\n[solver]\ntol = 1e-10",
         );
     assert!(case.contains("coefficient = 0.3") && !case.contains("upper_left"));
-    let dir = case_dir(&case, &bodies_dir().join("blocks.msh"), "blocks.msh");
-    check(dir.path(), Law::Coulomb(0.3), "two blocks");
+    case
 }
 
 /// `mpirun -n 3 contact-par split --partitioner ptscotch` cuts on its 3 ranks (one line,
@@ -166,5 +183,101 @@ fn a_split_cut_by_every_rank_gives_the_same_answer() {
         assert_eq!(code, 0, "{np} ranks: {stderr}");
         let rows = read_contact(&p.join(&out).join("contact.csv"));
         assert_same_columns(&one, &rows, 1e-8, &format!("split of 3, {np} ranks"));
+    }
+}
+
+const SHARED: [&str; 2] = ["--mesh-read", "shared"];
+
+/// The cut from the ranks' shares on 2, 3 and 4 ranks (and 2 subdomains per rank):
+/// the one-rank answer (`law`: checked against the contact conditions), the same bytes
+/// on a second run, an edge cut near METIS's.
+fn check_from_shares(p: &Path, law: Option<Law>, what: &str) {
+    run(p, 1, "one", "metis");
+    let one = read_contact(&p.join("one/contact.csv"));
+    for np in 2..=4 {
+        for k in [1, 2] {
+            let (out, again) = (format!("sh{np}x{k}"), format!("sh{np}x{k}b"));
+            let k_arg = k.to_string();
+            let extra = [SHARED[0], SHARED[1], "--subdomains-per-rank", &k_arg];
+            let line = run_with(p, np, &out, "ptscotch", &extra);
+            let from = format!("PT-Scotch on {np} ranks from their shares of the file");
+            assert!(line.contains(&from), "{what}, {np} x {k}: {line}");
+            assert!(line.contains(&format!("in {} parts", np * k)), "{line}");
+            let rows = read_contact(&p.join(&out).join("contact.csv"));
+            let name = format!("{what}, 1 vs {np} ranks x {k} from the shares");
+            assert_same_columns(&one, &rows, 1e-8, &name);
+            if let Some(law) = law {
+                check_kkt(&rows, law, 1e-6, &name);
+            }
+            run_with(p, np, &again, "ptscotch", &extra);
+            same_bytes(p, &out, &again);
+            if k == 1 {
+                let metis = run(p, np, &format!("metis{np}"), "metis");
+                let (pts, met) = (edge_cut(&line), edge_cut(&metis));
+                assert!(
+                    4 * pts <= 5 * met + 8,
+                    "{what}, {np} ranks: PT-Scotch from the shares cuts {pts} edges, METIS {met}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_mesh_cut_from_the_ranks_shares_of_the_file_agrees_with_one_rank() {
+    let disc = quarter_disc_case_on("mesh.msh", "friction = \"coulomb\"\ncoefficient = 0.2");
+    let text = std::fs::read_to_string(gmsh_dir().join("quarter_disc_v41_ascii.msh")).unwrap();
+    for (case, mesh, law, what) in [
+        (
+            disc.clone(),
+            text.clone(),
+            Some(Law::Coulomb(0.2)),
+            "quarter disc",
+        ),
+        // Node tags permuted, nodes and elements in another order.
+        (
+            disc,
+            shuffled_msh41(&text, 11),
+            Some(Law::Coulomb(0.2)),
+            "shuffled disc",
+        ),
+    ] {
+        let dir = TempDir::new().unwrap();
+        std::fs::write(dir.path().join("case.toml"), case).unwrap();
+        std::fs::write(dir.path().join("mesh.msh"), mesh).unwrap();
+        check_from_shares(dir.path(), law, what);
+    }
+    let rect = rect_case_on("mesh.msh");
+    let dir = case_dir(&rect, &gmsh_dir().join("rect_v41_binary.msh"), "mesh.msh");
+    check_from_shares(dir.path(), None, "binary rectangle");
+}
+
+/// Two bodies: the ties between their contact sides come from the problem, so the
+/// ranks do not cut from their shares but the first rank's graph, as without them.
+#[test]
+fn two_bodies_read_by_every_rank_are_cut_with_their_ties() {
+    let dir = case_dir(
+        &dragged_blocks(),
+        &bodies_dir().join("blocks.msh"),
+        "blocks.msh",
+    );
+    let p = dir.path();
+    run(p, 1, "one", "metis");
+    let one = read_contact(&p.join("one/contact.csv"));
+    for np in [2, 3] {
+        let out = format!("sh{np}");
+        let line = run_with(p, np, &out, "ptscotch", &SHARED);
+        assert!(
+            line.contains(&format!("(PT-Scotch on {np} ranks)")),
+            "{np} ranks: {line}"
+        );
+        let rows = read_contact(&p.join(&out).join("contact.csv"));
+        assert_same_columns(&one, &rows, 1e-8, &format!("two blocks, {np} ranks"));
+        check_kkt(
+            &rows,
+            Law::Coulomb(0.3),
+            1e-6,
+            &format!("two blocks, {np} ranks"),
+        );
     }
 }

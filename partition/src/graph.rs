@@ -76,6 +76,10 @@ impl Stars {
         Ok(Self { start, tris })
     }
 
+    pub fn num_nodes(&self) -> usize {
+        self.start.len() - 1
+    }
+
     pub fn of(&self, n: usize) -> &[Idx] {
         &self.tris[self.start[n] as usize..self.start[n + 1] as usize]
     }

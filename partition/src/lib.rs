@@ -378,7 +378,6 @@ pub fn partition_mesh_with_ties(
 /// rules need afterwards ([`MeshGraph::finish`]). [`partition_mesh_with_ties`] is
 /// [`MeshGraph::new`], this crate's partition of [`MeshGraph::csr`], then `finish`.
 pub struct MeshGraph {
-    num_nodes: usize,
     triangles: usize,
     mesh: Connectivity,
     /// The graph to cut (the dual graph with the ties); `None` for one part.
@@ -411,7 +410,6 @@ impl MeshGraph {
         if !with_graph {
             let mesh = Connectivity::without_graph(num_nodes, triangles)?;
             return Ok(MeshGraph {
-                num_nodes,
                 triangles: triangles.len(),
                 mesh,
                 graph: None,
@@ -434,7 +432,6 @@ impl MeshGraph {
         };
         let graph = Some(graph);
         Ok(MeshGraph {
-            num_nodes,
             triangles: triangles.len(),
             mesh,
             graph,
@@ -489,12 +486,45 @@ impl MeshGraph {
             self.mesh.graph = self.graph.take();
         }
         build_partition(
-            self.num_nodes,
             triangles,
             contact_nodes,
             nparts,
             element_part,
             &self.mesh,
+            None,
+        )
+    }
+
+    /// [`MeshGraph::finish`] for parts cut where the graph was built too (on the
+    /// ranks, from their shares of the mesh file): `self` holds no graph
+    /// ([`MeshGraph::new`] without one), and `edge_cut` is the cut the ranks counted.
+    /// The quality's pieces are then those of triangles joined through shared nodes
+    /// (two triangles of a part that touch at a vertex only count as one piece).
+    ///
+    /// # Errors
+    /// As [`MeshGraph::finish`].
+    ///
+    /// # Panics
+    /// If `element_part.len() != triangles.len()`.
+    pub fn finish_cut(
+        self,
+        triangles: &[[usize; 3]],
+        contact_nodes: &[usize],
+        nparts: usize,
+        mut element_part: Vec<u32>,
+        edge_cut: usize,
+    ) -> Result<Partition, PartitionError> {
+        assert_eq!(element_part.len(), triangles.len());
+        check_nparts(nparts, triangles.len())?;
+        check_part_ids(&element_part, nparts)?;
+        fill_empty_parts(&mut element_part, nparts);
+        build_partition(
+            triangles,
+            contact_nodes,
+            nparts,
+            element_part,
+            &self.mesh,
+            Some(edge_cut),
         )
     }
 }
@@ -527,14 +557,7 @@ pub fn partition_from_element_parts(
     check_part_ids(&element_part, nparts)?;
     validate_triangles(num_nodes, triangles)?;
     let mesh = Connectivity::new(num_nodes, triangles)?;
-    build_partition(
-        num_nodes,
-        triangles,
-        contact_nodes,
-        nparts,
-        element_part,
-        &mesh,
-    )
+    build_partition(triangles, contact_nodes, nparts, element_part, &mesh, None)
 }
 
 /// Every part id below `nparts`, else the first triangle whose is not.
@@ -746,14 +769,15 @@ impl Connectivity {
 }
 
 fn build_partition(
-    num_nodes: usize,
     triangles: &[[usize; 3]],
     contact_nodes: &[usize],
     nparts: usize,
     element_part: Vec<u32>,
     mesh: &Connectivity,
+    cut_elsewhere: Option<usize>,
 ) -> Result<Partition, PartitionError> {
     let stars = &mesh.stars;
+    let num_nodes = stars.num_nodes();
     debug_assert_eq!(triangles.len(), element_part.len());
     let mut contact: Vec<usize> = contact_nodes.to_vec();
     contact.sort_unstable();
@@ -831,8 +855,13 @@ fn build_partition(
         &element_part,
         &parts,
         interface_nodes,
-        mesh.graph.as_ref(),
-        triangles,
+        match cut_elsewhere {
+            Some(cut) => Pieces::Stars(stars, cut),
+            None => match &mesh.graph {
+                Some(g) => Pieces::Graph(g),
+                None => Pieces::Nodes(triangles),
+            },
+        },
     );
     Ok(Partition {
         nparts,
@@ -843,19 +872,28 @@ fn build_partition(
     })
 }
 
-/// Without a dual graph (one part), the pieces are the triangles joined through shared
-/// nodes ([`node_pieces`]) and the cut is empty.
+/// Where the quality's pieces and cut come from.
+enum Pieces<'a> {
+    /// The dual graph: each part's edge-connected pieces, the edges cut.
+    Graph(&'a Graph),
+    /// A cut counted elsewhere, and each part's pieces joined through shared nodes.
+    Stars(&'a Stars, usize),
+    /// One part and no graph: the mesh's pieces joined through shared nodes
+    /// ([`node_pieces`]), and no cut.
+    Nodes(&'a [[usize; 3]]),
+}
+
 fn quality(
     nparts: usize,
     element_part: &[u32],
     parts: &[Part],
     interface_nodes: usize,
-    graph: Option<&Graph>,
-    triangles: &[[usize; 3]],
+    from: Pieces,
 ) -> Quality {
-    let (pieces, edge_cut) = match graph {
-        Some(graph) => pieces_and_cut(graph, nparts, |e| element_part[e]),
-        None => (vec![node_pieces(triangles)], 0),
+    let (pieces, edge_cut) = match from {
+        Pieces::Graph(graph) => pieces_and_cut(graph, nparts, |e| element_part[e]),
+        Pieces::Stars(stars, cut) => (part_node_pieces(stars, element_part, nparts), cut),
+        Pieces::Nodes(triangles) => (vec![node_pieces(triangles)], 0),
     };
     let sizes = parts.iter().map(|p| p.elements.len());
     let max_part_elements = sizes.clone().max().unwrap_or(0);
@@ -876,6 +914,43 @@ fn quality(
         neighbours: parts.iter().map(|p| p.neighbours.len()).collect(),
         disconnected_parts: pieces.iter().filter(|&&c| c > 1).count(),
     }
+}
+
+/// Each part's pieces of triangles joined through shared nodes: around each node the
+/// triangles of one part are joined (union-find over the triangles).
+fn part_node_pieces(stars: &Stars, element_part: &[u32], nparts: usize) -> Vec<usize> {
+    fn root(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    let mut parent: Vec<usize> = (0..element_part.len()).collect();
+    for n in 0..stars.num_nodes() {
+        let star = stars.of(n);
+        for (k, &t) in star.iter().enumerate() {
+            let t = t as usize;
+            // Joined to the star's first triangle of the same part.
+            let Some(&u) = star[..k]
+                .iter()
+                .find(|&&u| element_part[u as usize] == element_part[t])
+            else {
+                continue;
+            };
+            let (a, b) = (root(&mut parent, u as usize), root(&mut parent, t));
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut pieces = vec![0usize; nparts];
+    for t in 0..element_part.len() {
+        if parent[t] == t {
+            pieces[element_part[t] as usize] += 1;
+        }
+    }
+    pieces
 }
 
 /// The number of pieces of a mesh whose triangles are joined through shared nodes

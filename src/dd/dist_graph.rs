@@ -11,11 +11,11 @@
 //! problem from its share of the mesh file (docs/cost-model.md, "The start from one
 //! Gmsh file"): the graph the partition cuts, the boundary that the contact groups must
 //! lie on and the mesh check, without the whole mesh on one rank. Its rows are those of
-//! `partition::dual_graph` on the same triangles (tested on 1-4 ranks). Runs do not use
-//! it yet: on the shares of a file in its own order (no locality), the graph took 0.7 s
-//! and PT-Scotch's cut 1.8 s on 2 ranks, against 0.12 s and 0.34 s for the first rank's
-//! graph in the locality order (docs/performance-history.md); the ranks need a locality
-//! order of their own first.
+//! `partition::dual_graph` on the same triangles (tested on 1-4 ranks). Runs build it
+//! on the ranges of the ranks' locality order (`dd::locality`, `dd::share_cut`), where
+//! most edges match on their own rank and only the others travel: 0.30 s for 2M
+//! triangles on 2 ranks, where a first version that sent every edge took 0.70 s on
+//! the shares in the file's order (docs/performance-history.md).
 
 use crate::dd::comm::Mpi;
 
@@ -66,7 +66,8 @@ pub fn edge_records(first: u64, triangles: &[[u64; 3]]) -> impl Iterator<Item = 
 
 /// Matches the edge records a rank was sent (see [`edge_records`]), in any order.
 pub fn match_edges(records: &mut [[u64; 3]]) -> Matched {
-    records.sort_unstable();
+    use rayon::slice::ParallelSliceMut;
+    records.par_sort_unstable();
     let mut m = Matched::default();
     for run in records.chunk_by(|x, y| x[0] == y[0] && x[1] == y[1]) {
         let nodes = [run[0][0], run[0][1]];
@@ -138,48 +139,99 @@ pub struct DistDual {
 /// Builds the dual graph of the triangles spread over the ranks: this rank's are
 /// `triangles` (node tags), its share of one global numbering in rank order.
 /// Collective; one subdomain per rank.
+///
+/// The edges are matched on this rank first; only those it runs once travel (to the
+/// rank [`edge_rank`] names), so ranges in a locality order (`dd::locality`) send
+/// little more than their outlines. An edge that three triangles or more run is a
+/// fold wherever two of them lie on one rank; should exactly two lie on one rank and
+/// the others elsewhere, those others are taken for boundary edges: the mesh check of
+/// the whole file refuses such a mesh anyway.
 pub fn dual_graph(mpi: &Mpi, triangles: &[[u64; 3]]) -> DistDual {
     let p = mpi.size;
     let ranges = Ranges::new(&mpi.all_gather_counts(triangles.len()));
     let first = ranges.starts[mpi.rank];
+    let mut records: Vec<[u64; 3]> = edge_records(first, triangles).collect();
+    let here = match_edges(&mut records);
+    drop(records);
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
-    for r in edge_records(first, triangles) {
-        send[edge_rank(r[0], r[1], p)].extend_from_slice(&r);
+    for e in &here.boundary {
+        let [low, high] = e.nodes;
+        let id = e.triangle << 1 | u64::from(e.low_to_high);
+        send[edge_rank(low, high, p)].extend_from_slice(&[low, high, id]);
     }
     let received = mpi.exchange(send);
     let mut records: Vec<[u64; 3]> = (received.iter())
         .flat_map(|v| v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]))
         .collect();
-    let matched = match_edges(&mut records);
+    let there = match_edges(&mut records);
     drop(records);
-    // Each pair to the owners of both triangles.
+    // Each pair matched elsewhere to the owners of both triangles.
     let owner = |t: u64| ranges.owner(t);
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
-    for &[a, b] in &matched.pairs {
+    for &[a, b] in &there.pairs {
         send[owner(a)].extend_from_slice(&[a, b]);
         send[owner(b)].extend_from_slice(&[b, a]);
     }
     let received = mpi.exchange(send);
-    let mut rows: Vec<Vec<u64>> = vec![Vec::new(); triangles.len()];
-    for pair in received.iter().flat_map(|v| v.chunks_exact(2)) {
-        rows[(pair[0] - first) as usize].push(pair[1]);
-    }
-    let mut xadj = Vec::with_capacity(triangles.len() + 1);
-    xadj.push(0);
-    let mut adjncy = Vec::new();
-    for mut row in rows {
-        row.sort_unstable();
-        row.dedup();
-        adjncy.extend(row);
-        xadj.push(adjncy.len());
-    }
+    let entries = (here.pairs.iter())
+        .flat_map(|&[a, b]| [[a, b], [b, a]])
+        .chain(
+            received
+                .iter()
+                .flat_map(|v| v.chunks_exact(2).map(|c| [c[0], c[1]])),
+        );
+    let (xadj, adjncy) = rows(first, triangles.len(), entries);
+    let mut folds = here.folds;
+    folds.extend(there.folds);
     DistDual {
         first,
         xadj,
         adjncy,
-        boundary: matched.boundary,
-        folds: matched.folds,
+        boundary: there.boundary,
+        folds,
     }
+}
+
+/// The rows of `n` triangles from `first` in CSR form, from their entries (row,
+/// neighbour), in any order: each row increasing, without repeats.
+fn rows(
+    first: u64,
+    n: usize,
+    entries: impl Iterator<Item = [u64; 2]> + Clone,
+) -> (Vec<usize>, Vec<u64>) {
+    let mut xadj = vec![0usize; n + 1];
+    for [a, _] in entries.clone() {
+        xadj[(a - first) as usize + 1] += 1;
+    }
+    for i in 0..n {
+        xadj[i + 1] += xadj[i];
+    }
+    let mut at = xadj.clone();
+    let mut adjncy = vec![0u64; xadj[n]];
+    for [a, b] in entries {
+        let i = (a - first) as usize;
+        adjncy[at[i]] = b;
+        at[i] += 1;
+    }
+    // Rows of a mesh's dual graph hold three entries at most (more at a fold):
+    // sorted in place, repeats squeezed out.
+    let mut out = 0;
+    let mut start = 0;
+    for i in 0..n {
+        let end = xadj[i + 1];
+        adjncy[start..end].sort_unstable();
+        let row_start = out;
+        for k in start..end {
+            if out == row_start || adjncy[out - 1] != adjncy[k] {
+                adjncy[out] = adjncy[k];
+                out += 1;
+            }
+        }
+        start = end;
+        xadj[i + 1] = out;
+    }
+    adjncy.truncate(out);
+    (xadj, adjncy)
 }
 
 /// The edges of the graph whose two triangles lie in different parts (`parts`: this

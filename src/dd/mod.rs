@@ -70,5 +70,7 @@ pub mod dist_graph;
 pub mod full;
 pub mod interface_mumps;
 pub mod local_factor;
+pub mod locality;
+pub mod share_cut;
 pub mod split;
 pub mod step;

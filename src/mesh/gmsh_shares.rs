@@ -110,6 +110,27 @@ pub struct Share {
     pub elements: Vec<u64>,
 }
 
+impl Share {
+    /// The node tags of this share's triangles (its records of 3-node elements), in file
+    /// order; `stretches` are the share's ([`SharePlan::share`]).
+    pub fn triangles(&self, stretches: &[Stretch]) -> Vec<[u64; 3]> {
+        let mut out = Vec::new();
+        let mut at = 0;
+        for s in stretches {
+            let Record::Element { nodes } = s.record else {
+                continue;
+            };
+            let values = nodes as usize * s.records as usize;
+            let mine = &self.elements[at..at + values];
+            at += values;
+            if nodes == 3 {
+                out.extend(mine.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
+            }
+        }
+        out
+    }
+}
+
 /// A block of `$Nodes` or `$Elements`, in file order.
 #[derive(Debug)]
 enum Block {
@@ -240,6 +261,20 @@ impl Scan {
             record,
         });
         Some(())
+    }
+
+    /// The number of triangle records (3-node elements) in the file.
+    pub fn triangles(&self) -> usize {
+        (self.blocks.iter())
+            .map(|b| match b {
+                Block::Elements {
+                    kind: Kind::Triangle,
+                    count,
+                    ..
+                } => *count,
+                _ => 0,
+            })
+            .sum()
     }
 
     /// Cuts the records into `parts` shares of about as many bytes, at record

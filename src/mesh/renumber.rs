@@ -116,8 +116,8 @@ fn sorted_by_key<K: Ord + Send>(
 /// `mesh` with its nodes in Hilbert order of their coordinates and its triangles in
 /// the order of their nodes ([`order_by_nodes`]) (each keeps its vertices' cyclic order, so its
 /// orientation), its groups renumbered with it. Returns the mesh and, for each new
-/// node, its index before (new -> old).
-pub fn by_hilbert_curve(mesh: Mesh) -> (Mesh, Vec<usize>) {
+/// node and each new triangle, its index before (new -> old).
+pub fn by_hilbert_curve(mesh: Mesh) -> (Mesh, Vec<usize>, Vec<usize>) {
     let bbox = bounding_box(&mesh.nodes);
     let old_of = sorted_order(&hilbert_keys(&mesh.nodes, bbox));
     let new_of = inverse(&old_of);
@@ -156,7 +156,7 @@ pub fn by_hilbert_curve(mesh: Mesh) -> (Mesh, Vec<usize>) {
         point_groups,
         surface_groups,
     };
-    (mesh, old_of)
+    (mesh, old_of, tri_order)
 }
 
 #[cfg(test)]
@@ -243,7 +243,7 @@ mod tests {
             .collect();
         assert!(!body.is_empty() && body.len() < scrambled.triangles.len());
         scrambled.surface_groups.insert("left".into(), body.clone());
-        let (re, old_of) = by_hilbert_curve(scrambled.clone());
+        let (re, old_of, _) = by_hilbert_curve(scrambled.clone());
         let carried = &re.surface_groups["left"];
         assert_eq!(carried.len(), body.len());
         assert!(carried.windows(2).all(|w| w[0] < w[1]));

@@ -558,3 +558,76 @@ pub fn not_unique_warnings(summary: &serde_json::Value) -> Vec<String> {
         .filter(|w| !w.starts_with("round-off"))
         .collect()
 }
+
+/// A copy of an MSH 4.1 ASCII file with its node tags permuted and the nodes and
+/// elements of every block listed in another order: the same mesh as a mesher with
+/// another numbering would write it. `seed` drives a small LCG, so the copy is fixed.
+pub fn shuffled_msh41(text: &str, seed: u64) -> String {
+    let mut state = seed;
+    let mut next = move |n: usize| {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 33) % n as u64) as usize
+    };
+    let mut shuffle = |v: &mut Vec<usize>| {
+        for i in (1..v.len()).rev() {
+            v.swap(i, next(i + 1));
+        }
+    };
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out: Vec<String> = Vec::new();
+    let mut new_tag = std::collections::HashMap::new();
+    let mut i = 0;
+    while i < lines.len() {
+        out.push(lines[i].to_string());
+        i += 1;
+        let section = lines[i - 1];
+        if section != "$Nodes" && section != "$Elements" {
+            continue;
+        }
+        let head: Vec<usize> = lines[i]
+            .split_whitespace()
+            .map(|w| w.parse().unwrap())
+            .collect();
+        out.push(lines[i].to_string());
+        i += 1;
+        let mut tags: Vec<usize> = (1..=head[1]).collect();
+        if section == "$Nodes" {
+            shuffle(&mut tags);
+        }
+        let mut k = 0;
+        for _ in 0..head[0] {
+            out.push(lines[i].to_string());
+            let count: usize = lines[i].split_whitespace().nth(3).unwrap().parse().unwrap();
+            i += 1;
+            let mut order: Vec<usize> = (0..count).collect();
+            shuffle(&mut order);
+            if section == "$Nodes" {
+                for j in 0..count {
+                    new_tag.insert(lines[i + j].trim().to_string(), tags[k + j]);
+                }
+                k += count;
+                out.extend(
+                    order
+                        .iter()
+                        .map(|&j| new_tag[lines[i + j].trim()].to_string()),
+                );
+                out.extend(order.iter().map(|&j| lines[i + count + j].to_string()));
+                i += 2 * count;
+            } else {
+                out.extend(order.iter().map(|&j| {
+                    let mut w = lines[i + j].split_whitespace();
+                    let tag = w.next().unwrap().to_string();
+                    let nodes = w.map(|t| new_tag[t].to_string());
+                    std::iter::once(tag)
+                        .chain(nodes)
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                }));
+                i += count;
+            }
+        }
+    }
+    out.join("\n") + "\n"
+}

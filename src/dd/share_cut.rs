@@ -1,0 +1,85 @@
+//! The partition of a mesh file's triangles found by every rank from its own share of
+//! the file, before any rank holds the whole mesh: the triangles put in a locality
+//! order (`dd::locality`), their dual graph built on the ranks (`dd::dist_graph`), cut
+//! by PT-Scotch, the edges cut counted; the first rank receives each triangle's part,
+//! by the triangle's index among the file's triangle records.
+//!
+//! Why: the graph, the largest piece of the partition, then never exists on the first
+//! rank, which on a cluster has only its own node's cores (docs/cost-model.md, "The
+//! start from one Gmsh file"); and the locality order and the graph are the first steps
+//! of a start in which each rank builds its own part of the problem.
+
+use crate::dd::comm::Mpi;
+use crate::dd::{dist_graph, locality};
+use std::time::Instant;
+
+/// The cut made on the ranks.
+#[derive(Debug, Clone)]
+pub struct ShareCut {
+    /// On the first rank, each of the file's triangle records' part; `None` elsewhere.
+    pub parts: Option<Vec<u32>>,
+    /// The number of parts.
+    pub nparts: usize,
+    /// Edges of the dual graph between two parts.
+    pub edge_cut: usize,
+    /// Seconds of the locality order, the graph, and the cut with its count and
+    /// gather.
+    pub seconds: [f64; 3],
+}
+
+/// The triangles of every rank's share (`triangles`: this rank's, as node tags, its
+/// share after those of the ranks before it in the file; `tags` and `coords` (x, y, z
+/// each): its share of the nodes) cut into `nparts` parts. `None` on every rank where
+/// the shares do not make a mesh (a node no rank holds, a tag held twice), the graph
+/// is too large for PT-Scotch's 32-bit numbers, or PT-Scotch fails: the first rank
+/// then cuts as it does without the shares. Collective; one subdomain per rank.
+pub fn cut_shares(
+    mpi: &Mpi,
+    tags: &[u64],
+    coords: &[f64],
+    triangles: &[[u64; 3]],
+    nparts: usize,
+    imbalance: f64,
+) -> Option<ShareCut> {
+    let start = Instant::now();
+    let sorted = locality::sort_triangles(mpi, tags, coords, triangles)?;
+    let order_s = start.elapsed().as_secs_f64();
+    let total: usize = sorted.counts.iter().sum();
+    if i32::try_from(total).is_err() {
+        return None;
+    }
+    let start = Instant::now();
+    let dual = dist_graph::dual_graph(mpi, &sorted.triangles);
+    let xadj: Vec<i32> = dual.xadj.iter().map(|&x| x as i32).collect();
+    let adjncy: Vec<i32> = dual.adjncy.iter().map(|&t| t as i32).collect();
+    let graph_s = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let local = ptscotch::LocalGraph {
+        xadj: &xadj,
+        adjncy: &adjncy,
+        adjwgt: None,
+        vwgt: None,
+    };
+    let parts = mpi.part_graph(local, nparts, imbalance);
+    if !mpi.all_ok(parts.is_ok()) {
+        return None;
+    }
+    let parts = parts.unwrap_or_default();
+    let edge_cut = dist_graph::edge_cut(mpi, &dual, &parts, &sorted.counts);
+    drop(dual);
+    let file = mpi.gather_varcount(&sorted.file, &sorted.counts);
+    let gathered = mpi.gather_varcount(&parts, &sorted.counts);
+    let parts = file.zip(gathered).map(|(file, gathered)| {
+        let mut by_file = vec![0u32; total];
+        for (&f, &q) in file.iter().zip(&gathered) {
+            by_file[f as usize] = q as u32;
+        }
+        by_file
+    });
+    Some(ShareCut {
+        parts,
+        nparts,
+        edge_cut,
+        seconds: [order_s, graph_s, start.elapsed().as_secs_f64()],
+    })
+}
