@@ -232,37 +232,57 @@ class Start:
 
 
 class Cut:
-    """The partition by every rank (PT-Scotch, `--partitioner ptscotch`), fitted on
-    run-scripts/cut_study.py's cut.csv: the cut's seconds with a core per rank,
-    a T^g_T P^g_P in the triangles T and the ranks P (least squares in logs), and what
-    stays on the first rank (the dual graph, the ownership rules and the split), its
-    seconds per triangle on one core."""
+    """The partition by every rank, fitted on run-scripts/cut_study.py's cut.csv rows of
+    one kind: `ptscotch` (PT-Scotch on the first rank's graph) or `shares` (the ranks'
+    locality order, graph and PT-Scotch, from their shares of the file). The seconds on
+    the ranks with a core per rank: PT-Scotch's, a T^g_T P^g_P in the triangles T and
+    the ranks P (least squares in logs, on the `ptscotch` rows); for `shares` plus
+    b T / P, the order and the graph, each rank's share of the triangles (b the median
+    over the `shares` rows of what they took beyond PT-Scotch's law). And what stays on
+    the first rank (the graph, or for `shares` the triangles around each node, the
+    ownership rules and the split), its seconds per triangle on one core."""
 
-    def __init__(self, directory):
+    def __init__(self, directory, kind="ptscotch"):
         with open(os.path.join(directory, "cut.csv")) as fh:
             rows = list(csv.DictReader(fh))
         pts = [r for r in rows if r["partitioner"] == "ptscotch"]
-        if len({r["triangles"] for r in pts}) < 2 or len({r["ranks"] for r in pts}) < 2:
-            sys.exit("cost_model.py: --cut needs PT-Scotch runs of two meshes on two rank counts")
+        mine = [r for r in rows if r["partitioner"] == kind]
+        for name, some in (("ptscotch", pts), (kind, mine)):
+            if len({r["triangles"] for r in some}) < 2 or len({r["ranks"] for r in some}) < 2:
+                raise ValueError(f"--cut needs {name} runs of two meshes on two rank counts")
         self.a, (self.g_t, self.g_p) = fit_power(
             [([float(r["triangles"]), float(r["ranks"])], max(float(r["cut_rank_s"]), 1e-6))
              for r in pts])
+        self.b = 0.0
+        if kind == "shares":
+            self.b = max(statistics.median(
+                (float(r["cut_rank_s"]) - self.pt_scotch(float(r["triangles"]), float(r["ranks"])))
+                * float(r["ranks"]) / float(r["triangles"]) for r in mine), 0.0)
+        # The first rank's pieces: the same for METIS and PT-Scotch on its graph.
+        first = mine if kind == "shares" else [r for r in rows if r["partitioner"] != "shares"]
         self.first = fit_scale([(float(r["triangles"]),
-                                 max(float(r["graph_s"]) + float(r["split_s"]), 1e-6)) for r in rows])
+                                 max(float(r["graph_s"]) + float(r["split_s"]), 1e-6)) for r in first])
         self.per_node = statistics.median(float(r["triangles"]) / float(r["nodes"]) for r in rows)
-        self.rows = pts
+        self.rows = mine
+
+    def pt_scotch(self, t, P):
+        return self.a * t ** self.g_t * P ** self.g_p
+
+    def on_ranks(self, t, P):
+        return self.pt_scotch(t, P) + self.b * t / P
 
     def seconds(self, nodes, P):
         """The first rank's pieces alone and the cut on P ranks, in seconds."""
         t = self.per_node * nodes
-        return self.first * t, self.a * t ** self.g_t * P ** self.g_p
+        return self.first * t, self.on_ranks(t, P)
 
     def describe(self):
-        worst = max(abs(self.a * float(r["triangles"]) ** self.g_t * float(r["ranks"]) ** self.g_p
+        worst = max(abs(self.on_ranks(float(r["triangles"]), float(r["ranks"]))
                         / max(float(r["cut_rank_s"]), 1e-6) - 1) for r in self.rows)
-        return (f"  cut by PT-Scotch, a core per rank: {self.a:.3g} T^{self.g_t:.2f} P^{self.g_p:.2f} s"
-                f" (within {worst:.0%} of every measured row); the first rank's graph and split"
-                f" {self.first * 1e6:.3f} us per triangle; {self.per_node:.2f} triangles per node")
+        order = f" + {self.b * 1e6:.3f} us T / P (the ranks' order and graph)" if self.b else ""
+        return (f"  cut by PT-Scotch, a core per rank: {self.a:.3g} T^{self.g_t:.2f} P^{self.g_p:.2f}"
+                f"{order} s (within {worst:.0%} of every measured row); the first rank's graph and"
+                f" split {self.first * 1e6:.3f} us per triangle; {self.per_node:.2f} triangles per node")
 
 
 def times(pr, P, sweeps, a):
@@ -355,11 +375,19 @@ def main():
             f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
             print(f"{P:>5} " + " ".join(f"{secs[p]:>{w}.1f}" for p, w in zip(START_PIECES, (6, 9, 8, 10, 8)))
                   + f" {alone:>8.1f} {f + loop:>15.1f} {alone / (alone + f + loop):>12.1%}")
-        if a.cut:
-            cut = Cut(a.cut)
+        kinds = [("ptscotch", "the same start with the partition cut by every rank on the first"
+                   " rank's graph (--partitioner ptscotch)"),
+                 ("shares", "the same start with the partition found by every rank from its share"
+                   " of the file (--partitioner ptscotch --mesh-read shared)")]
+        for kind, title in kinds if a.cut else []:
+            try:
+                cut = Cut(a.cut, kind)
+            except ValueError as e:
+                if kind == "ptscotch":
+                    sys.exit(f"cost_model.py: {e}")
+                continue
             print()
-            print(f"the same start with the partition cut by every rank (--partitioner ptscotch);"
-                  f" fitted on {a.cut}:")
+            print(f"{title}; fitted on {a.cut}:")
             print(cut.describe())
             print(f"{'P':>5} {'first rank: graph + split':>26} {'cut, all ranks':>15} "
                   f"{'first rank alone s':>19} {'start s':>8} {'serial share':>12} {'start share':>11}")
@@ -367,6 +395,11 @@ def main():
                 secs = st.seconds(nodes, a.node_cores, P)
                 first, on_ranks = cut.seconds(nodes, P)
                 alone = sum(v for k, v in secs.items() if k != "partition") + first
+                if kind == "shares":
+                    # The ranks cut while the first rank puts the mesh together and
+                    # builds the problem: only what these take beyond the cut is alone.
+                    reading = secs["assembly"] + secs["problem"]
+                    alone -= min(reading, on_ranks)
                 f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
                 whole = alone + on_ranks + f + loop
                 print(f"{P:>5} {first:>26.1f} {on_ranks:>15.1f} {alone:>19.1f} "

@@ -1,17 +1,21 @@
 #!/usr/bin/env python3
 """The partition of a run from one mesh file, by the first rank alone (`--partitioner
-metis`) and by every rank (`--partitioner ptscotch`), against the rank count: each
-piece's seconds and the parts' quality.
+metis`), by every rank on the first rank's graph (`--partitioner ptscotch`), and by every
+rank from its own share of the file (`shares`: `--partitioner ptscotch --mesh-read
+shared`), against the rank count: each piece's seconds and the parts' quality.
 
     python3 run-scripts/cut_study.py CASE.toml [CASE.toml ...] --out DIR \\
-        [--ranks 2,4,8,16,32] [--runs 3] [--binary target/release/contact-par]
+        [--ranks 2,4,8,16,32] [--runs 3] [--partitioners metis,ptscotch,shares] [--append]
+        [--binary target/release/contact-par]
 
 Each case runs on each rank count (`--oversubscribe --bind-to none`, one thread and one
 subdomain per rank), with each partitioner in turn, --runs times; a run is stopped once
 its partition line is out (the rest of the run is not this study's). The partition line
-names its pieces: the dual graph (the first rank), the cut (the first rank, or PT-Scotch
-on every rank), the ownership rules and the split (the first rank). Medians go to
-DIR/cut.csv and a table on stdout, with the edge cut and the interface nodes.
+names its pieces: the graph (the first rank's dual graph; for `shares` only the
+triangles around each node), the cut (the first rank, or PT-Scotch on every rank; for
+`shares` also the ranks' locality order and graph), the ownership rules and the split
+(the first rank). Medians go to DIR/cut.csv (with --append, after its rows) and a table
+on stdout, with the edge cut and the interface nodes.
 
 `cut_rank_s`, for PT-Scotch, estimates the cut's seconds with a core per rank: its
 seconds times min(ranks, cores) / ranks, since ranks beyond the cores take turns. It is
@@ -43,8 +47,11 @@ def one_run(binary, case, ranks, partitioner, out):
     cmd = [
         "mpirun", "-n", str(ranks), "--oversubscribe", "--bind-to", "none", binary, case,
         "--threads", "1", "--subdomains-per-rank", "1", "--no-plots", "--out", out,
-        "--partitioner", partitioner,
     ]
+    if partitioner == "shares":
+        cmd += ["--partitioner", "ptscotch", "--mesh-read", "shared"]
+    else:
+        cmd += ["--partitioner", partitioner]
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                          start_new_session=True)
     row, seen = None, []
@@ -78,6 +85,8 @@ def main():
     ap.add_argument("--out", required=True)
     ap.add_argument("--ranks", default="2,4,8,16,32")
     ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--partitioners", default="metis,ptscotch,shares")
+    ap.add_argument("--append", action="store_true", help="add the rows to DIR/cut.csv")
     ap.add_argument("--binary", default="target/release/contact-par")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -85,7 +94,7 @@ def main():
     rows = []
     for case in a.cases:
         for ranks in (int(r) for r in a.ranks.split(",")):
-            runs = {"metis": [], "ptscotch": []}
+            runs = {name: [] for name in a.partitioners.split(",")}
             with tempfile.TemporaryDirectory() as tmp:
                 one_run(a.binary, case, ranks, "metis", tmp)  # the file into the page cache
                 for _ in range(a.runs):
@@ -93,7 +102,7 @@ def main():
                         runs[partitioner].append(one_run(a.binary, case, ranks, partitioner, tmp))
             for partitioner, rs in runs.items():
                 med = {k: statistics.median(r[k] for r in rs) for k in rs[0] if k != "who"}
-                on_ranks = partitioner == "ptscotch"
+                on_ranks = partitioner != "metis"
                 med.update(case=os.path.basename(case), ranks=ranks, runs=len(rs),
                            partitioner=partitioner, nodes=rs[0]["nodes"],
                            triangles=rs[0]["triangles"],
@@ -101,9 +110,11 @@ def main():
                            if on_ranks else med["cut_s"])
                 rows.append(med)
     path = os.path.join(a.out, "cut.csv")
-    with open(path, "w", newline="") as f:
+    append = a.append and os.path.exists(path)
+    with open(path, "a" if append else "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=FIELDS)
-        w.writeheader()
+        if not append:
+            w.writeheader()
         for r in rows:
             w.writerow({k: r[k] for k in FIELDS})
     print("| case | triangles | ranks | partitioner | graph | cut | cut, a core per rank "

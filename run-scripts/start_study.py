@@ -4,13 +4,18 @@ while the others wait (the scan of the file, the assembly of the shares, the pro
 the partition and split, the scatter), on one core and on all of its node's cores.
 
     python3 run-scripts/start_study.py CASE.toml [CASE.toml ...] --out DIR \\
-        [--ranks 2] [--runs 3] [--binary target/release/contact-par]
+        [--ranks 2] [--runs 3] [--partitioner auto|metis|ptscotch]
+        [--binary target/release/contact-par]
 
 Each case runs on --ranks ranks with `--mesh-read shared` (every rank parses a share of
 the file), alternately `--bind-to core` (the first rank has one core for its work
 alone) and `--bind-to none` (it borrows the cores of the ranks of its node), --runs
 times each; the medians go to DIR/start.csv and a table on stdout. `serial share` is the
-first rank's seconds alone over the whole run's.
+first rank's seconds alone over the whole run's. With `--partitioner ptscotch` the
+cut is made by every rank (from their shares of the file) while the first rank puts the
+mesh together and builds the problem: the cut's seconds, named on the partition line,
+are not the first rank's alone, and of the assembly and the problem only the seconds
+they went on after the cut (`read_after_s`, also on the partition line) are.
 
 With --split-parts (e.g. 2,64,512), `contact-par split --parts P` also runs on one core
 (read, problem, partition into P parts, the part files written): its seconds and peak
@@ -35,16 +40,18 @@ READ = re.compile(
     r"case, file and scan ([\d.]+) s, assembly ([\d.]+) s\), problem ([\d.]+) s"
 )
 PHASE = re.compile(r"^(\w+)\s+done in\s+([\d.]+) s")
+RANKS_CUT = re.compile(r"^partition done in .*?, cut ([\d.]+) s \(PT-Scotch on ")
+READ_AFTER = re.compile(r"which went on ([\d.]+) s longer")
 TOTAL = re.compile(r"^total\s+([\d.]+)")
 
 FIELDS = [
     "case", "nodes", "triangles", "ranks", "bind", "cores", "runs",
-    "scan_s", "shares_s", "assembly_s", "problem_s", "partition_s", "scatter_s",
+    "scan_s", "shares_s", "assembly_s", "problem_s", "partition_s", "ranks_cut_s", "read_after_s", "scatter_s",
     "alone_s", "total_s", "serial_share", "rank0_peak_bytes", "other_peak_bytes",
 ]
 
 
-def one_run(binary, case, ranks, bind, out):
+def one_run(binary, case, ranks, bind, out, partitioner):
     if bind == "core" and (os.cpu_count() or 1) < ranks:
         # Open MPI refuses to bind more ranks than cores: the one-core figures are then
         # the unbound ones, and the fitted threaded shares zero.
@@ -52,13 +59,19 @@ def one_run(binary, case, ranks, bind, out):
     cmd = [
         "mpirun", "-n", str(ranks), "--oversubscribe", "--bind-to", bind,
         binary, case, "--mesh-read", "shared", "--threads", "1", "--no-plots",
-        "--out", out,
+        "--out", out, "--partitioner", partitioner,
     ]
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"start_study: {' '.join(cmd)} failed:\n{p.stderr}")
-    row = {}
+    row = {"ranks_cut_s": 0.0, "read_after_s": None}
     for line in p.stdout.splitlines():
+        m = RANKS_CUT.match(line)
+        if m:
+            row["ranks_cut_s"] = float(m.group(1))
+        m = READ_AFTER.search(line)
+        if m:
+            row["read_after_s"] = float(m.group(1))
         m = READ.match(line)
         if m:
             _, nodes, tris, together, alone, scan, assembly, problem = m.groups()
@@ -82,8 +95,11 @@ def one_run(binary, case, ranks, bind, out):
         peaks = json.load(f)["peak_memory_bytes_per_rank"]
     row["rank0_peak_bytes"] = peaks[0]
     row["other_peak_bytes"] = statistics.median(peaks[1:]) if len(peaks) > 1 else 0
+    if row["read_after_s"] is None:
+        row["read_after_s"] = row["assembly_s"] + row["problem_s"]
     row["alone_s"] = sum(row[k] for k in
-                         ("scan_s", "assembly_s", "problem_s", "partition_s", "scatter_s"))
+                         ("scan_s", "read_after_s", "partition_s", "scatter_s"))
+    row["alone_s"] -= row["ranks_cut_s"]
     return row
 
 
@@ -93,6 +109,7 @@ def main():
     ap.add_argument("--out", required=True)
     ap.add_argument("--ranks", type=int, default=2)
     ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--partitioner", default="auto")
     ap.add_argument("--binary", default="target/release/contact-par")
     ap.add_argument("--split-parts", default="", help="comma-separated part counts")
     a = ap.parse_args()
@@ -102,10 +119,10 @@ def main():
         runs = {"core": [], "none": []}
         with tempfile.TemporaryDirectory() as tmp:
             # One untimed run first, so that no timed run reads the file from disk.
-            one_run(a.binary, case, a.ranks, "none", tmp)
+            one_run(a.binary, case, a.ranks, "none", tmp, a.partitioner)
             for _ in range(a.runs):
                 for bind in ("core", "none"):
-                    runs[bind].append(one_run(a.binary, case, a.ranks, bind, tmp))
+                    runs[bind].append(one_run(a.binary, case, a.ranks, bind, tmp, a.partitioner))
         for bind, rs in runs.items():
             med = {k: statistics.median(r[k] for r in rs) for k in rs[0]}
             med.update(
@@ -125,12 +142,13 @@ def main():
         for r in rows:
             w.writerow({k: r[k] for k in FIELDS})
     print("| case | nodes | cores of the first rank | scan | assembly | problem | partition "
-          "| scatter | alone | shares (all ranks) | total | serial share | peak rank 0 / "
-          "others (MB) |")
-    print("| --- " * 13 + "|")
+          "| of it, the ranks' cut | assembly and problem after the cut | scatter | alone "
+          "| shares (all ranks) | total | serial share | peak rank 0 / others (MB) |")
+    print("| --- " * 15 + "|")
     for r in rows:
         print(f"| {r['case']} | {r['nodes']} | {r['cores']} | {r['scan_s']:.3f} | "
               f"{r['assembly_s']:.3f} | {r['problem_s']:.3f} | {r['partition_s']:.3f} | "
+              f"{r['ranks_cut_s']:.3f} | {r['read_after_s']:.3f} | "
               f"{r['scatter_s']:.3f} | {r['alone_s']:.3f} | {r['shares_s']:.3f} | "
               f"{r['total_s']:.3f} | {100 * r['serial_share']:.1f}% | "
               f"{r['rank0_peak_bytes'] / 1e6:.0f} / {r['other_peak_bytes'] / 1e6:.0f} |")

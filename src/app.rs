@@ -189,22 +189,33 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     }
 
     // 1-2. First rank: read, partition, split. The other ranks sleep meanwhile, so
-    // that the cores of those on its node are its to use. `threads`: the rank's own,
-    // not those of the pool the set-up borrows.
+    // that the cores of those on its node are its to use; where they cut the mesh from
+    // their shares of the file, they do it while the first builds the problem (on
+    // another thread: this one makes the MPI calls). `threads`: the rank's own, not
+    // those of the pool the set-up borrows.
     let threads = rayon::current_num_threads();
     let layout = Layout {
         ranks: mpi.size,
         threads,
     };
-    let (mut early, shares) = read_together(opts, &mpi, layout, &timer);
-    let cut = shares.and_then(|s| timer.time(Phase::Partition, || s.cut(&mpi)));
-    if let Some(e) = early.as_mut() {
-        e.cut = cut;
-    }
-    let prepared = mpi.is_root().then(|| {
-        host::on_idle_cores(mpi.node_ranks, || {
-            prepare(opts, layout, &timer, print, early)
-        })
+    let (early, shares) = read_together(opts, &mpi, layout, &timer);
+    let (read, cut) = std::thread::scope(|scope| {
+        let reading = mpi.is_root().then(|| {
+            scope.spawn(|| {
+                host::on_idle_cores(mpi.node_ranks, || {
+                    prepare(opts, layout, &timer, print, early)
+                })
+            })
+        });
+        let cut = shares.and_then(|s| timer.time(Phase::Partition, || s.cut(&mpi)));
+        let cut_end = Instant::now();
+        let read = reading.map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
+        // How long the first rank's reading went on once the ranks had cut.
+        let cut = cut.map(|c| (c, cut_end.elapsed().as_secs_f64()));
+        (read, cut)
+    });
+    let prepared = read.map(|r| {
+        r.and_then(|r| host::on_idle_cores(mpi.node_ranks, || with_graph(r, cut, &timer)))
     });
     mpi.barrier_sleeping();
     let prepared = mpi.agree(prepared.transpose())?;
@@ -736,7 +747,7 @@ fn prepare(
     timer: &Timer,
     print: &Printer,
     early: Option<Early>,
-) -> Result<Prepared> {
+) -> Result<Read> {
     let Layout { ranks, threads } = layout;
     let read_line = |figure: String| {
         print.line(timer::phase_line(
@@ -771,16 +782,9 @@ fn prepare(
             f.contact_nodes,
             f.partition
         ));
-        return Ok(Prepared::Ready(Box::new(setup)));
+        return Ok(Read::Ready(Box::new(setup)));
     }
     // 1. Read and validate the case and the mesh.
-    let (early, share_cut) = match early {
-        Some(mut e) => {
-            let cut = e.cut.take();
-            (Some(e), cut)
-        }
-        None => (None, None),
-    };
     let (case, prob, mesh_name, how) = timer.time(Phase::Read, || read(opts, early))?;
     check_linear(opts, &case)?;
     let triangles = prob.mesh.triangles.len();
@@ -802,11 +806,47 @@ fn prepare(
         "{mesh_name}: {} nodes, {} triangles, {} contact nodes{how}",
         size.nodes, size.elements, size.contact_nodes
     ));
-    // 2. The graph the partition cuts ([`cut_and_split`] cuts it), unless the ranks cut
-    // the file from their shares: then only the triangles around each node, which the
-    // ownership rules read.
+    Ok(Read::Problem(Box::new(ReadProblem {
+        case,
+        prob,
+        mesh_name,
+        nparts,
+        per_rank,
+    })))
+}
+
+/// Phase 1 on the first rank: a run from a split directory is ready; otherwise the
+/// problem, to cut.
+enum Read {
+    Ready(Box<Setup>),
+    Problem(Box<ReadProblem>),
+}
+
+struct ReadProblem {
+    case: Case,
+    prob: Problem,
+    mesh_name: String,
+    nparts: usize,
+    per_rank: usize,
+}
+
+/// The start of phase 2 on the first rank: the graph the partition cuts
+/// ([`cut_and_split`] cuts it), unless the ranks cut the file from their shares
+/// (`share_cut`, with the seconds the first rank's reading went on after it): then only
+/// the triangles around each node, which the ownership rules read.
+fn with_graph(read: Read, share_cut: Option<(ShareCut, f64)>, timer: &Timer) -> Result<Prepared> {
+    let ReadProblem {
+        case,
+        prob,
+        mesh_name,
+        nparts,
+        per_rank,
+    } = match read {
+        Read::Ready(setup) => return Ok(Prepared::Ready(setup)),
+        Read::Problem(r) => *r,
+    };
     let graph_start = Instant::now();
-    let cut = share_cut.and_then(|c| ShareParts::of(c, &prob, nparts));
+    let cut = share_cut.and_then(|(c, after)| ShareParts::of(c, after, &prob, nparts));
     let graph = timer.time(Phase::Partition, || match &cut {
         Some(_) => {
             partition::MeshGraph::new(prob.mesh.num_nodes(), &prob.mesh.triangles, &[], false)
@@ -834,13 +874,16 @@ struct ShareParts {
     edge_cut: usize,
     /// Seconds of the ranks' locality order, graph, and cut.
     seconds: [f64; 3],
+    /// Seconds the first rank's reading (the mesh put together, the problem) went on
+    /// after the ranks had cut, which they did meanwhile.
+    read_after: f64,
 }
 
 impl ShareParts {
     /// `None` where the problem does not match the cut: another number of parts, a
     /// triangle the reading dropped as a repeat, ties between bodies. The first rank
     /// then cuts the problem as it does without the shares.
-    fn of(cut: ShareCut, prob: &Problem, nparts: usize) -> Option<Self> {
+    fn of(cut: ShareCut, read_after: f64, prob: &Problem, nparts: usize) -> Option<Self> {
         let by_file = cut.parts?;
         let tied = prob.contact_masters.iter().any(|m| !m.is_empty());
         if cut.nparts != nparts || by_file.len() != prob.file_triangle.len() || tied {
@@ -850,6 +893,7 @@ impl ShareParts {
             element_part: prob.file_triangle.iter().map(|&f| by_file[f]).collect(),
             edge_cut: cut.edge_cut,
             seconds: cut.seconds,
+            read_after,
         })
     }
 }
@@ -996,7 +1040,7 @@ fn split_cut(
     } = t;
     let by_ranks = cut.as_ref().map(|c| c.1);
     let (mut cut_s, mut split_s) = (by_ranks.unwrap_or(0.0), 0.0);
-    let shares_s = from_shares.as_ref().map(|c| c.seconds);
+    let shares_s = from_shares.as_ref().map(|c| (c.seconds, c.read_after));
     let (facts, subs) = timer.time(Phase::Partition, || {
         let (element_part, edge_cut) = match (cut, from_shares) {
             (_, Some(c)) => (c.element_part, Some(c.edge_cut)),
@@ -1019,11 +1063,12 @@ fn split_cut(
         split
     })?;
     let who = match (by_ranks, shares_s) {
-        (_, Some([order, graph, cut])) => {
+        (_, Some(([order, graph, cut], after))) => {
             cut_s = order + graph + cut;
             format!(
-                "PT-Scotch on {} ranks from their shares of the file: order {order:.3} s, \
-                 graph {graph:.3} s, cut {cut:.3} s",
+                "PT-Scotch on {} ranks from their shares of the file while the first rank \
+                 read, which went on {after:.3} s longer: order {order:.3} s, graph \
+                 {graph:.3} s, cut {cut:.3} s",
                 layout.ranks
             )
         }
@@ -1285,13 +1330,11 @@ fn read(opts: &Options, early: Option<Early>) -> Result<(Case, Problem, String, 
     Ok((case, prob, mesh_name, how))
 }
 
-/// Phase 1 as far as the first rank has it before [`prepare`]: the case, the Gmsh
-/// file when the ranks took part in reading it, and the partition when they cut it
-/// from their shares.
+/// Phase 1 as far as the first rank has it before [`prepare`]: the case, and the Gmsh
+/// file when the ranks took part in reading it.
 struct Early {
     case: Result<Case>,
     mesh: Option<Together>,
-    cut: Option<ShareCut>,
 }
 
 /// Every rank's share of a Gmsh file read together, kept for the partition on the
@@ -1449,12 +1492,7 @@ fn read_together(
         alone_s,
         together_s,
     });
-    let early = Early {
-        case,
-        mesh,
-        cut: None,
-    };
-    (Some(early), shares)
+    (Some(Early { case, mesh }), shares)
 }
 
 /// The number of subdomains the ranks cut a file of `triangles` triangle records into
