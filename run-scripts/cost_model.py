@@ -395,11 +395,9 @@ def main():
                 secs = st.seconds(nodes, a.node_cores, P)
                 first, on_ranks = cut.seconds(nodes, P)
                 alone = sum(v for k, v in secs.items() if k != "partition") + first
-                if kind == "shares":
-                    # The ranks cut while the first rank puts the mesh together and
-                    # builds the problem: only what these take beyond the cut is alone.
-                    reading = secs["assembly"] + secs["problem"]
-                    alone -= min(reading, on_ranks)
+                # The ranks cut from their shares while the first rank builds the
+                # problem, but with a rank on every core its node's cores are theirs
+                # then: no overlap is counted.
                 f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
                 whole = alone + on_ranks + f + loop
                 print(f"{P:>5} {first:>26.1f} {on_ranks:>15.1f} {alone:>19.1f} "
