@@ -7,7 +7,8 @@
 //! together: runs from its parts give the same answer. And the cut the ranks make from
 //! their shares of a Gmsh file read together (`--mesh-read shared`), before any rank
 //! holds the mesh: ASCII, binary and a shuffled copy, the one-rank answer on 2-4 ranks;
-//! two bodies, whose ties only the problem knows, are cut as before.
+//! two bodies, whose ties only the problem knows, and a file with a repeated triangle,
+//! whose records are not the problem's triangles, are cut on the first rank's graph.
 
 mod common;
 use common::*;
@@ -279,5 +280,58 @@ fn two_bodies_read_by_every_rank_are_cut_with_their_ties() {
             1e-6,
             &format!("two blocks, {np} ranks"),
         );
+    }
+}
+
+/// The disc's file with its last block of triangles' first triangle listed twice (a new
+/// element tag), which the reading keeps once.
+fn disc_with_a_repeated_triangle() -> String {
+    let text = std::fs::read_to_string(gmsh_dir().join("quarter_disc_v41_ascii.msh")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let at = lines.iter().position(|l| l == "$Elements").unwrap();
+    let head: Vec<usize> = (lines[at + 1].split_whitespace())
+        .map(|w| w.parse().unwrap())
+        .collect();
+    let (mut j, mut last) = (at + 2, None);
+    while lines[j] != "$EndElements" {
+        let block: Vec<&str> = lines[j].split_whitespace().collect();
+        if block[2] == "2" {
+            last = Some(j);
+        }
+        j += 1 + block[3].parse::<usize>().unwrap();
+    }
+    let b = last.expect("a block of triangles");
+    let block: Vec<String> = lines[b].split_whitespace().map(str::to_string).collect();
+    let count: usize = block[3].parse().unwrap();
+    let first: Vec<&str> = lines[b + 1].split_whitespace().collect();
+    let repeat = format!("{} {}", head[3] + 1, first[1..].join(" "));
+    lines.insert(b + 1 + count, repeat);
+    lines[b] = format!("{} {} {} {}", block[0], block[1], block[2], count + 1);
+    lines[at + 1] = format!("{} {} {} {}", head[0], head[1] + 1, head[2], head[3] + 1);
+    lines.join("\n") + "\n"
+}
+
+/// A repeated triangle: the ranks' cut of the file's triangle records does not match
+/// the problem's triangles, so the ranks cut the first rank's graph instead, and the
+/// answer is the one-rank answer.
+#[test]
+fn a_file_with_a_repeated_triangle_is_cut_on_the_first_ranks_graph() {
+    let case = quarter_disc_case_on("mesh.msh", "friction = \"coulomb\"\ncoefficient = 0.2");
+    let dir = TempDir::new().unwrap();
+    std::fs::write(dir.path().join("case.toml"), case).unwrap();
+    std::fs::write(dir.path().join("mesh.msh"), disc_with_a_repeated_triangle()).unwrap();
+    let p = dir.path();
+    let line = run(p, 1, "one", "metis");
+    assert!(line.contains("one subdomain"), "{line}");
+    let one = read_contact(&p.join("one/contact.csv"));
+    for np in [2, 3] {
+        let out = format!("sh{np}");
+        let line = run_with(p, np, &out, "ptscotch", &SHARED);
+        assert!(
+            line.contains(&format!("(PT-Scotch on {np} ranks)")),
+            "{np} ranks: {line}"
+        );
+        let rows = read_contact(&p.join(&out).join("contact.csv"));
+        assert_same_columns(&one, &rows, 1e-8, &format!("repeated triangle, {np} ranks"));
     }
 }

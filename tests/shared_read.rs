@@ -2,7 +2,8 @@
 //! first puts them together) gives the mesh the first rank reads alone: the same
 //! contact.csv and nodes.csv byte for byte on 2 to 4 ranks, ASCII and binary; a file the
 //! shares cannot take falls back to the first rank's reading; a malformed file gives
-//! the first rank's one-line error, exit code 2, on any number of ranks.
+//! the first rank's one-line error, exit code 2, on any number of ranks, also where the
+//! ranks cut the mesh from their shares first (`--partitioner ptscotch`).
 
 mod common;
 use common::*;
@@ -106,11 +107,13 @@ fn a_file_the_shares_cannot_take_is_read_by_the_first_rank_alone() {
     }
 }
 
-/// The error lines of a run that must fail with exit code 2.
-fn refused(dir: &Path, np: usize) -> Vec<String> {
+/// The error lines of a run that must fail with exit code 2 (`partitioner`: with
+/// `ptscotch` the ranks also cut the mesh from their shares before the first rank
+/// finds the fault).
+fn refused(dir: &Path, np: usize, partitioner: &str) -> Vec<String> {
     let out = dir.join(format!("refused{np}"));
     let args = ["case.toml", "--out", out.to_str().unwrap(), "--no-plots"];
-    let shared = ["--mesh-read", "shared"];
+    let shared = ["--mesh-read", "shared", "--partitioner", partitioner];
     let args = [&args[..], &shared[..]].concat();
     let (code, _, stderr) = run_on_ranks(dir, np, &args);
     assert_eq!(code, 2, "{np} ranks: {stderr}");
@@ -155,11 +158,14 @@ fn a_malformed_file_gives_the_first_ranks_one_line_on_any_number_of_ranks() {
         ("a truncated file", truncated, "truncated"),
     ] {
         let dir = case_dir(&disc_case(), bad.as_bytes());
-        let one = refused(dir.path(), 1);
+        let one = refused(dir.path(), 1, "metis");
         assert_eq!(one.len(), 1, "{what}: {one:?}");
         assert!(one[0].contains(expect), "{what}: {one:?}");
         for np in [2, 3] {
-            assert_eq!(refused(dir.path(), np), one, "{what} on {np} ranks");
+            for partitioner in ["metis", "ptscotch"] {
+                let lines = refused(dir.path(), np, partitioner);
+                assert_eq!(lines, one, "{what} on {np} ranks, {partitioner}");
+            }
         }
     }
 }

@@ -472,27 +472,13 @@ impl MeshGraph {
     /// # Panics
     /// If `element_part.len() != triangles.len()`.
     pub fn finish(
-        mut self,
+        self,
         triangles: &[[usize; 3]],
         contact_nodes: &[usize],
         nparts: usize,
-        mut element_part: Vec<u32>,
+        element_part: Vec<u32>,
     ) -> Result<Partition, PartitionError> {
-        assert_eq!(element_part.len(), triangles.len());
-        check_nparts(nparts, triangles.len())?;
-        check_part_ids(&element_part, nparts)?;
-        fill_empty_parts(&mut element_part, nparts);
-        if self.mesh.graph.is_none() {
-            self.mesh.graph = self.graph.take();
-        }
-        build_partition(
-            triangles,
-            contact_nodes,
-            nparts,
-            element_part,
-            &self.mesh,
-            None,
-        )
+        self.finish_with(triangles, contact_nodes, nparts, element_part, None)
     }
 
     /// [`MeshGraph::finish`] for parts cut where the graph was built too (on the
@@ -511,20 +497,40 @@ impl MeshGraph {
         triangles: &[[usize; 3]],
         contact_nodes: &[usize],
         nparts: usize,
-        mut element_part: Vec<u32>,
+        element_part: Vec<u32>,
         edge_cut: usize,
+    ) -> Result<Partition, PartitionError> {
+        self.finish_with(
+            triangles,
+            contact_nodes,
+            nparts,
+            element_part,
+            Some(edge_cut),
+        )
+    }
+
+    fn finish_with(
+        mut self,
+        triangles: &[[usize; 3]],
+        contact_nodes: &[usize],
+        nparts: usize,
+        mut element_part: Vec<u32>,
+        edge_cut: Option<usize>,
     ) -> Result<Partition, PartitionError> {
         assert_eq!(element_part.len(), triangles.len());
         check_nparts(nparts, triangles.len())?;
         check_part_ids(&element_part, nparts)?;
         fill_empty_parts(&mut element_part, nparts);
+        if self.mesh.graph.is_none() {
+            self.mesh.graph = self.graph.take();
+        }
         build_partition(
             triangles,
             contact_nodes,
             nparts,
             element_part,
             &self.mesh,
-            Some(edge_cut),
+            edge_cut,
         )
     }
 }
