@@ -12,14 +12,16 @@
 //! different places; a triangle's first node that no rank holds makes every rank give
 //! up. The cut of the
 //! shares (`dd::share_cut`) reaches the first rank as a part per file triangle, its
-//! edge cut the serial count.
+//! edge cut the serial count. The nodes' parts found on the ranks' directory
+//! (`dd::ownership`) follow the partition crate's ownership rules, node by node, with
+//! its interface figures.
 //!
 //! The test binary runs itself under `mpirun` (`--oversubscribe`; as root, set
 //! OMPI_ALLOW_RUN_AS_ROOT=1 and OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1); each rank then runs
 //! [`child`] only.
 
 use contact_par::dd::comm::Mpi;
-use contact_par::dd::{dist_graph, locality, share_cut};
+use contact_par::dd::{dist_graph, locality, ownership, share_cut};
 use contact_par::mesh::renumber::hilbert_keys;
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
@@ -245,6 +247,37 @@ fn locality_child() {
     } else {
         assert!(cut.parts.is_none());
     }
+
+    // Each node's parts on the directory, for parts given by the file's index (the
+    // shuffled file scatters them: most nodes lie on the interface).
+    let nparts = 5;
+    let part_of = |f: usize| (f * nparts / all.len()) as u32;
+    let parts: Vec<u32> = sorted.file.iter().map(|&f| part_of(f as usize)).collect();
+    let around = ownership::node_parts(&mpi, &sorted.triangles, &parts);
+    let element_part: Vec<u32> = (0..all.len()).map(part_of).collect();
+    let serial = partition::partition_from_element_parts(nodes, &all, &[], nparts, element_part)
+        .expect("a partition");
+    for (k, &t) in around.tags.iter().enumerate() {
+        let n = ((t - 7) / 3) as usize;
+        assert_eq!(around.owner(k), serial.node_owner[n], "node {n}");
+        let touching: Vec<u32> = (0..nparts as u32)
+            .filter(|&q| serial.parts[q as usize].nodes.binary_search(&n).is_ok())
+            .collect();
+        assert_eq!(around.of(k), &touching[..], "node {n}");
+    }
+    let mut held = 0u64;
+    world.all_reduce_into(
+        &(around.tags.len() as u64),
+        &mut held,
+        SystemOperation::sum(),
+    );
+    assert_eq!(held as usize, nodes, "every node on one rank");
+    let figures = ownership::interface_figures(&mpi, &around, nparts);
+    assert_eq!(figures.interface_nodes, serial.quality.interface_nodes);
+    let per_part: Vec<usize> = serial.parts.iter().map(|q| q.interface.len()).collect();
+    assert_eq!(figures.per_part, per_part);
+    assert_eq!(figures.neighbours, serial.quality.neighbours);
+    assert!(figures.interface_nodes > 0);
 }
 
 /// Runs the test `name` on 1, 2, 3 and 4 ranks: each rank runs `child`.

@@ -71,6 +71,7 @@ pub mod full;
 pub mod interface_mumps;
 pub mod local_factor;
 pub mod locality;
+pub mod ownership;
 pub mod share_cut;
 pub mod split;
 pub mod step;
