@@ -14,7 +14,8 @@
 //! shares (`dd::share_cut`) reaches the first rank as a part per file triangle, its
 //! edge cut the serial count. The nodes' parts found on the ranks' directory
 //! (`dd::ownership`) follow the partition crate's ownership rules, node by node, with
-//! its interface figures.
+//! its interface figures; and the lists of each part built on its own rank (its
+//! triangles, nodes, owned nodes, interface and neighbours) are the crate's.
 //!
 //! The test binary runs itself under `mpirun` (`--oversubscribe`; as root, set
 //! OMPI_ALLOW_RUN_AS_ROOT=1 and OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1); each rank then runs
@@ -278,6 +279,33 @@ fn locality_child() {
     assert_eq!(figures.per_part, per_part);
     assert_eq!(figures.neighbours, serial.quality.neighbours);
     assert!(figures.interface_nodes > 0);
+
+    // Each rank's two parts, on their rank: the partition crate's lists of each.
+    let nparts = 2 * size;
+    let part_of = |f: usize| (f * nparts / all.len()) as u32;
+    let parts: Vec<u32> = sorted.file.iter().map(|&f| part_of(f as usize)).collect();
+    let around = ownership::node_parts(&mpi, &sorted.triangles, &parts);
+    let lists = ownership::part_lists(&mpi, &sorted.file, &sorted.triangles, &parts, &around, 2);
+    let element_part: Vec<u32> = (0..all.len()).map(part_of).collect();
+    let serial = partition::partition_from_element_parts(nodes, &all, &[], nparts, element_part)
+        .expect("a partition");
+    let tags = |v: &[usize]| -> Vec<u64> { v.iter().map(|&n| tag(n)).collect() };
+    assert_eq!(lists.len(), 2);
+    for l in &lists {
+        let q = &serial.parts[l.part as usize];
+        assert_eq!(l.part as usize / 2, rank);
+        let elements: Vec<u64> = q.elements.iter().map(|&e| e as u64).collect();
+        assert_eq!(l.elements, elements, "part {}", l.part);
+        for (t, &e) in l.triangles.iter().zip(&l.elements) {
+            assert_eq!(*t, all[e as usize].map(tag));
+        }
+        assert_eq!(l.nodes, tags(&q.nodes), "part {}", l.part);
+        assert_eq!(l.owned, q.owned, "part {}", l.part);
+        assert_eq!(l.interface, tags(&q.interface), "part {}", l.part);
+        let neighbours: Vec<(u32, Vec<u64>)> =
+            q.neighbours.iter().map(|(p, n)| (*p, tags(n))).collect();
+        assert_eq!(l.neighbours, neighbours, "part {}", l.part);
+    }
 }
 
 /// Runs the test `name` on 1, 2, 3 and 4 ranks: each rank runs `child`.

@@ -5,7 +5,9 @@
 //! ([`locality::tag_rank`], the nodes' directory), which then sees every part around
 //! the node. The rules are those of the `partition` crate (`partition::Part`): the
 //! lowest part touching a node owns it; a node that several parts touch lies on the
-//! interface of each, and those parts are neighbours.
+//! interface of each, and those parts are neighbours. Then each part's lists
+//! ([`part_lists`]: its triangles, nodes, owned nodes, interface and neighbours, those
+//! of `partition::Part`) are put together on the rank that holds the part.
 //!
 //! Why: it is the step after the cut of a start in which each rank builds its own part
 //! of the problem from its share of the mesh file (docs/cost-model.md, "The partition
@@ -118,4 +120,96 @@ pub fn interface_figures(mpi: &Mpi, nodes: &NodeParts, nparts: usize) -> Interfa
         per_part: counts[..nparts].iter().map(|&c| c as usize).collect(),
         neighbours: neighbours.iter().map(|&c| c as usize).collect(),
     }
+}
+
+/// One part's share of the mesh, found on the rank that will hold it: the lists of
+/// `partition::Part`, in the file's numbering (triangles by their index among the
+/// file's triangle records, nodes by tag).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct PartLists {
+    pub part: u32,
+    /// The part's triangles (file indices, increasing) and their node tags.
+    pub elements: Vec<u64>,
+    pub triangles: Vec<[u64; 3]>,
+    /// Every node of those triangles (tags, increasing), and whether the part owns it.
+    pub nodes: Vec<u64>,
+    pub owned: Vec<bool>,
+    /// The nodes other parts touch too (tags, increasing).
+    pub interface: Vec<u64>,
+    /// Each neighbouring part (increasing) and the nodes the two share (tags,
+    /// increasing): the same list on both sides.
+    pub neighbours: Vec<(u32, Vec<u64>)>,
+}
+
+/// The parts that rank `rank` holds (`per_rank` each, parts `rank * per_rank ..`, as
+/// the run's subdomains), built from the ranks' triangles (`file`: their indices in
+/// the file, `parts`: their parts) and the nodes' directory (`around`): each triangle
+/// travels to its part's rank, each node's parts to the ranks of those parts. Two
+/// all-to-alls. Collective; one subdomain per rank.
+pub fn part_lists(
+    mpi: &Mpi,
+    file: &[u64],
+    triangles: &[[u64; 3]],
+    parts: &[u32],
+    around: &NodeParts,
+    per_rank: usize,
+) -> Vec<PartLists> {
+    let p = mpi.size;
+    let rank_of = |q: u32| (q as usize / per_rank).min(p - 1);
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
+    for ((&f, t), &q) in file.iter().zip(triangles).zip(parts) {
+        send[rank_of(q)].extend_from_slice(&[u64::from(q), f, t[0], t[1], t[2]]);
+    }
+    let mut lists: Vec<PartLists> = (0..per_rank)
+        .map(|i| PartLists {
+            part: (mpi.rank * per_rank + i) as u32,
+            ..PartLists::default()
+        })
+        .collect();
+    let first = (mpi.rank * per_rank) as u32;
+    let mut elements: Vec<Vec<(u64, [u64; 3])>> = vec![Vec::new(); per_rank];
+    for c in mpi.exchange(send).iter().flat_map(|v| v.chunks_exact(5)) {
+        elements[(c[0] as u32 - first) as usize].push((c[1], [c[2], c[3], c[4]]));
+    }
+    for (l, mut e) in lists.iter_mut().zip(elements) {
+        e.sort_unstable();
+        l.elements = e.iter().map(|x| x.0).collect();
+        l.triangles = e.iter().map(|x| x.1).collect();
+    }
+    // Each node to the ranks of its parts: part, tag, then the parts around it.
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
+    for (k, &tag) in around.tags.iter().enumerate() {
+        let touching = around.of(k);
+        for &q in touching {
+            let to = &mut send[rank_of(q)];
+            to.extend_from_slice(&[u64::from(q), tag, touching.len() as u64]);
+            to.extend(touching.iter().map(|&x| u64::from(x)));
+        }
+    }
+    let mut nodes: Vec<Vec<(u64, Vec<u32>)>> = vec![Vec::new(); per_rank];
+    for v in mpi.exchange(send) {
+        let mut at = 0;
+        while at < v.len() {
+            let (q, tag, n) = (v[at] as u32, v[at + 1], v[at + 2] as usize);
+            let touching = v[at + 3..at + 3 + n].iter().map(|&x| x as u32).collect();
+            nodes[(q - first) as usize].push((tag, touching));
+            at += 3 + n;
+        }
+    }
+    for (l, mut n) in lists.iter_mut().zip(nodes) {
+        n.sort_unstable();
+        let mut shared: std::collections::BTreeMap<u32, Vec<u64>> = Default::default();
+        for (tag, touching) in n {
+            l.nodes.push(tag);
+            l.owned.push(touching[0] == l.part);
+            if touching.len() > 1 {
+                l.interface.push(tag);
+                for &q in touching.iter().filter(|&&q| q != l.part) {
+                    shared.entry(q).or_default().push(tag);
+                }
+            }
+        }
+        l.neighbours = shared.into_iter().collect();
+    }
+    lists
 }
