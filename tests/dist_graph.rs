@@ -254,13 +254,18 @@ fn locality_child() {
     let nparts = 5;
     let part_of = |f: usize| (f * nparts / all.len()) as u32;
     let parts: Vec<u32> = sorted.file.iter().map(|&f| part_of(f as usize)).collect();
-    let around = ownership::node_parts(&mpi, &sorted.triangles, &parts);
+    let share = locality::share_nodes(&mpi, &tags, &coords);
+    let around = ownership::node_parts(&mpi, &sorted.triangles, &parts, &share).expect("nodes");
     let element_part: Vec<u32> = (0..all.len()).map(part_of).collect();
     let serial = partition::partition_from_element_parts(nodes, &all, &[], nparts, element_part)
         .expect("a partition");
     for (k, &t) in around.tags.iter().enumerate() {
         let n = ((t - 7) / 3) as usize;
         assert_eq!(around.owner(k), serial.node_owner[n], "node {n}");
+        assert_eq!(
+            (around.file[k], around.xy[k]),
+            ((nodes - 1 - n) as u64, xy(n))
+        );
         let touching: Vec<u32> = (0..nparts as u32)
             .filter(|&q| serial.parts[q as usize].nodes.binary_search(&n).is_ok())
             .collect();
@@ -279,12 +284,17 @@ fn locality_child() {
     assert_eq!(figures.per_part, per_part);
     assert_eq!(figures.neighbours, serial.quality.neighbours);
     assert!(figures.interface_nodes > 0);
+    // A triangle on a node no share holds: every rank gives up.
+    let bad_tris: Vec<[u64; 3]> = (sorted.triangles.iter().enumerate())
+        .map(|(i, t)| if i == 0 { [t[0], t[1], 5_000_000] } else { *t })
+        .collect();
+    assert!(ownership::node_parts(&mpi, &bad_tris, &parts, &share).is_none());
 
     // Each rank's two parts, on their rank: the partition crate's lists of each.
     let nparts = 2 * size;
     let part_of = |f: usize| (f * nparts / all.len()) as u32;
     let parts: Vec<u32> = sorted.file.iter().map(|&f| part_of(f as usize)).collect();
-    let around = ownership::node_parts(&mpi, &sorted.triangles, &parts);
+    let around = ownership::node_parts(&mpi, &sorted.triangles, &parts, &share).expect("nodes");
     let lists = ownership::part_lists(&mpi, &sorted.file, &sorted.triangles, &parts, &around, 2);
     let element_part: Vec<u32> = (0..all.len()).map(part_of).collect();
     let serial = partition::partition_from_element_parts(nodes, &all, &[], nparts, element_part)
@@ -300,6 +310,11 @@ fn locality_child() {
             assert_eq!(*t, all[e as usize].map(tag));
         }
         assert_eq!(l.nodes, tags(&q.nodes), "part {}", l.part);
+        let places: Vec<(u64, [f64; 2])> = (q.nodes.iter())
+            .map(|&n| ((nodes - 1 - n) as u64, xy(n)))
+            .collect();
+        let got: Vec<(u64, [f64; 2])> = l.file_nodes.iter().copied().zip(l.xy.clone()).collect();
+        assert_eq!(got, places, "part {}", l.part);
         assert_eq!(l.owned, q.owned, "part {}", l.part);
         assert_eq!(l.interface, tags(&q.interface), "part {}", l.part);
         let neighbours: Vec<(u32, Vec<u64>)> =

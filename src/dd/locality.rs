@@ -219,6 +219,29 @@ fn balanced(mpi: &Mpi, triangles: &[[u64; 3]]) -> (u64, Vec<[u64; 3]>) {
     )
 }
 
+/// This rank's share of the file's nodes, each with its tag, its index among the
+/// file's nodes and its x, y (see [`tags_of_coordinates`]). Collective.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ShareNodes {
+    /// The file index of the first.
+    pub first: u64,
+    pub tags: Vec<u64>,
+    pub xy: Vec<[f64; 2]>,
+}
+
+/// The nodes of this rank's share of the file (`tags`, `coords`: x, y, z each, as the
+/// shares parse them), each tag with its coordinates. Collective; one subdomain per
+/// rank.
+pub fn share_nodes(mpi: &Mpi, tags: &[u64], coords: &[f64]) -> ShareNodes {
+    let n = coords.len() / 3;
+    let before = mpi.all_gather_counts(n)[..mpi.rank].iter().sum::<usize>();
+    ShareNodes {
+        first: before as u64,
+        tags: tags_of_coordinates(mpi, tags, n),
+        xy: coords.chunks_exact(3).map(|c| [c[0], c[1]]).collect(),
+    }
+}
+
 /// The node tags that go with this rank's coordinates: a share of the file may end
 /// inside a block's list of tags, its coordinates then lying in the next share, so
 /// the tags move to the rank that holds their nodes' coordinates (node `i` of the file

@@ -16,14 +16,18 @@
 //! Runs do not use it yet (the first rank still splits the whole problem).
 
 use crate::dd::comm::Mpi;
-use crate::dd::locality::tag_rank;
+use crate::dd::locality::{tag_rank, ShareNodes};
 use rayon::prelude::*;
 
-/// This rank's share of the nodes' directory: each node and the parts around it.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+/// This rank's share of the nodes' directory: each node of the triangles, its place in
+/// the file and the parts around it.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct NodeParts {
     /// The nodes' tags, increasing.
     pub tags: Vec<u64>,
+    /// Their indices among the file's nodes, and their x, y.
+    pub file: Vec<u64>,
+    pub xy: Vec<[f64; 2]>,
     /// The parts touching node `k`: `parts[start[k]..start[k + 1]]`, increasing.
     pub start: Vec<usize>,
     pub parts: Vec<u32>,
@@ -42,9 +46,26 @@ impl NodeParts {
 }
 
 /// The parts around every node of the ranks' triangles (`parts[i]`: the part of
-/// `triangles[i]`), on the nodes' directory ranks. Collective; one subdomain per rank.
-pub fn node_parts(mpi: &Mpi, triangles: &[[u64; 3]], parts: &[u32]) -> NodeParts {
+/// `triangles[i]`), on the nodes' directory ranks, with the nodes' places in the file
+/// and coordinates from the ranks' shares of the file (`nodes`). `None` on every rank
+/// where a triangle's node is in no share or in two. Collective; one subdomain per
+/// rank.
+pub fn node_parts(
+    mpi: &Mpi,
+    triangles: &[[u64; 3]],
+    parts: &[u32],
+    nodes: &ShareNodes,
+) -> Option<NodeParts> {
     let p = mpi.size;
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
+    for (k, (&tag, xy)) in nodes.tags.iter().zip(&nodes.xy).enumerate() {
+        let at = nodes.first + k as u64;
+        send[tag_rank(tag, p)].extend_from_slice(&[tag, at, xy[0].to_bits(), xy[1].to_bits()]);
+    }
+    let mut known: Vec<[u64; 4]> = (mpi.exchange(send).iter())
+        .flat_map(|v| v.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]))
+        .collect();
+    known.par_sort_unstable();
     let mut corners: Vec<[u64; 2]> = (triangles.par_iter().zip(parts))
         .flat_map_iter(|(t, &q)| t.map(|tag| [tag, u64::from(q)]))
         .collect();
@@ -64,12 +85,25 @@ pub fn node_parts(mpi: &Mpi, triangles: &[[u64; 3]], parts: &[u32]) -> NodeParts
         start: vec![0],
         ..NodeParts::default()
     };
+    let mut ok = known.windows(2).all(|w| w[0][0] != w[1][0]);
+    let mut i = 0;
     for run in mine.chunk_by(|a, b| a[0] == b[0]) {
-        out.tags.push(run[0][0]);
+        let tag = run[0][0];
+        while i < known.len() && known[i][0] < tag {
+            i += 1;
+        }
+        let Some(node) = known.get(i).filter(|k| k[0] == tag) else {
+            ok = false;
+            continue;
+        };
+        out.tags.push(tag);
+        out.file.push(node[1]);
+        out.xy
+            .push([f64::from_bits(node[2]), f64::from_bits(node[3])]);
         out.parts.extend(run.iter().map(|c| c[1] as u32));
         out.start.push(out.parts.len());
     }
-    out
+    mpi.all_ok(ok).then_some(out)
 }
 
 /// The figures of the interface that `partition::Quality` reports, from every rank's
@@ -125,14 +159,17 @@ pub fn interface_figures(mpi: &Mpi, nodes: &NodeParts, nparts: usize) -> Interfa
 /// One part's share of the mesh, found on the rank that will hold it: the lists of
 /// `partition::Part`, in the file's numbering (triangles by their index among the
 /// file's triangle records, nodes by tag).
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct PartLists {
     pub part: u32,
     /// The part's triangles (file indices, increasing) and their node tags.
     pub elements: Vec<u64>,
     pub triangles: Vec<[u64; 3]>,
-    /// Every node of those triangles (tags, increasing), and whether the part owns it.
+    /// Every node of those triangles (tags, increasing), its index among the file's
+    /// nodes, its x, y, and whether the part owns it.
     pub nodes: Vec<u64>,
+    pub file_nodes: Vec<u64>,
+    pub xy: Vec<[f64; 2]>,
     pub owned: Vec<bool>,
     /// The nodes other parts touch too (tags, increasing).
     pub interface: Vec<u64>,
@@ -176,31 +213,40 @@ pub fn part_lists(
         l.elements = e.iter().map(|x| x.0).collect();
         l.triangles = e.iter().map(|x| x.1).collect();
     }
-    // Each node to the ranks of its parts: part, tag, then the parts around it.
+    // Each node to the ranks of its parts: part, tag, file index, x, y, then the parts
+    // around it.
+    const HEAD: usize = 6;
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
     for (k, &tag) in around.tags.iter().enumerate() {
         let touching = around.of(k);
+        let [x, y] = around.xy[k].map(f64::to_bits);
         for &q in touching {
             let to = &mut send[rank_of(q)];
-            to.extend_from_slice(&[u64::from(q), tag, touching.len() as u64]);
+            let n = touching.len() as u64;
+            to.extend_from_slice(&[u64::from(q), tag, around.file[k], x, y, n]);
             to.extend(touching.iter().map(|&x| u64::from(x)));
         }
     }
-    let mut nodes: Vec<Vec<(u64, Vec<u32>)>> = vec![Vec::new(); per_rank];
+    let mut nodes: Vec<Vec<(u64, u64, [f64; 2], Vec<u32>)>> = vec![Vec::new(); per_rank];
     for v in mpi.exchange(send) {
         let mut at = 0;
         while at < v.len() {
-            let (q, tag, n) = (v[at] as u32, v[at + 1], v[at + 2] as usize);
-            let touching = v[at + 3..at + 3 + n].iter().map(|&x| x as u32).collect();
-            nodes[(q - first) as usize].push((tag, touching));
-            at += 3 + n;
+            let (q, tag, file, n) = (v[at] as u32, v[at + 1], v[at + 2], v[at + 5] as usize);
+            let xy = [f64::from_bits(v[at + 3]), f64::from_bits(v[at + 4])];
+            let touching = (v[at + HEAD..at + HEAD + n].iter())
+                .map(|&x| x as u32)
+                .collect();
+            nodes[(q - first) as usize].push((tag, file, xy, touching));
+            at += HEAD + n;
         }
     }
     for (l, mut n) in lists.iter_mut().zip(nodes) {
-        n.sort_unstable();
+        n.sort_unstable_by_key(|x| x.0);
         let mut shared: std::collections::BTreeMap<u32, Vec<u64>> = Default::default();
-        for (tag, touching) in n {
+        for (tag, file, xy, touching) in n {
             l.nodes.push(tag);
+            l.file_nodes.push(file);
+            l.xy.push(xy);
             l.owned.push(touching[0] == l.part);
             if touching.len() > 1 {
                 l.interface.push(tag);
