@@ -227,7 +227,7 @@ pub fn part_lists(
             to.extend(touching.iter().map(|&x| u64::from(x)));
         }
     }
-    let mut nodes: Vec<Vec<(u64, u64, [f64; 2], Vec<u32>)>> = vec![Vec::new(); per_rank];
+    let mut nodes: Vec<Vec<Arrived>> = vec![Vec::new(); per_rank];
     for v in mpi.exchange(send) {
         let mut at = 0;
         while at < v.len() {
@@ -236,14 +236,25 @@ pub fn part_lists(
             let touching = (v[at + HEAD..at + HEAD + n].iter())
                 .map(|&x| x as u32)
                 .collect();
-            nodes[(q - first) as usize].push((tag, file, xy, touching));
+            nodes[(q - first) as usize].push(Arrived {
+                tag,
+                file,
+                xy,
+                touching,
+            });
             at += HEAD + n;
         }
     }
     for (l, mut n) in lists.iter_mut().zip(nodes) {
-        n.sort_unstable_by_key(|x| x.0);
+        n.sort_unstable_by_key(|x| x.tag);
         let mut shared: std::collections::BTreeMap<u32, Vec<u64>> = Default::default();
-        for (tag, file, xy, touching) in n {
+        for Arrived {
+            tag,
+            file,
+            xy,
+            touching,
+        } in n
+        {
             l.nodes.push(tag);
             l.file_nodes.push(file);
             l.xy.push(xy);
@@ -258,4 +269,13 @@ pub fn part_lists(
         l.neighbours = shared.into_iter().collect();
     }
     lists
+}
+
+/// A node as it reaches a part's rank ([`part_lists`]).
+#[derive(Clone)]
+struct Arrived {
+    tag: u64,
+    file: u64,
+    xy: [f64; 2],
+    touching: Vec<u32>,
 }
