@@ -1467,9 +1467,13 @@ fn read_together(
         let tags_all = mpi.gather_varcount(&share.tags, &tags);
         let coords_all = mpi.gather_varcount(&share.coords, &coords);
         let elements_all = mpi.gather_varcount(&share.elements, &elements);
+        // The cut needs the share's triangles, not its other element records.
         let kept = nparts.map(|nparts| Shares {
             triangles: share.triangles(plan.share(mpi.rank)),
-            share,
+            share: gmsh::shares::Share {
+                elements: Vec::new(),
+                ..share
+            },
             nparts,
         });
         Some((tags_all, coords_all, elements_all, kept))
