@@ -782,7 +782,7 @@ fn prepare(
             f.contact_nodes,
             f.partition
         ));
-        return Ok(Read::Ready(Box::new(setup)));
+        return Ok(Stage::Ready(Box::new(setup)));
     }
     // 1. Read and validate the case and the mesh.
     let (case, prob, mesh_name, how) = timer.time(Phase::Read, || read(opts, early))?;
@@ -806,7 +806,7 @@ fn prepare(
         "{mesh_name}: {} nodes, {} triangles, {} contact nodes{how}",
         size.nodes, size.elements, size.contact_nodes
     ));
-    Ok(Read::Problem(Box::new(ReadProblem {
+    Ok(Stage::Problem(Box::new(ReadProblem {
         case,
         prob,
         mesh_name,
@@ -815,13 +815,21 @@ fn prepare(
     })))
 }
 
-/// Phase 1 on the first rank: a run from a split directory is ready; otherwise the
-/// problem, to cut.
-enum Read {
+/// Where the first rank stands in phases 1-2: a run from a split directory is ready
+/// (nothing to cut); otherwise the problem, read ([`ReadProblem`]) and then with its
+/// graph ([`ToCut`]).
+enum Stage<T> {
     Ready(Box<Setup>),
-    Problem(Box<ReadProblem>),
+    Problem(Box<T>),
 }
 
+/// Phase 1 on the first rank.
+type Read = Stage<ReadProblem>;
+
+/// The start of phase 2 on the first rank.
+type Prepared = Stage<ToCut>;
+
+/// The problem to cut into `nparts` subdomains.
 struct ReadProblem {
     case: Case,
     prob: Problem,
@@ -835,32 +843,23 @@ struct ReadProblem {
 /// (`share_cut`, with the seconds the first rank's reading went on after it): then only
 /// the triangles around each node, which the ownership rules read.
 fn with_graph(read: Read, share_cut: Option<(ShareCut, f64)>, timer: &Timer) -> Result<Prepared> {
-    let ReadProblem {
-        case,
-        prob,
-        mesh_name,
-        nparts,
-        per_rank,
-    } = match read {
-        Read::Ready(setup) => return Ok(Prepared::Ready(setup)),
-        Read::Problem(r) => *r,
+    let read = match read {
+        Stage::Ready(setup) => return Ok(Stage::Ready(setup)),
+        Stage::Problem(r) => *r,
     };
+    let (prob, mesh_name, nparts) = (&read.prob, &read.mesh_name, read.nparts);
     let graph_start = Instant::now();
-    let cut = share_cut.and_then(|(c, after)| ShareParts::of(c, after, &prob, nparts));
+    let cut = share_cut.and_then(|(c, after)| ShareParts::of(c, after, prob, nparts));
     let graph = timer.time(Phase::Partition, || match &cut {
         Some(_) => {
             partition::MeshGraph::new(prob.mesh.num_nodes(), &prob.mesh.triangles, &[], false)
-                .map_err(|e| cannot_partition(&mesh_name, e))
+                .map_err(|e| cannot_partition(mesh_name, e))
         }
-        None => mesh_graph(&prob, &mesh_name, nparts),
+        None => mesh_graph(prob, mesh_name, nparts),
     })?;
     let graph_s = graph_start.elapsed().as_secs_f64();
-    Ok(Prepared::Problem(Box::new(ToCut {
-        case,
-        prob,
-        mesh_name,
-        nparts,
-        per_rank,
+    Ok(Stage::Problem(Box::new(ToCut {
+        read,
         graph,
         graph_s,
         cut,
@@ -898,20 +897,9 @@ impl ShareParts {
     }
 }
 
-/// What the first rank has made of the case before the partition.
-enum Prepared {
-    /// A run from a split directory: nothing to cut.
-    Ready(Box<Setup>),
-    /// The problem, to cut into `nparts` subdomains.
-    Problem(Box<ToCut>),
-}
-
+/// The problem read, and the graph its partition needs.
 struct ToCut {
-    case: Case,
-    prob: Problem,
-    mesh_name: String,
-    nparts: usize,
-    per_rank: usize,
+    read: ReadProblem,
     graph: partition::MeshGraph,
     /// Seconds the graph took.
     graph_s: f64,
@@ -931,8 +919,8 @@ fn cut_and_split(
     prepared: Option<Prepared>,
 ) -> Result<(Option<Setup>, Option<Vec<SubProblem>>)> {
     let asked = prepared.as_ref().map(|p| match p {
-        Prepared::Problem(t) if t.cut.is_none() && opts.partitioner.on_ranks(mpi, t.nparts) => {
-            Some((t.prob.mesh.triangles.len(), t.nparts))
+        Stage::Problem(t) if t.cut.is_none() && opts.partitioner.on_ranks(mpi, t.read.nparts) => {
+            Some((t.read.prob.mesh.triangles.len(), t.read.nparts))
         }
         _ => None,
     });
@@ -943,7 +931,7 @@ fn cut_and_split(
     let cut = match asked {
         Some((triangles, nparts)) => {
             let graph = match &prepared {
-                Some(Prepared::Problem(t)) => Some(&t.graph),
+                Some(Stage::Problem(t)) => Some(&t.graph),
                 _ => None,
             };
             let start = Instant::now();
@@ -955,8 +943,8 @@ fn cut_and_split(
         None => None,
     };
     let done = prepared.map(|p| match p {
-        Prepared::Ready(setup) => Ok((*setup, None)),
-        Prepared::Problem(t) => host::on_idle_cores(mpi.node_ranks, || {
+        Stage::Ready(setup) => Ok((*setup, None)),
+        Stage::Problem(t) => host::on_idle_cores(mpi.node_ranks, || {
             split_cut(opts, layout, timer, print, *t, cut)
         }),
     });
@@ -1029,11 +1017,14 @@ fn split_cut(
     cut: Option<(Vec<u32>, f64)>,
 ) -> Result<(Setup, Option<Vec<SubProblem>>)> {
     let ToCut {
-        case,
-        prob,
-        mesh_name,
-        nparts,
-        per_rank,
+        read:
+            ReadProblem {
+                case,
+                prob,
+                mesh_name,
+                nparts,
+                per_rank,
+            },
         graph,
         graph_s,
         cut: from_shares,
@@ -1340,7 +1331,9 @@ struct Early {
 /// Every rank's share of a Gmsh file read together, kept for the partition on the
 /// ranks ([`Shares::cut`]).
 struct Shares {
-    share: gmsh::shares::Share,
+    /// The share's node tags and coordinates (x, y, z each), and its triangles.
+    tags: Vec<u64>,
+    coords: Vec<f64>,
     triangles: Vec<[u64; 3]>,
     nparts: usize,
 }
@@ -1349,13 +1342,15 @@ impl Shares {
     /// The file's triangles cut into `nparts` parts by every rank from its share
     /// (`dd::share_cut`). Collective.
     fn cut(self, mpi: &Mpi) -> Option<ShareCut> {
-        let Shares {
-            share,
-            triangles,
-            nparts,
-        } = self;
-        let gmsh::shares::Share { tags, coords, .. } = share;
-        cut_shares(mpi, &tags, &coords, &triangles, nparts, PART_IMBALANCE)
+        let (tags, coords) = (&self.tags, &self.coords);
+        cut_shares(
+            mpi,
+            tags,
+            coords,
+            &self.triangles,
+            self.nparts,
+            PART_IMBALANCE,
+        )
     }
 }
 
@@ -1467,13 +1462,10 @@ fn read_together(
         let tags_all = mpi.gather_varcount(&share.tags, &tags);
         let coords_all = mpi.gather_varcount(&share.coords, &coords);
         let elements_all = mpi.gather_varcount(&share.elements, &elements);
-        // The cut needs the share's triangles, not its other element records.
         let kept = nparts.map(|nparts| Shares {
             triangles: share.triangles(plan.share(mpi.rank)),
-            share: gmsh::shares::Share {
-                elements: Vec::new(),
-                ..share
-            },
+            tags: share.tags,
+            coords: share.coords,
             nparts,
         });
         Some((tags_all, coords_all, elements_all, kept))
