@@ -13,8 +13,10 @@ use crate::contact::{
     self, Acceleration, CoulombMode, Friction, LinearStep, Outcome, Reduce, Status, Sweep,
 };
 use crate::dd::comm::Mpi;
+use crate::dd::dist_split::{self, Conditions, PartCase};
 use crate::dd::full::{DirectStep, DirectSystem};
 use crate::dd::local_factor::LocalFactor;
+use crate::dd::ownership::PartLists;
 use crate::dd::share_cut::{cut_shares, ShareCut};
 use crate::dd::split::{split, SubProblem};
 use crate::dd::step::{CondensedStep, LocalSystem, StepSetup};
@@ -207,19 +209,28 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
                 })
             })
         });
-        let cut = shares.and_then(|s| timer.time(Phase::Partition, || s.cut(&mpi)));
+        let mut cut = shares.and_then(|s| timer.time(Phase::Partition, || s.cut(&mpi)));
+        let lists = cut.as_mut().and_then(|c| c.lists.take());
         let cut_end = Instant::now();
         let read = reading.map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
         // How long the first rank's reading went on once the ranks had cut.
         let cut = cut.map(|c| (c, cut_end.elapsed().as_secs_f64()));
-        (read, cut)
+        (read, (cut, lists))
     });
+    let (cut, lists) = cut;
     let prepared = read.map(|r| {
         r.and_then(|r| host::on_idle_cores(mpi.node_ranks, || with_graph(r, cut, &timer)))
     });
     mpi.barrier_sleeping();
     let prepared = mpi.agree(prepared.transpose())?;
-    let (setup, subs) = cut_and_split(opts, &mpi, layout, &timer, print, prepared)?;
+    let (setup, subs) = cut_and_split(
+        opts,
+        &mpi,
+        layout,
+        &timer,
+        print,
+        Phase1 { prepared, lists },
+    )?;
 
     // 3. Distribute: the set-up to every rank, every subdomain of a rank on a thread of
     // its own (this one included), then each its subproblem (`run_subdomain`).
@@ -245,15 +256,21 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
 fn run_subdomain(ctx: &Subdomain, subs: Option<Vec<SubProblem>>) -> Result<RunReport> {
     let mpi = ctx.mpi;
     // From the first subdomain, or each its own from the split directory.
+    let own = ctx.setup.own_parts;
     let sub = &ctx.timer.time(Phase::Scatter, || match &ctx.setup.split {
         Some(split) => mpi.agree(split.read_part(mpi.rank)),
+        None if own => mpi.agree(
+            subs.and_then(|mut s| s.pop())
+                .ok_or_else(|| Error::Numerical("internal: a rank has no part of its own".into())),
+        ),
         None => mpi.agree(mpi.scatter_parts(subs)),
     })?;
     ctx.phase_done(
         Phase::Scatter,
-        match ctx.setup.split {
-            Some(_) => format!("{} part(s) read from the split", mpi.size),
-            None => format!("{} part(s) handed out", mpi.size),
+        match (&ctx.setup.split, own) {
+            (Some(_), _) => format!("{} part(s) read from the split", mpi.size),
+            (None, true) => format!("{} part(s) built on their ranks", mpi.size),
+            (None, false) => format!("{} part(s) handed out", mpi.size),
         },
     );
 
@@ -646,6 +663,8 @@ struct Setup {
     interface: InterfaceMode,
     /// Subdomains per rank.
     per_rank: usize,
+    /// Whether each rank built its own part (`dd::dist_split`) instead of receiving it.
+    own_parts: bool,
 }
 
 impl Setup {
@@ -676,6 +695,7 @@ impl Setup {
             ordering: opts.ordering,
             interface: opts.interface.resolved(ranks * per_rank),
             per_rank,
+            own_parts: false,
             case,
         }
     }
@@ -871,8 +891,8 @@ fn with_graph(read: Read, share_cut: Option<(ShareCut, f64)>, timer: &Timer) -> 
 struct ShareParts {
     element_part: Vec<u32>,
     edge_cut: usize,
-    /// Seconds of the ranks' locality order, graph, and cut.
-    seconds: [f64; 3],
+    /// Seconds of the ranks' locality order, graph, cut, and part lists.
+    seconds: [f64; 4],
     /// Seconds the first rank's reading (the mesh put together, the problem) went on
     /// after the ranks had cut, which they did meanwhile.
     read_after: f64,
@@ -907,26 +927,42 @@ struct ToCut {
     cut: Option<ShareParts>,
 }
 
+/// What phase 1 leaves on a rank.
+struct Phase1 {
+    /// The first rank's problem, or its set-up.
+    prepared: Option<Prepared>,
+    /// This rank's part, where the ranks cut the mesh from their shares of the file.
+    lists: Option<PartLists>,
+}
+
 /// Phase 2, collective: the problem the first rank prepared cut into subdomains (by
 /// every rank, or by the first alone, [`Partitioner`]) and split along the cut; returns
-/// the set-up on the first rank and the subproblems it hands out.
+/// the set-up on the first rank, and the subproblems it hands out, or where the ranks
+/// cut the mesh from their shares of the file (`lists`: this rank's part), every
+/// rank's own, built on it.
 fn cut_and_split(
     opts: &Options,
     mpi: &Mpi,
     layout: Layout,
     timer: &Timer,
     print: &Printer,
-    prepared: Option<Prepared>,
+    phase1: Phase1,
 ) -> Result<(Option<Setup>, Option<Vec<SubProblem>>)> {
+    let Phase1 { prepared, lists } = phase1;
     let asked = prepared.as_ref().map(|p| match p {
         Stage::Problem(t) if t.cut.is_none() && opts.partitioner.on_ranks(mpi, t.read.nparts) => {
             Some((t.read.prob.mesh.triangles.len(), t.read.nparts))
         }
         _ => None,
     });
-    let asked = match mpi.size {
-        1 => asked.flatten(),
-        _ => mpi.broadcast(asked)?,
+    // The first rank's lists stand for every rank's: the ranks make them together.
+    let on_ranks = prepared.as_ref().map(|p| {
+        matches!(p, Stage::Problem(t) if t.cut.is_some() && t.read.nparts == mpi.size)
+            && lists.is_some()
+    });
+    let (asked, on_ranks) = match mpi.size {
+        1 => (asked.flatten(), false),
+        _ => mpi.broadcast(asked.zip(on_ranks))?,
     };
     let cut = match asked {
         Some((triangles, nparts)) => {
@@ -943,14 +979,48 @@ fn cut_and_split(
         None => None,
     };
     let done = prepared.map(|p| match p {
-        Stage::Ready(setup) => Ok((*setup, None)),
+        Stage::Ready(setup) => Ok(Err(*setup)),
         Stage::Problem(t) => host::on_idle_cores(mpi.node_ranks, || {
-            split_cut(opts, layout, timer, print, *t, cut)
+            split_cut(*t, cut, on_ranks, layout, timer).map(Ok)
         }),
     });
     mpi.barrier_sleeping();
-    let (setup, subs) = mpi.agree(done.transpose())?.unzip();
-    Ok((setup, subs.flatten()))
+    let done = mpi.agree(done.transpose())?;
+    if !on_ranks {
+        let (setup, subs) = done
+            .map(|d| match d {
+                Err(setup) => (setup, None),
+                Ok(mut d) => {
+                    let subs = match std::mem::replace(&mut d.out, SplitOut::Here(Vec::new())) {
+                        SplitOut::Here(subs) => Some(subs),
+                        SplitOut::OnRanks(..) => None,
+                    };
+                    (d.setup(opts, layout, timer, print), subs)
+                }
+            })
+            .unzip();
+        return Ok((setup, subs.flatten()));
+    }
+    let mut done = done.and_then(|d| d.ok());
+    let (conditions, part_case) = match done.as_mut().map(|d| &mut d.out) {
+        Some(SplitOut::OnRanks(c, on)) => (Some(std::mem::take(c)), Some(*on)),
+        _ => (None, None),
+    };
+    let part_case = mpi.broadcast(part_case)?;
+    let lists = lists.unwrap_or_default();
+    let start = Instant::now();
+    let (sub, map) = timer.time(Phase::Partition, || {
+        dist_split::build(mpi, &lists, conditions, part_case)
+    })?;
+    drop(lists);
+    let built_s = start.elapsed().as_secs_f64();
+    let setup = done.map(|mut d| {
+        d.facts.n_boundary = map.n_boundary;
+        d.facts.n_interface = map.n_interface;
+        d.figure.on_ranks_s = Some(built_s);
+        d.setup(opts, layout, timer, print)
+    });
+    Ok((setup, Some(vec![sub])))
 }
 
 /// The first rank's graph cut into `nparts` parts by PT-Scotch on every rank, each
@@ -1007,15 +1077,15 @@ fn cut_on_ranks(
 const PART_IMBALANCE: f64 = 0.03;
 
 /// The first rank's end of phase 2: the graph cut (here, unless `cut` holds the parts
-/// the ranks found and their seconds), the ownership rules, the split, the set-up.
+/// the ranks found and their seconds), the ownership rules, and the split, here or (with
+/// `on_ranks`) only the conditions that the ranks build their own parts from.
 fn split_cut(
-    opts: &Options,
-    layout: Layout,
-    timer: &Timer,
-    print: &Printer,
     t: ToCut,
     cut: Option<(Vec<u32>, f64)>,
-) -> Result<(Setup, Option<Vec<SubProblem>>)> {
+    on_ranks: bool,
+    layout: Layout,
+    timer: &Timer,
+) -> Result<SplitDone> {
     let ToCut {
         read:
             ReadProblem {
@@ -1032,7 +1102,7 @@ fn split_cut(
     let by_ranks = cut.as_ref().map(|c| c.1);
     let (mut cut_s, mut split_s) = (by_ranks.unwrap_or(0.0), 0.0);
     let shares_s = from_shares.as_ref().map(|c| (c.seconds, c.read_after));
-    let (facts, subs) = timer.time(Phase::Partition, || {
+    let (facts, out) = timer.time(Phase::Partition, || {
         let (element_part, edge_cut) = match (cut, from_shares) {
             (_, Some(c)) => (c.element_part, Some(c.edge_cut)),
             (Some((parts, _)), None) => (parts, None),
@@ -1049,37 +1119,105 @@ fn split_cut(
             element_part,
             edge_cut,
         };
-        let split = split_parts(&case, &prob, &mesh_name, graph, cut);
+        let split = split_parts(&case, &prob, &mesh_name, graph, cut, on_ranks);
         split_s = start.elapsed().as_secs_f64();
         split
     })?;
     let who = match (by_ranks, shares_s) {
-        (_, Some(([order, graph, cut], after))) => {
-            cut_s = order + graph + cut;
+        (_, Some(([order, graph, cut, lists], after))) => {
+            cut_s = order + graph + cut + lists;
             format!(
                 "PT-Scotch on {} ranks from their shares of the file while the first rank \
                  read, which went on {after:.3} s longer: order {order:.3} s, graph \
-                 {graph:.3} s, cut {cut:.3} s",
+                 {graph:.3} s, cut {cut:.3} s, part lists {lists:.3} s",
                 layout.ranks
             )
         }
         (Some(_), None) => format!("PT-Scotch on {} ranks", layout.ranks),
         (None, None) => "the first rank".to_string(),
     };
-    let figure = match nparts {
-        1 => "one subdomain, no partition".to_string(),
-        _ => format!(
-            "graph {graph_s:.3} s, cut {cut_s:.3} s ({who}), split {split_s:.3} s: {}",
-            facts.partition
-        ),
-    };
-    print.line(timer::phase_line(
-        Phase::Partition,
-        timer.seconds(Phase::Partition),
-        &figure,
-    ));
-    let setup = Setup::new(opts, case, facts, None, layout.ranks, per_rank);
-    Ok((setup, Some(subs)))
+    Ok(SplitDone {
+        case,
+        facts,
+        per_rank,
+        out,
+        figure: PartitionFigure {
+            nparts,
+            graph_s,
+            cut_s,
+            who,
+            split_s,
+            on_ranks_s: None,
+        },
+    })
+}
+
+/// What the first rank's end of phase 2 leaves for the set-up.
+struct SplitDone {
+    case: Case,
+    /// The figures of the whole problem; where the ranks build their parts, without the
+    /// counts of boundary and interface dofs, which they find.
+    facts: Facts,
+    per_rank: usize,
+    out: SplitOut,
+    figure: PartitionFigure,
+}
+
+impl SplitDone {
+    /// The set-up, once the partition's line is printed.
+    fn setup(self, opts: &Options, layout: Layout, timer: &Timer, print: &Printer) -> Setup {
+        print.line(timer::phase_line(
+            Phase::Partition,
+            timer.seconds(Phase::Partition),
+            &self.figure.line(&self.facts.partition),
+        ));
+        let own_parts = matches!(self.out, SplitOut::OnRanks(..));
+        let mut setup = Setup::new(
+            opts,
+            self.case,
+            self.facts,
+            None,
+            layout.ranks,
+            self.per_rank,
+        );
+        setup.own_parts = own_parts;
+        setup
+    }
+}
+
+/// The seconds of the partition's line.
+struct PartitionFigure {
+    nparts: usize,
+    graph_s: f64,
+    cut_s: f64,
+    /// Who cut.
+    who: String,
+    split_s: f64,
+    /// The seconds of the ranks' build of their own parts, where they built them.
+    on_ranks_s: Option<f64>,
+}
+
+impl PartitionFigure {
+    fn line(&self, quality: &str) -> String {
+        let PartitionFigure {
+            nparts,
+            graph_s,
+            cut_s,
+            split_s,
+            ..
+        } = *self;
+        let split = match self.on_ranks_s {
+            Some(s) => format!("conditions {split_s:.3} s, parts built on their ranks {s:.3} s"),
+            None => format!("split {split_s:.3} s"),
+        };
+        match nparts {
+            1 => "one subdomain, no partition".to_string(),
+            _ => format!(
+                "graph {graph_s:.3} s, cut {cut_s:.3} s ({}), {split}: {quality}",
+                self.who
+            ),
+        }
+    }
 }
 
 /// Subdomains per rank of a run from `split`: its parts over the ranks, which must
@@ -1158,7 +1296,8 @@ fn split_parts(
     mesh_name: &str,
     graph: partition::MeshGraph,
     cut: Cut,
-) -> Result<(Facts, Vec<SubProblem>)> {
+    on_ranks: bool,
+) -> Result<(Facts, SplitOut)> {
     let (triangles, contact) = (&prob.mesh.triangles, &prob.contact_nodes);
     let Cut {
         nparts,
@@ -1170,12 +1309,26 @@ fn split_parts(
         None => graph.finish(triangles, contact, nparts, element_part),
     }
     .map_err(|e| cannot_partition(mesh_name, e))?;
-    let (subs, map) = split(prob, &part, Problem::is_frictional(case))?;
+    let frictional = Problem::is_frictional(case);
+    let (out, map) = match on_ranks {
+        true => {
+            let conditions = Conditions::of(case, prob, &part)?;
+            let on = PartCase {
+                body_force: case.body_force,
+                frictional,
+            };
+            (SplitOut::OnRanks(conditions, on), None)
+        }
+        false => {
+            let (subs, map) = split(prob, &part, frictional)?;
+            (SplitOut::Here(subs), Some(map))
+        }
+    };
     let facts = Facts {
         lengths: prob.lengths(),
         contact_bodies: prob.contact_bodies.clone(),
-        n_boundary: map.n_boundary,
-        n_interface: map.n_interface,
+        n_boundary: map.as_ref().map_or(0, |m| m.n_boundary),
+        n_interface: map.as_ref().map_or(0, |m| m.n_interface),
         nodes: prob.mesh.num_nodes(),
         elements: prob.mesh.triangles.len(),
         free_dofs: prob.fixed.iter().filter(|f| f.is_none()).count(),
@@ -1183,7 +1336,13 @@ fn split_parts(
         partition: part.quality.to_string(),
         holding: prob.holding.clone(),
     };
-    Ok((facts, subs))
+    Ok((facts, out))
+}
+
+/// The split made by the first rank, or what the ranks build their own parts from.
+enum SplitOut {
+    Here(Vec<SubProblem>),
+    OnRanks(Conditions, PartCase),
 }
 
 /// What `contact-par split` is asked for.
@@ -1248,7 +1407,10 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
                 element_part,
                 edge_cut: None,
             };
-            let (facts, subs) = split_parts(&case, &prob, &mesh_name, graph, cut)?;
+            let (facts, subs) = split_parts(&case, &prob, &mesh_name, graph, cut, false)?;
+            let SplitOut::Here(subs) = subs else {
+                unreachable!("split here")
+            };
             drop(prob);
             let split = split_dir::write(&opts.out, &case, &facts, &subs)?;
             let who = match on_ranks {

@@ -466,11 +466,7 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
     // Summed in the new numbering's triangle order: a node's share of the body force
     // comes from several triangles, and summed in the file's order the load (and the
     // answer, by a rounding) would depend on the order the mesher wrote them in.
-    let mut load = vec![0.0; 2 * n];
-    for t in &case.traction {
-        let lines = line_group(case, &prob.mesh, "traction", &t.group)?;
-        add_edge_traction(&prob.mesh.nodes, lines, t.t, &mut load);
-    }
+    let mut load = traction_load(case, &prob.mesh)?;
     add_body_force(
         &prob.mesh.nodes,
         &prob.mesh.triangles,
@@ -479,6 +475,16 @@ pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
     );
     prob.load = load;
     Ok(prob)
+}
+
+/// The nodal forces of the case's tractions alone, one entry per dof of `mesh`.
+pub fn traction_load(case: &Case, mesh: &Mesh) -> Result<Vec<f64>> {
+    let mut load = vec![0.0; 2 * mesh.num_nodes()];
+    for t in &case.traction {
+        let lines = line_group(case, mesh, "traction", &t.group)?;
+        add_edge_traction(&mesh.nodes, lines, t.t, &mut load);
+    }
+    Ok(load)
 }
 
 /// The contact nodes of every contact (global ids, increasing), their weights and

@@ -21,14 +21,14 @@
 //! OMPI_ALLOW_RUN_AS_ROOT=1 and OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1); each rank then runs
 //! [`child`] only.
 
+mod common;
+
 use contact_par::dd::comm::Mpi;
 use contact_par::dd::{dist_graph, locality, ownership, share_cut};
 use contact_par::mesh::renumber::hilbert_keys;
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
-use std::process::Command;
 
-const CHILD: &str = "DIST_GRAPH_TEST_CHILD";
 const NX: usize = 23;
 const NY: usize = 11;
 
@@ -141,7 +141,7 @@ fn child() {
 
 #[test]
 fn the_dual_graph_built_on_1_to_4_ranks_is_the_serial_one() {
-    on_1_to_4_ranks(
+    common::on_1_to_4_ranks(
         "the_dual_graph_built_on_1_to_4_ranks_is_the_serial_one",
         child,
     );
@@ -149,7 +149,7 @@ fn the_dual_graph_built_on_1_to_4_ranks_is_the_serial_one() {
 
 #[test]
 fn the_locality_order_and_the_cut_of_the_shares_on_1_to_4_ranks() {
-    on_1_to_4_ranks(
+    common::on_1_to_4_ranks(
         "the_locality_order_and_the_cut_of_the_shares_on_1_to_4_ranks",
         locality_child,
     );
@@ -321,32 +321,4 @@ fn locality_child() {
             q.neighbours.iter().map(|(p, n)| (*p, tags(n))).collect();
         assert_eq!(l.neighbours, neighbours, "part {}", l.part);
     }
-}
-
-/// Runs the test `name` on 1, 2, 3 and 4 ranks: each rank runs `child`.
-fn on_1_to_4_ranks(name: &str, child: fn()) {
-    if std::env::var(CHILD).is_ok() {
-        child();
-        return;
-    }
-    let me = std::env::current_exe().unwrap();
-    let tmp = std::env::temp_dir().join(format!("dist-graph-test-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&tmp).unwrap();
-    for np in 1..=4 {
-        let out = Command::new("mpirun")
-            .env("TMPDIR", &tmp)
-            .args(["-n", &np.to_string(), "--oversubscribe"])
-            .arg(&me)
-            .args(["--exact", name, "--nocapture", "--test-threads", "1"])
-            .env(CHILD, "1")
-            .output()
-            .expect("mpirun");
-        assert!(
-            out.status.success(),
-            "{np} ranks: {}\n{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    let _ = std::fs::remove_dir_all(&tmp);
 }

@@ -6,7 +6,8 @@
 //! first rank's METIS cut. Also `contact-par split` on several ranks, which cut
 //! together: runs from its parts give the same answer. And the cut the ranks make from
 //! their shares of a Gmsh file read together (`--mesh-read shared`), before any rank
-//! holds the mesh: ASCII, binary and a shuffled copy, the one-rank answer on 2-4 ranks;
+//! holds the mesh: ASCII, binary and a shuffled copy, the one-rank answer on 2-4 ranks,
+//! each rank then building its own part where it holds one;
 //! two bodies, whose ties only the problem knows, and a file with a repeated triangle,
 //! whose records are not the problem's triangles, are cut on the first rank's graph.
 
@@ -214,6 +215,9 @@ fn check_from_shares(p: &Path, law: Option<Law>, what: &str) {
             let from = format!("PT-Scotch on {np} ranks from their shares of the file");
             assert!(line.contains(&from), "{what}, {np} x {k}: {line}");
             assert!(line.contains(&format!("in {} parts", np * k)), "{line}");
+            // With a part per rank, each rank builds its own (`dd::dist_split`).
+            let built = line.contains("parts built on their ranks");
+            assert_eq!(built, k == 1, "{what}, {np} x {k}: {line}");
             let rows = read_contact(&p.join(&out).join("contact.csv"));
             let name = format!("{what}, 1 vs {np} ranks x {k} from the shares");
             assert_same_columns(&one, &rows, 1e-8, &name);

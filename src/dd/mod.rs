@@ -67,6 +67,7 @@
 pub mod comm;
 pub mod condense;
 pub mod dist_graph;
+pub mod dist_split;
 pub mod full;
 pub mod interface_mumps;
 pub mod local_factor;

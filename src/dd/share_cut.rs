@@ -10,6 +10,7 @@
 //! of a start in which each rank builds its own part of the problem.
 
 use crate::dd::comm::Mpi;
+use crate::dd::ownership::{self, PartLists};
 use crate::dd::{dist_graph, locality};
 use std::time::Instant;
 
@@ -22,9 +23,13 @@ pub struct ShareCut {
     pub nparts: usize,
     /// Edges of the dual graph between two parts.
     pub edge_cut: usize,
-    /// Seconds of the locality order, the graph, and the cut with its count and
-    /// gather.
-    pub seconds: [f64; 3],
+    /// Seconds of the locality order, the graph, the cut with its count and gather,
+    /// and the part lists.
+    pub seconds: [f64; 4],
+    /// This rank's part's lists (`dd::ownership`), where there is one part per rank and
+    /// every node of the triangles is in one share: each rank then builds its own
+    /// subproblem (`dd::dist_split`).
+    pub lists: Option<PartLists>,
 }
 
 /// The triangles of every rank's share (`triangles`: this rank's, as node tags, its
@@ -69,6 +74,18 @@ pub fn cut_shares(
     drop(dual);
     let file = mpi.gather_varcount(&sorted.file, &sorted.counts);
     let gathered = mpi.gather_varcount(&parts, &sorted.counts);
+    let cut_s = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let lists = (nparts == mpi.size)
+        .then(|| {
+            let parts: Vec<u32> = parts.iter().map(|&q| q as u32).collect();
+            let nodes = locality::share_nodes(mpi, tags, coords);
+            let around = ownership::node_parts(mpi, &sorted.triangles, &parts, &nodes)?;
+            let lists =
+                ownership::part_lists(mpi, &sorted.file, &sorted.triangles, &parts, &around, 1);
+            lists.into_iter().next()
+        })
+        .flatten();
     let parts = file.zip(gathered).map(|(file, gathered)| {
         let mut by_file = vec![0u32; total];
         for (&f, &q) in file.iter().zip(&gathered) {
@@ -80,6 +97,7 @@ pub fn cut_shares(
         parts,
         nparts,
         edge_cut,
-        seconds: [order_s, graph_s, start.elapsed().as_secs_f64()],
+        seconds: [order_s, graph_s, cut_s, start.elapsed().as_secs_f64()],
+        lists,
     })
 }

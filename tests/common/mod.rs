@@ -631,3 +631,34 @@ pub fn shuffled_msh41(text: &str, seed: u64) -> String {
     }
     out.join("\n") + "\n"
 }
+
+/// The environment variable that tells a test binary started by [`on_1_to_4_ranks`] that
+/// it is a rank.
+const RANK_CHILD: &str = "CONTACT_PAR_TEST_RANK_CHILD";
+
+/// Runs the test `name` of this test binary on 1, 2, 3 and 4 ranks: the binary starts
+/// itself under `mpirun`, and each rank runs `child` only.
+pub fn on_1_to_4_ranks(name: &str, child: fn()) {
+    if std::env::var(RANK_CHILD).is_ok() {
+        child();
+        return;
+    }
+    let me = std::env::current_exe().unwrap();
+    let tmp = TempDir::new().expect("a session directory");
+    for np in 1..=4 {
+        let out = Command::new("mpirun")
+            .env("TMPDIR", tmp.path())
+            .args(["-n", &np.to_string(), "--oversubscribe"])
+            .arg(&me)
+            .args(["--exact", name, "--nocapture", "--test-threads", "1"])
+            .env(RANK_CHILD, "1")
+            .output()
+            .expect("mpirun");
+        assert!(
+            out.status.success(),
+            "{np} ranks: {}\n{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}

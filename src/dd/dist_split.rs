@@ -1,0 +1,459 @@
+//! Each rank's subproblem built on its own rank, from the lists of its part that the
+//! ranks found from their shares of the mesh file (`dd::ownership::part_lists`) and the
+//! conditions of the part's nodes: the same subproblem as [`super::split::split`]
+//! makes from the whole problem, but for its local numbering, the global numbering of
+//! the interface dofs, and the rounding of the loads.
+//!
+//! Why: the split and the hand-out of the subproblems are otherwise the first rank's,
+//! serial, and sized like the whole mesh (docs/cost-model.md, "The start from one Gmsh
+//! file"); here the first rank sends only the conditions of the boundary nodes, and
+//! each rank builds, numbers and loads its own part.
+//!
+//! Who holds what: the conditions ([`Conditions`]) come from the first rank's problem;
+//! everything sized like a part stays on the part's rank. Contacts between two bodies
+//! (mortar rows, whose master nodes may be ghosts) are not built here: their runs
+//! split on the first rank.
+
+use crate::case::Case;
+use crate::contact::ContactNodes;
+use crate::dd::comm::Mpi;
+use crate::dd::ownership::PartLists;
+use crate::dd::split::{contact_components, in_frame, GlobalMap, SubProblem};
+use crate::error::{Error, Result};
+use crate::fem::assembly::add_body_force;
+use crate::problem::{traction_load, Problem};
+use partition::Partition;
+use serde::{Deserialize, Serialize};
+
+/// A node of a part that carries a condition: what the part's rank cannot know from its
+/// triangles.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NodeRecord {
+    /// The node's index among the file's nodes.
+    pub file: u64,
+    pub fixed: [Option<f64>; 2],
+    /// The nodal force of the tractions, which the node's owner alone applies.
+    pub traction: [f64; 2],
+    pub contact: Option<ContactRecord>,
+}
+
+/// A contact node's geometry against its obstacle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ContactRecord {
+    /// Its place among the problem's contact nodes: each rank keeps its own in this
+    /// order.
+    pub k: u64,
+    pub w: f64,
+    pub g: f64,
+    pub s: f64,
+    pub normal: [f64; 2],
+    pub pair: u32,
+    /// Its separate part of the mesh and its master's (see `ContactNodes::part`).
+    pub part: [u32; 2],
+}
+
+/// What the first rank tells the ranks about the problem beyond the parts' triangles.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Conditions {
+    /// Each part's nodes that carry a condition.
+    pub per_part: Vec<Vec<NodeRecord>>,
+    /// Each triangle's body, in runs over the file's triangle records: (first record of
+    /// the run, body), increasing.
+    pub bodies: Vec<(u64, u32)>,
+}
+
+impl Conditions {
+    /// The conditions of `prob` for the parts of `part`. Refuses a problem with mortar
+    /// rows (see the module's notes).
+    pub fn of(case: &Case, prob: &Problem, part: &Partition) -> Result<Conditions> {
+        if prob.contact_masters.iter().any(|m| !m.is_empty()) {
+            return Err(Error::Numerical(
+                "internal: a contact between two bodies is split on the first rank".into(),
+            ));
+        }
+        let traction = traction_load(case, &prob.mesh)?;
+        let mut contact_k = vec![usize::MAX; prob.mesh.num_nodes()];
+        for (k, &v) in prob.contact_nodes.iter().enumerate() {
+            contact_k[v] = k;
+        }
+        let c = &prob.contact;
+        let record = |v: usize| -> Option<NodeRecord> {
+            let fixed = [prob.fixed[2 * v], prob.fixed[2 * v + 1]];
+            let traction = [traction[2 * v], traction[2 * v + 1]];
+            let contact = (contact_k[v] != usize::MAX).then(|| {
+                let k = contact_k[v];
+                ContactRecord {
+                    k: k as u64,
+                    w: c.w[k],
+                    g: c.g[k],
+                    s: c.s[k],
+                    normal: c.normal[k],
+                    pair: c.pair[k],
+                    part: c.part.get(k).copied().unwrap_or([u32::MAX; 2]),
+                }
+            });
+            let carries =
+                fixed.iter().any(Option::is_some) || traction != [0.0, 0.0] || contact.is_some();
+            carries.then(|| NodeRecord {
+                file: prob.file_node[v] as u64,
+                fixed,
+                traction,
+                contact,
+            })
+        };
+        let per_part = (part.parts.iter())
+            .map(|p| p.nodes.iter().filter_map(|&v| record(v)).collect())
+            .collect();
+        let mut by_file = vec![0u32; prob.file_triangle.len()];
+        for (&f, &b) in prob.file_triangle.iter().zip(&prob.body) {
+            by_file[f] = b;
+        }
+        Ok(Conditions {
+            per_part,
+            bodies: runs(&by_file),
+        })
+    }
+}
+
+/// `values` as runs of equal values: (first index, value).
+fn runs(values: &[u32]) -> Vec<(u64, u32)> {
+    let mut out: Vec<(u64, u32)> = Vec::new();
+    for (i, &v) in values.iter().enumerate() {
+        if out.last().is_none_or(|&(_, b)| b != v) {
+            out.push((i as u64, v));
+        }
+    }
+    out
+}
+
+/// The value of the run holding index `i` of [`runs`].
+fn run_value(runs: &[(u64, u32)], i: u64) -> u32 {
+    let at = runs.partition_point(|&(first, _)| first <= i);
+    runs[at.saturating_sub(1)].1
+}
+
+/// The case's data a part's rank reads to build its subproblem.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PartCase {
+    pub body_force: [f64; 2],
+    pub frictional: bool,
+}
+
+/// One part's subproblem before the global numbering of its interface dofs, with what
+/// that numbering needs.
+#[derive(Debug, Clone)]
+pub struct LocalPart {
+    /// Complete but for the interface dofs, which `boundary_dofs` lacks (it holds the
+    /// contact dofs), and `interface_global`.
+    pub sub: SubProblem,
+    /// Each local node's index among the file's nodes, increasing, with its local id.
+    by_file: Vec<(u64, usize)>,
+}
+
+/// Part `lists`'s subproblem but for its interface numbering ([`LocalPart`]), from the
+/// records of its conditioned nodes (`records`, any order) and the bodies' runs.
+/// Local nodes in the lists' order (by tag), triangles in the file's order and turned
+/// counter-clockwise. Pure.
+pub fn local_part(
+    lists: &PartLists,
+    records: &[NodeRecord],
+    bodies: &[(u64, u32)],
+    case: PartCase,
+) -> Result<LocalPart> {
+    let n = lists.nodes.len();
+    let mut by_file: Vec<(u64, usize)> = lists.file_nodes.iter().copied().zip(0..n).collect();
+    by_file.sort_unstable();
+    let local_of_file = |f: u64| -> Result<usize> {
+        by_file
+            .binary_search_by_key(&f, |x| x.0)
+            .map(|i| by_file[i].1)
+            .map_err(|_| {
+                Error::Numerical(format!(
+                    "internal: part {} received the conditions of node {f}, which it does not hold",
+                    lists.part
+                ))
+            })
+    };
+    let local_of_tag = |t: u64| -> Result<usize> {
+        lists.nodes.binary_search(&t).map_err(|_| {
+            Error::Numerical(format!(
+                "internal: part {} has a triangle on node tag {t}, which it does not hold",
+                lists.part
+            ))
+        })
+    };
+    let nodes = lists.xy.clone();
+    let mut triangles = Vec::with_capacity(lists.triangles.len());
+    for t in &lists.triangles {
+        let mut l = [
+            local_of_tag(t[0])?,
+            local_of_tag(t[1])?,
+            local_of_tag(t[2])?,
+        ];
+        let [a, b, c] = l.map(|v| nodes[v]);
+        if (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]) < 0.0 {
+            l.swap(1, 2);
+        }
+        triangles.push(l);
+    }
+    let mut fixed = vec![None; 2 * n];
+    let mut load = vec![0.0; 2 * n];
+    let mut contact: Vec<(u64, usize, &ContactRecord)> = Vec::new();
+    for r in records {
+        let v = local_of_file(r.file)?;
+        fixed[2 * v] = r.fixed[0];
+        fixed[2 * v + 1] = r.fixed[1];
+        if lists.owned[v] {
+            load[2 * v] += r.traction[0];
+            load[2 * v + 1] += r.traction[1];
+        }
+        if let Some(c) = &r.contact {
+            contact.push((c.k, v, c));
+        }
+    }
+    // Every part adds its own triangles' share: the parts' loads sum to the whole's.
+    add_body_force(&nodes, &triangles, case.body_force, &mut load);
+    contact.sort_unstable_by_key(|c| c.0);
+    let interface: Vec<bool> = {
+        let mut on = vec![false; n];
+        for &t in &lists.interface {
+            on[local_of_tag(t)?] = true;
+        }
+        on
+    };
+    let mut frames = Vec::new();
+    let mut read = vec![[false; 2]; n];
+    for &(_, v, c) in &contact {
+        let held = [fixed[2 * v].is_some(), fixed[2 * v + 1].is_some()];
+        if in_frame(case.frictional, c.normal, held) {
+            frames.push((v, c.normal));
+            read[v] = [true, false];
+        } else {
+            read[v] = contact_components(case.frictional, c.normal);
+        }
+    }
+    frames.sort_unstable_by_key(|f| f.0);
+    // The own contact nodes' free dofs that no other part touches; the interface's come
+    // with their global numbers.
+    let mut boundary_dofs = Vec::new();
+    for v in 0..n {
+        for c in 0..2 {
+            if read[v][c] && !interface[v] && fixed[2 * v + c].is_none() {
+                boundary_dofs.push(2 * v + c);
+            }
+        }
+    }
+    let owned_contact: Vec<&(u64, usize, &ContactRecord)> =
+        contact.iter().filter(|c| lists.owned[c.1]).collect();
+    let contact_nodes = ContactNodes {
+        w: owned_contact.iter().map(|c| c.2.w).collect(),
+        g: owned_contact.iter().map(|c| c.2.g).collect(),
+        s: owned_contact.iter().map(|c| c.2.s).collect(),
+        normal: owned_contact.iter().map(|c| c.2.normal).collect(),
+        pair: owned_contact.iter().map(|c| c.2.pair).collect(),
+        friction: Vec::new(),
+        fixed_threshold: Vec::new(),
+        part: owned_contact.iter().map(|c| c.2.part).collect(),
+    };
+    let sub = SubProblem {
+        rank: lists.part as usize,
+        global_nodes: lists.file_nodes.iter().map(|&f| f as usize).collect(),
+        nodes,
+        body: (lists.elements.iter())
+            .map(|&e| run_value(bodies, e))
+            .collect(),
+        triangles,
+        owned: lists.owned.clone(),
+        fixed,
+        load,
+        contact_nodes: owned_contact.iter().map(|c| c.1).collect(),
+        contact: contact_nodes,
+        n_contact_dofs: boundary_dofs.len(),
+        boundary_dofs,
+        interface_global: Vec::new(),
+        interface_nodes: lists.interface.len(),
+        frames,
+        contact_masters: vec![Vec::new(); owned_contact.len()],
+        ghosts: 0,
+    };
+    Ok(LocalPart { sub, by_file })
+}
+
+/// The free dofs of the interface nodes that `part` owns, by increasing file index then
+/// component: (local node, component).
+fn owned_interface_dofs(part: &LocalPart, lists: &PartLists) -> Vec<(usize, usize)> {
+    let sub = &part.sub;
+    let on_interface = |v: usize| lists.interface.binary_search(&lists.nodes[v]).is_ok();
+    (part.by_file.iter())
+        .map(|&(_, v)| v)
+        .filter(|&v| sub.owned[v] && on_interface(v))
+        .flat_map(|v| [(v, 0), (v, 1)])
+        .filter(|&(v, c)| sub.fixed[2 * v + c].is_none())
+        .collect()
+}
+
+/// Each rank's subproblems (one part per rank: part q on rank q) from its part's
+/// `lists` and the first rank's `conditions`, with the global map. The interface dofs
+/// are numbered part after part, each part's by file index and component; each part
+/// tells its neighbours the numbers of the shared nodes it owns. Collective.
+pub fn build(
+    mpi: &Mpi,
+    lists: &PartLists,
+    conditions: Option<Conditions>,
+    case: PartCase,
+) -> Result<(SubProblem, GlobalMap)> {
+    let p = mpi.size;
+    let (records, bodies) = match conditions {
+        Some(c) => (Some(c.per_part), Some(c.bodies)),
+        None => (None, None),
+    };
+    let records: Vec<NodeRecord> = mpi.scatter_parts(records)?;
+    let bodies: Vec<(u64, u32)> = match p {
+        1 => bodies.unwrap_or_default(),
+        _ => mpi.broadcast(bodies)?,
+    };
+    let part = mpi.agree(local_part(lists, &records, &bodies, case))?;
+    drop(records);
+
+    let own = owned_interface_dofs(&part, lists);
+    let counts = mpi.all_gather_counts(own.len());
+    let first: usize = counts[..mpi.rank].iter().sum();
+    let n_interface: usize = counts.iter().sum();
+    let n = part.sub.nodes.len();
+    let mut number = vec![[u64::MAX; 2]; n];
+    for (i, &(v, c)) in own.iter().enumerate() {
+        number[v][c] = (first + i) as u64;
+    }
+    // To each neighbour, the numbers of the shared nodes this part owns: tag, x, y.
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
+    for (q, tags) in &lists.neighbours {
+        for &t in tags {
+            let v = lists.nodes.binary_search(&t).map_err(|_| {
+                Error::Numerical(format!(
+                    "internal: a shared node tag {t} is not in its part"
+                ))
+            })?;
+            if part.sub.owned[v] {
+                send[*q as usize].extend_from_slice(&[t, number[v][0], number[v][1]]);
+            }
+        }
+    }
+    for got in mpi.exchange(send) {
+        for r in got.chunks_exact(3) {
+            if let Ok(v) = lists.nodes.binary_search(&r[0]) {
+                number[v] = [r[1], r[2]];
+            }
+        }
+    }
+    let mut sub = part.sub;
+    let mut interface: Vec<(usize, usize)> = Vec::new();
+    let mut missing = false;
+    for &t in &lists.interface {
+        let v = lists.nodes.binary_search(&t).unwrap_or(usize::MAX);
+        for c in 0..2 {
+            if v == usize::MAX {
+                missing = true;
+            } else if sub.fixed[2 * v + c].is_none() {
+                match number[v][c] {
+                    u64::MAX => missing = true,
+                    b => interface.push((b as usize, 2 * v + c)),
+                }
+            }
+        }
+    }
+    if !mpi.all_ok(!missing) {
+        return Err(Error::Numerical(
+            "internal: an interface dof has no global number".into(),
+        ));
+    }
+    interface.sort_unstable();
+    let (global, dofs): (Vec<usize>, Vec<usize>) = interface.into_iter().unzip();
+    sub.interface_global = global;
+    sub.boundary_dofs.extend(dofs);
+    let contact_counts = mpi.all_gather_counts(sub.contact_nodes.len());
+    let contact_dofs: usize = mpi.all_gather_counts(sub.n_contact_dofs).iter().sum();
+    Ok((
+        sub,
+        GlobalMap {
+            n_interface,
+            n_boundary: n_interface + contact_dofs,
+            contact_counts,
+        },
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_find_the_value_of_every_index() {
+        let values = [0, 0, 1, 1, 1, 0, 2];
+        let r = runs(&values);
+        assert_eq!(r, vec![(0, 0), (2, 1), (5, 0), (6, 2)]);
+        for (i, &v) in values.iter().enumerate() {
+            assert_eq!(run_value(&r, i as u64), v);
+        }
+    }
+
+    /// Two triangles of the unit square, one listed clockwise; the part holds them both
+    /// and owns every node; a contact node and a fixed node.
+    #[test]
+    fn a_part_turns_its_triangles_and_keeps_its_conditions() {
+        let lists = PartLists {
+            part: 0,
+            elements: vec![0, 1],
+            triangles: vec![[10, 20, 30], [10, 40, 30]],
+            nodes: vec![10, 20, 30, 40],
+            file_nodes: vec![3, 2, 1, 0],
+            xy: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            owned: vec![true; 4],
+            interface: Vec::new(),
+            neighbours: Vec::new(),
+        };
+        let records = vec![
+            NodeRecord {
+                file: 2,
+                fixed: [None, None],
+                traction: [0.0, 1.0],
+                contact: Some(ContactRecord {
+                    k: 0,
+                    w: 0.5,
+                    g: 0.0,
+                    s: 1.0,
+                    normal: [0.0, 1.0],
+                    pair: 0,
+                    part: [0, u32::MAX],
+                }),
+            },
+            NodeRecord {
+                file: 3,
+                fixed: [Some(0.0), Some(0.0)],
+                traction: [0.0, 0.0],
+                contact: None,
+            },
+        ];
+        let case = PartCase {
+            body_force: [0.0, -3.0],
+            frictional: false,
+        };
+        let part = local_part(&lists, &records, &[(0, 0), (1, 1)], case).expect("a part");
+        let sub = &part.sub;
+        assert_eq!(sub.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(sub.body, vec![0, 1]);
+        assert_eq!(sub.fixed[0..2], [Some(0.0), Some(0.0)]);
+        assert_eq!(sub.contact_nodes, vec![1]);
+        // Frictionless along y: only uy is read.
+        assert_eq!(sub.boundary_dofs, vec![3]);
+        assert_eq!(sub.n_contact_dofs, 1);
+        // Body force: area 1 shared among 6 corners.
+        let total: f64 = sub.load.iter().skip(1).step_by(2).sum();
+        assert!((total - (1.0 - 3.0)).abs() < 1e-15, "{total}");
+        // A record of a node the part does not hold is an internal fault.
+        let stray = NodeRecord {
+            file: 9,
+            ..records[1].clone()
+        };
+        assert!(local_part(&lists, &[stray], &[(0, 0)], case).is_err());
+    }
+}
