@@ -15,7 +15,9 @@ first rank's seconds alone over the whole run's. With `--partitioner ptscotch` t
 cut is made by every rank (from their shares of the file) while the first rank puts the
 mesh together and builds the problem: the cut's seconds, named on the partition line,
 are not the first rank's alone, and of the assembly and the problem only the seconds
-they went on after the cut (`read_after_s`, also on the partition line) are.
+they went on after the cut (`read_after_s`, also on the partition line) are; nor are
+those of the parts that each rank then builds for itself (`ranks_build_s`, "parts built
+on their ranks" on the partition line).
 
 With --split-parts (e.g. 2,64,512), `contact-par split --parts P` also runs on one core
 (read, problem, partition into P parts, the part files written): its seconds and peak
@@ -42,11 +44,13 @@ READ = re.compile(
 PHASE = re.compile(r"^(\w+)\s+done in\s+([\d.]+) s")
 RANKS_CUT = re.compile(r"^partition done in .*?, cut ([\d.]+) s \(PT-Scotch on ")
 READ_AFTER = re.compile(r"which went on ([\d.]+) s longer")
+RANKS_BUILD = re.compile(r"parts built on their ranks ([\d.]+) s")
 TOTAL = re.compile(r"^total\s+([\d.]+)")
 
 FIELDS = [
     "case", "nodes", "triangles", "ranks", "bind", "cores", "runs",
-    "scan_s", "shares_s", "assembly_s", "problem_s", "partition_s", "ranks_cut_s", "read_after_s", "scatter_s",
+    "scan_s", "shares_s", "assembly_s", "problem_s", "partition_s", "ranks_cut_s", "ranks_build_s",
+    "read_after_s", "scatter_s",
     "alone_s", "total_s", "serial_share", "rank0_peak_bytes", "other_peak_bytes",
 ]
 
@@ -64,7 +68,7 @@ def one_run(binary, case, ranks, bind, out, partitioner):
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"start_study: {' '.join(cmd)} failed:\n{p.stderr}")
-    row = {"ranks_cut_s": 0.0, "read_after_s": None}
+    row = {"ranks_cut_s": 0.0, "ranks_build_s": 0.0, "read_after_s": None}
     for line in p.stdout.splitlines():
         m = RANKS_CUT.match(line)
         if m:
@@ -72,6 +76,9 @@ def one_run(binary, case, ranks, bind, out, partitioner):
         m = READ_AFTER.search(line)
         if m:
             row["read_after_s"] = float(m.group(1))
+        m = RANKS_BUILD.search(line)
+        if m:
+            row["ranks_build_s"] = float(m.group(1))
         m = READ.match(line)
         if m:
             _, nodes, tris, together, alone, scan, assembly, problem = m.groups()
@@ -99,7 +106,7 @@ def one_run(binary, case, ranks, bind, out, partitioner):
         row["read_after_s"] = row["assembly_s"] + row["problem_s"]
     row["alone_s"] = sum(row[k] for k in
                          ("scan_s", "read_after_s", "partition_s", "scatter_s"))
-    row["alone_s"] -= row["ranks_cut_s"]
+    row["alone_s"] -= row["ranks_cut_s"] + row["ranks_build_s"]
     return row
 
 
@@ -142,13 +149,13 @@ def main():
         for r in rows:
             w.writerow({k: r[k] for k in FIELDS})
     print("| case | nodes | cores of the first rank | scan | assembly | problem | partition "
-          "| of it, the ranks' cut | assembly and problem after the cut | scatter | alone "
+          "| of it, the ranks' cut and build | assembly and problem after the cut | scatter | alone "
           "| shares (all ranks) | total | serial share | peak rank 0 / others (MB) |")
     print("| --- " * 15 + "|")
     for r in rows:
         print(f"| {r['case']} | {r['nodes']} | {r['cores']} | {r['scan_s']:.3f} | "
               f"{r['assembly_s']:.3f} | {r['problem_s']:.3f} | {r['partition_s']:.3f} | "
-              f"{r['ranks_cut_s']:.3f} | {r['read_after_s']:.3f} | "
+              f"{r['ranks_cut_s'] + r['ranks_build_s']:.3f} | {r['read_after_s']:.3f} | "
               f"{r['scatter_s']:.3f} | {r['alone_s']:.3f} | {r['shares_s']:.3f} | "
               f"{r['total_s']:.3f} | {100 * r['serial_share']:.1f}% | "
               f"{r['rank0_peak_bytes'] / 1e6:.0f} / {r['other_peak_bytes'] / 1e6:.0f} |")

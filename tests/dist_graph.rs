@@ -255,7 +255,10 @@ fn locality_child() {
     let part_of = |f: usize| (f * nparts / all.len()) as u32;
     let parts: Vec<u32> = sorted.file.iter().map(|&f| part_of(f as usize)).collect();
     let share = locality::share_nodes(&mpi, &tags, &coords);
-    let around = ownership::node_parts(&mpi, &sorted.triangles, &parts, &share).expect("nodes");
+    let known = locality::directory(&mpi, &share).expect("a directory");
+    // The directory the order was found with is the same.
+    assert_eq!(sorted.nodes, known);
+    let around = ownership::node_parts(&mpi, &sorted.triangles, &parts, &known).expect("nodes");
     let element_part: Vec<u32> = (0..all.len()).map(part_of).collect();
     let serial = partition::partition_from_element_parts(nodes, &all, &[], nparts, element_part)
         .expect("a partition");
@@ -288,13 +291,13 @@ fn locality_child() {
     let bad_tris: Vec<[u64; 3]> = (sorted.triangles.iter().enumerate())
         .map(|(i, t)| if i == 0 { [t[0], t[1], 5_000_000] } else { *t })
         .collect();
-    assert!(ownership::node_parts(&mpi, &bad_tris, &parts, &share).is_none());
+    assert!(ownership::node_parts(&mpi, &bad_tris, &parts, &known).is_none());
 
     // Each rank's two parts, on their rank: the partition crate's lists of each.
     let nparts = 2 * size;
     let part_of = |f: usize| (f * nparts / all.len()) as u32;
     let parts: Vec<u32> = sorted.file.iter().map(|&f| part_of(f as usize)).collect();
-    let around = ownership::node_parts(&mpi, &sorted.triangles, &parts, &share).expect("nodes");
+    let around = ownership::node_parts(&mpi, &sorted.triangles, &parts, &known).expect("nodes");
     let lists = ownership::part_lists(&mpi, &sorted.file, &sorted.triangles, &parts, &around, 2);
     let element_part: Vec<u32> = (0..all.len()).map(part_of).collect();
     let serial = partition::partition_from_element_parts(nodes, &all, &[], nparts, element_part)

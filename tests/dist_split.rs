@@ -127,7 +127,8 @@ fn check(mpi: &Mpi, name: &str, case: &Case) {
         .flat_map(|p| [p[0], p[1], 0.0])
         .collect();
     let share = locality::share_nodes(mpi, &tags, &coords);
-    let around = ownership::node_parts(mpi, &triangles, &parts, &share).expect("the nodes");
+    let known = locality::directory(mpi, &share).expect("a directory");
+    let around = ownership::node_parts(mpi, &triangles, &parts, &known).expect("the nodes");
     let lists = ownership::part_lists(mpi, &file, &triangles, &parts, &around, 1);
     let conditions = (rank == 0).then(|| Conditions::of(case, &prob, &part).expect("conditions"));
     let on = PartCase {

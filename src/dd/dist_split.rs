@@ -21,8 +21,10 @@ use crate::dd::ownership::PartLists;
 use crate::dd::split::{contact_components, in_frame, GlobalMap, SubProblem};
 use crate::error::{Error, Result};
 use crate::fem::assembly::add_body_force;
+use crate::mesh::renumber;
 use crate::problem::{traction_load, Problem};
 use partition::Partition;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// A node of a part that carries a condition: what the part's rank cannot know from its
@@ -146,13 +148,19 @@ pub struct LocalPart {
     /// Complete but for the interface dofs, which `boundary_dofs` lacks (it holds the
     /// contact dofs), and `interface_global`.
     pub sub: SubProblem,
+    /// Each node of the lists' (by tag): its local id.
+    of_list: Vec<usize>,
     /// Each local node's index among the file's nodes, increasing, with its local id.
     by_file: Vec<(u64, usize)>,
+    /// Whether each local node is on the interface.
+    on_interface: Vec<bool>,
 }
 
 /// Part `lists`'s subproblem but for its interface numbering ([`LocalPart`]), from the
 /// records of its conditioned nodes (`records`, any order) and the bodies' runs.
-/// Local nodes in the lists' order (by tag), triangles in the file's order and turned
+/// Nodes in the Hilbert order of their coordinates and triangles in the order of their
+/// nodes, as the first rank numbers the whole problem (`problem::build`), so that the
+/// assembly walks memory in order whatever the file's order; triangles turned
 /// counter-clockwise. Pure.
 pub fn local_part(
     lists: &PartLists,
@@ -161,7 +169,12 @@ pub fn local_part(
     case: PartCase,
 ) -> Result<LocalPart> {
     let n = lists.nodes.len();
-    let mut by_file: Vec<(u64, usize)> = lists.file_nodes.iter().copied().zip(0..n).collect();
+    let box_ = renumber::bounding_box(&lists.xy);
+    let list_of = renumber::sorted_order(&renumber::hilbert_keys(&lists.xy, box_));
+    let of_list = renumber::inverse(&list_of);
+    let mut by_file: Vec<(u64, usize)> = (lists.file_nodes.iter().copied())
+        .zip(of_list.iter().copied())
+        .collect();
     by_file.sort_unstable();
     let local_of_file = |f: u64| -> Result<usize> {
         by_file
@@ -175,27 +188,51 @@ pub fn local_part(
             })
     };
     let local_of_tag = |t: u64| -> Result<usize> {
-        lists.nodes.binary_search(&t).map_err(|_| {
-            Error::Numerical(format!(
-                "internal: part {} has a triangle on node tag {t}, which it does not hold",
-                lists.part
-            ))
-        })
+        lists
+            .nodes
+            .binary_search(&t)
+            .map(|i| of_list[i])
+            .map_err(|_| {
+                Error::Numerical(format!(
+                    "internal: part {} has a triangle on node tag {t}, which it does not hold",
+                    lists.part
+                ))
+            })
     };
-    let nodes = lists.xy.clone();
-    let mut triangles = Vec::with_capacity(lists.triangles.len());
-    for t in &lists.triangles {
-        let mut l = [
-            local_of_tag(t[0])?,
-            local_of_tag(t[1])?,
-            local_of_tag(t[2])?,
-        ];
+    let nodes: Vec<[f64; 2]> = list_of.iter().map(|&i| lists.xy[i]).collect();
+    let owned: Vec<bool> = list_of.iter().map(|&i| lists.owned[i]).collect();
+    // The corners' local ids by one sort of the corners and a walk along the sorted
+    // tags: a search per corner took most of this function on a million triangles.
+    let mut corners: Vec<(u64, usize)> = (lists.triangles.par_iter().enumerate())
+        .flat_map_iter(|(i, t)| (0..3).map(move |c| (t[c], 3 * i + c)))
+        .collect();
+    corners.par_sort_unstable();
+    let mut corner = vec![0usize; corners.len()];
+    let mut at = 0;
+    for (tag, slot) in corners {
+        while at < n && lists.nodes[at] < tag {
+            at += 1;
+        }
+        if at == n || lists.nodes[at] != tag {
+            local_of_tag(tag)?;
+        }
+        corner[slot] = of_list[at];
+    }
+    let mut listed = Vec::with_capacity(lists.triangles.len());
+    for c in corner.chunks_exact(3) {
+        let mut l = [c[0], c[1], c[2]];
         let [a, b, c] = l.map(|v| nodes[v]);
         if (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]) < 0.0 {
             l.swap(1, 2);
         }
-        triangles.push(l);
+        listed.push(l);
     }
+    let order = renumber::order_by_nodes(&listed, n);
+    let triangles: Vec<[usize; 3]> = order.iter().map(|&t| listed[t]).collect();
+    let body: Vec<u32> = (order.iter())
+        .map(|&t| run_value(bodies, lists.elements[t]))
+        .collect();
+    drop(listed);
     let mut fixed = vec![None; 2 * n];
     let mut load = vec![0.0; 2 * n];
     let mut contact: Vec<(u64, usize, &ContactRecord)> = Vec::new();
@@ -203,7 +240,7 @@ pub fn local_part(
         let v = local_of_file(r.file)?;
         fixed[2 * v] = r.fixed[0];
         fixed[2 * v + 1] = r.fixed[1];
-        if lists.owned[v] {
+        if owned[v] {
             load[2 * v] += r.traction[0];
             load[2 * v + 1] += r.traction[1];
         }
@@ -214,13 +251,10 @@ pub fn local_part(
     // Every part adds its own triangles' share: the parts' loads sum to the whole's.
     add_body_force(&nodes, &triangles, case.body_force, &mut load);
     contact.sort_unstable_by_key(|c| c.0);
-    let interface: Vec<bool> = {
-        let mut on = vec![false; n];
-        for &t in &lists.interface {
-            on[local_of_tag(t)?] = true;
-        }
-        on
-    };
+    let mut on_interface = vec![false; n];
+    for &t in &lists.interface {
+        on_interface[local_of_tag(t)?] = true;
+    }
     let mut frames = Vec::new();
     let mut read = vec![[false; 2]; n];
     for &(_, v, c) in &contact {
@@ -238,13 +272,13 @@ pub fn local_part(
     let mut boundary_dofs = Vec::new();
     for v in 0..n {
         for c in 0..2 {
-            if read[v][c] && !interface[v] && fixed[2 * v + c].is_none() {
+            if read[v][c] && !on_interface[v] && fixed[2 * v + c].is_none() {
                 boundary_dofs.push(2 * v + c);
             }
         }
     }
     let owned_contact: Vec<&(u64, usize, &ContactRecord)> =
-        contact.iter().filter(|c| lists.owned[c.1]).collect();
+        contact.iter().filter(|c| owned[c.1]).collect();
     let contact_nodes = ContactNodes {
         w: owned_contact.iter().map(|c| c.2.w).collect(),
         g: owned_contact.iter().map(|c| c.2.g).collect(),
@@ -257,13 +291,14 @@ pub fn local_part(
     };
     let sub = SubProblem {
         rank: lists.part as usize,
-        global_nodes: lists.file_nodes.iter().map(|&f| f as usize).collect(),
-        nodes,
-        body: (lists.elements.iter())
-            .map(|&e| run_value(bodies, e))
+        global_nodes: list_of
+            .iter()
+            .map(|&i| lists.file_nodes[i] as usize)
             .collect(),
+        nodes,
+        body,
         triangles,
-        owned: lists.owned.clone(),
+        owned,
         fixed,
         load,
         contact_nodes: owned_contact.iter().map(|c| c.1).collect(),
@@ -276,17 +311,21 @@ pub fn local_part(
         contact_masters: vec![Vec::new(); owned_contact.len()],
         ghosts: 0,
     };
-    Ok(LocalPart { sub, by_file })
+    Ok(LocalPart {
+        sub,
+        of_list,
+        by_file,
+        on_interface,
+    })
 }
 
 /// The free dofs of the interface nodes that `part` owns, by increasing file index then
 /// component: (local node, component).
-fn owned_interface_dofs(part: &LocalPart, lists: &PartLists) -> Vec<(usize, usize)> {
+fn owned_interface_dofs(part: &LocalPart) -> Vec<(usize, usize)> {
     let sub = &part.sub;
-    let on_interface = |v: usize| lists.interface.binary_search(&lists.nodes[v]).is_ok();
     (part.by_file.iter())
         .map(|&(_, v)| v)
-        .filter(|&v| sub.owned[v] && on_interface(v))
+        .filter(|&v| sub.owned[v] && part.on_interface[v])
         .flat_map(|v| [(v, 0), (v, 1)])
         .filter(|&(v, c)| sub.fixed[2 * v + c].is_none())
         .collect()
@@ -315,7 +354,7 @@ pub fn build(
     let part = mpi.agree(local_part(lists, &records, &bodies, case))?;
     drop(records);
 
-    let own = owned_interface_dofs(&part, lists);
+    let own = owned_interface_dofs(&part);
     let counts = mpi.all_gather_counts(own.len());
     let first: usize = counts[..mpi.rank].iter().sum();
     let n_interface: usize = counts.iter().sum();
@@ -324,11 +363,12 @@ pub fn build(
     for (i, &(v, c)) in own.iter().enumerate() {
         number[v][c] = (first + i) as u64;
     }
+    let local_of_tag = |t: u64| lists.nodes.binary_search(&t).ok().map(|i| part.of_list[i]);
     // To each neighbour, the numbers of the shared nodes this part owns: tag, x, y.
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
     for (q, tags) in &lists.neighbours {
         for &t in tags {
-            let v = lists.nodes.binary_search(&t).map_err(|_| {
+            let v = local_of_tag(t).ok_or_else(|| {
                 Error::Numerical(format!(
                     "internal: a shared node tag {t} is not in its part"
                 ))
@@ -340,20 +380,19 @@ pub fn build(
     }
     for got in mpi.exchange(send) {
         for r in got.chunks_exact(3) {
-            if let Ok(v) = lists.nodes.binary_search(&r[0]) {
+            if let Some(v) = local_of_tag(r[0]) {
                 number[v] = [r[1], r[2]];
             }
         }
     }
-    let mut sub = part.sub;
     let mut interface: Vec<(usize, usize)> = Vec::new();
     let mut missing = false;
     for &t in &lists.interface {
-        let v = lists.nodes.binary_search(&t).unwrap_or(usize::MAX);
+        let v = local_of_tag(t).unwrap_or(usize::MAX);
         for c in 0..2 {
             if v == usize::MAX {
                 missing = true;
-            } else if sub.fixed[2 * v + c].is_none() {
+            } else if part.sub.fixed[2 * v + c].is_none() {
                 match number[v][c] {
                     u64::MAX => missing = true,
                     b => interface.push((b as usize, 2 * v + c)),
@@ -361,6 +400,7 @@ pub fn build(
             }
         }
     }
+    let mut sub = part.sub;
     if !mpi.all_ok(!missing) {
         return Err(Error::Numerical(
             "internal: an interface dof has no global number".into(),
@@ -439,14 +479,30 @@ mod tests {
         };
         let part = local_part(&lists, &records, &[(0, 0), (1, 1)], case).expect("a part");
         let sub = &part.sub;
-        assert_eq!(sub.triangles, vec![[0, 1, 2], [0, 2, 3]]);
-        assert_eq!(sub.body, vec![0, 1]);
-        assert_eq!(sub.fixed[0..2], [Some(0.0), Some(0.0)]);
-        assert_eq!(sub.contact_nodes, vec![1]);
+        let local = |f: usize| sub.global_nodes.iter().position(|&g| g == f).unwrap();
+        let area2 = |t: &[usize; 3]| {
+            let [a, b, c] = t.map(|v| sub.nodes[v]);
+            (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+        };
+        let mut by_file: Vec<([usize; 3], u32)> = (sub.triangles.iter().zip(&sub.body))
+            .map(|(t, &b)| {
+                assert!(area2(t) > 0.0, "{t:?} counter-clockwise");
+                let mut f = t.map(|v| sub.global_nodes[v]);
+                f.sort_unstable();
+                (f, b)
+            })
+            .collect();
+        by_file.sort_unstable();
+        // Tags 10, 20, 30, 40 are file nodes 3, 2, 1, 0.
+        assert_eq!(by_file, vec![([0, 1, 3], 1), ([1, 2, 3], 0)]);
+        let (c, f) = (local(2), local(3));
+        assert_eq!(sub.nodes[c], [1.0, 0.0]);
+        assert_eq!(sub.fixed[2 * f..2 * f + 2], [Some(0.0), Some(0.0)]);
+        assert_eq!(sub.contact_nodes, vec![c]);
         // Frictionless along y: only uy is read.
-        assert_eq!(sub.boundary_dofs, vec![3]);
+        assert_eq!(sub.boundary_dofs, vec![2 * c + 1]);
         assert_eq!(sub.n_contact_dofs, 1);
-        // Body force: area 1 shared among 6 corners.
+        // Body force: area 1 shared among 6 corners; the traction at the contact node.
         let total: f64 = sub.load.iter().skip(1).step_by(2).sum();
         assert!((total - (1.0 - 3.0)).abs() < 1e-15, "{total}");
         // A record of a node the part does not hold is an internal fault.

@@ -26,7 +26,7 @@ use crate::mesh::renumber::hilbert_keys;
 use rayon::prelude::*;
 
 /// This rank's range of the triangles in the locality order.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Sorted {
     /// The position of this rank's first triangle in the order.
     pub first: u64,
@@ -36,6 +36,54 @@ pub struct Sorted {
     pub triangles: Vec<[u64; 3]>,
     /// Each triangle's index among the file's triangle records (0 for the first).
     pub file: Vec<u64>,
+    /// This rank's share of the nodes' directory, which the order was found with.
+    pub nodes: Directory,
+}
+
+/// This rank's share of the nodes' directory: the nodes whose tags [`tag_rank`] names
+/// this rank, by increasing tag, each with its index among the file's nodes and its
+/// x, y.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Directory {
+    pub tags: Vec<u64>,
+    pub file: Vec<u64>,
+    pub xy: Vec<[f64; 2]>,
+}
+
+impl Directory {
+    /// From entries (tag, file index, x bits, y bits, ...) sorted by tag; `None` where
+    /// a tag comes twice.
+    fn of<const W: usize>(entries: &[[u64; W]], file: usize) -> Option<Self> {
+        if entries.windows(2).any(|w| w[0][0] == w[1][0]) {
+            return None;
+        }
+        Some(Directory {
+            tags: entries.iter().map(|e| e[0]).collect(),
+            file: entries.iter().map(|e| e[file]).collect(),
+            xy: (entries.iter())
+                .map(|e| [f64::from_bits(e[file + 1]), f64::from_bits(e[file + 2])])
+                .collect(),
+        })
+    }
+}
+
+/// The directory of the ranks' shares of the nodes ([`share_nodes`]); `None` on every
+/// rank where a tag is held twice. One all-to-all. Collective; one subdomain per rank.
+pub fn directory(mpi: &Mpi, nodes: &ShareNodes) -> Option<Directory> {
+    let p = mpi.size;
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
+    for (k, (&tag, xy)) in nodes.tags.iter().zip(&nodes.xy).enumerate() {
+        let at = nodes.first + k as u64;
+        send[tag_rank(tag, p)].extend_from_slice(&[tag, at, xy[0].to_bits(), xy[1].to_bits()]);
+    }
+    let mut known: Vec<[u64; 4]> = (mpi.exchange(send).iter())
+        .flat_map(|v| v.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]))
+        .collect();
+    known.par_sort_unstable_by_key(|e| e[0]);
+    let directory = Directory::of(&known, 1);
+    mpi.all_ok(directory.is_some())
+        .then_some(directory)
+        .flatten()
 }
 
 /// The rank of `procs` that holds node `tag` in the directory: a mix of the tag
@@ -98,20 +146,24 @@ pub fn sort_triangles(
     let (file_first, triangles) = balanced(mpi, triangles);
     let tags = tags_of_coordinates(mpi, tags, coords.len() / 3);
 
-    // The directory: each node's key on the rank its tag names.
+    // The directory: each node's key, file index and x, y on the rank its tag names.
     let points: Vec<[f64; 2]> = coords.chunks_exact(3).map(|c| [c[0], c[1]]).collect();
     let keys = hilbert_keys(&points, bbox);
-    drop(points);
+    let node_first = mpi.all_gather_counts(points.len())[..mpi.rank]
+        .iter()
+        .sum::<usize>() as u64;
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
-    for (&t, &k) in tags.iter().zip(&keys) {
-        send[tag_rank(t, p)].extend_from_slice(&[t, k]);
+    for (i, ((&t, &k), xy)) in tags.iter().zip(&keys).zip(&points).enumerate() {
+        let at = node_first + i as u64;
+        send[tag_rank(t, p)].extend_from_slice(&[t, k, at, xy[0].to_bits(), xy[1].to_bits()]);
     }
-    drop(keys);
-    let mut directory: Vec<[u64; 2]> = (mpi.exchange(send).iter())
-        .flat_map(|v| v.chunks_exact(2).map(|c| [c[0], c[1]]))
+    drop((keys, points));
+    let mut directory: Vec<[u64; 5]> = (mpi.exchange(send).iter())
+        .flat_map(|v| v.chunks_exact(5).map(|c| [c[0], c[1], c[2], c[3], c[4]]))
         .collect();
     directory.par_sort_unstable_by_key(|e| e[0]);
-    let mut ok = directory.windows(2).all(|w| w[0][0] != w[1][0]);
+    let nodes = Directory::of(&directory, 2);
+    let mut ok = nodes.is_some();
 
     // A triangle's key is its first node's: the triangles around a node go together,
     // and one node per triangle is asked for (once per node). The first nodes sorted
@@ -196,6 +248,7 @@ pub fn sort_triangles(
         counts,
         triangles: mine.iter().map(|r| [r[2], r[3], r[4]]).collect(),
         file: mine.iter().map(|r| r[1]).collect(),
+        nodes: nodes.unwrap_or_default(),
     })
 }
 
@@ -279,7 +332,7 @@ fn redistribute(
 /// The key of each of the `asked` tags (increasing) from the `directory` (tag, key;
 /// increasing tags), in one walk through both; and whether every tag was found (a
 /// missing one gets key 0).
-fn look_up(directory: &[[u64; 2]], asked: &[u64]) -> (Vec<u64>, bool) {
+fn look_up(directory: &[[u64; 5]], asked: &[u64]) -> (Vec<u64>, bool) {
     let mut found = Vec::with_capacity(asked.len());
     let mut all = true;
     let mut i = 0;
@@ -312,10 +365,21 @@ mod tests {
 
     #[test]
     fn the_directory_answers_in_the_order_asked_and_flags_a_missing_tag() {
-        let dir = [[2, 20], [5, 50], [9, 90]];
+        let dir = [[2, 20, 0, 0, 0], [5, 50, 1, 0, 0], [9, 90, 2, 0, 0]];
         assert_eq!(look_up(&dir, &[2, 9]), (vec![20, 90], true));
         assert_eq!(look_up(&dir, &[5, 7]), (vec![50, 0], false));
         assert_eq!(look_up(&dir, &[]), (vec![], true));
+    }
+
+    #[test]
+    fn a_directory_refuses_a_tag_held_twice() {
+        let x = 1.5f64.to_bits();
+        let d = Directory::of(&[[2, 7, x, x], [5, 3, x, x]], 1).expect("a directory");
+        assert_eq!(
+            (d.tags, d.file, d.xy),
+            (vec![2, 5], vec![7, 3], vec![[1.5, 1.5]; 2])
+        );
+        assert!(Directory::of(&[[2, 7, x, x], [2, 3, x, x]], 1).is_none());
     }
 
     #[test]

@@ -13,10 +13,11 @@
 //! of the problem from its share of the mesh file (docs/cost-model.md, "The partition
 //! from the ranks' shares of the file"): the nodes each part holds and which of them it
 //! owns and shares, and the partition's figures, without the whole mesh on one rank.
-//! Runs do not use it yet (the first rank still splits the whole problem).
+//! Runs use it where the ranks cut the mesh from their shares, one part per rank
+//! (`dd::share_cut`, `dd::dist_split`).
 
 use crate::dd::comm::Mpi;
-use crate::dd::locality::{tag_rank, ShareNodes};
+use crate::dd::locality::{tag_rank, Directory};
 use rayon::prelude::*;
 
 /// This rank's share of the nodes' directory: each node of the triangles, its place in
@@ -47,25 +48,16 @@ impl NodeParts {
 
 /// The parts around every node of the ranks' triangles (`parts[i]`: the part of
 /// `triangles[i]`), on the nodes' directory ranks, with the nodes' places in the file
-/// and coordinates from the ranks' shares of the file (`nodes`). `None` on every rank
-/// where a triangle's node is in no share or in two. Collective; one subdomain per
+/// and coordinates from this rank's share of the directory (`known`). `None` on every
+/// rank where a triangle's node is not in the directory. Collective; one subdomain per
 /// rank.
 pub fn node_parts(
     mpi: &Mpi,
     triangles: &[[u64; 3]],
     parts: &[u32],
-    nodes: &ShareNodes,
+    known: &Directory,
 ) -> Option<NodeParts> {
     let p = mpi.size;
-    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
-    for (k, (&tag, xy)) in nodes.tags.iter().zip(&nodes.xy).enumerate() {
-        let at = nodes.first + k as u64;
-        send[tag_rank(tag, p)].extend_from_slice(&[tag, at, xy[0].to_bits(), xy[1].to_bits()]);
-    }
-    let mut known: Vec<[u64; 4]> = (mpi.exchange(send).iter())
-        .flat_map(|v| v.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]))
-        .collect();
-    known.par_sort_unstable();
     let mut corners: Vec<[u64; 2]> = (triangles.par_iter().zip(parts))
         .flat_map_iter(|(t, &q)| t.map(|tag| [tag, u64::from(q)]))
         .collect();
@@ -85,21 +77,20 @@ pub fn node_parts(
         start: vec![0],
         ..NodeParts::default()
     };
-    let mut ok = known.windows(2).all(|w| w[0][0] != w[1][0]);
+    let mut ok = true;
     let mut i = 0;
     for run in mine.chunk_by(|a, b| a[0] == b[0]) {
         let tag = run[0][0];
-        while i < known.len() && known[i][0] < tag {
+        while i < known.tags.len() && known.tags[i] < tag {
             i += 1;
         }
-        let Some(node) = known.get(i).filter(|k| k[0] == tag) else {
+        if known.tags.get(i) != Some(&tag) {
             ok = false;
             continue;
-        };
+        }
         out.tags.push(tag);
-        out.file.push(node[1]);
-        out.xy
-            .push([f64::from_bits(node[2]), f64::from_bits(node[3])]);
+        out.file.push(known.file[i]);
+        out.xy.push(known.xy[i]);
         out.parts.extend(run.iter().map(|c| c[1] as u32));
         out.start.push(out.parts.len());
     }

@@ -79,8 +79,7 @@ pub fn cut_shares(
     let lists = (nparts == mpi.size)
         .then(|| {
             let parts: Vec<u32> = parts.iter().map(|&q| q as u32).collect();
-            let nodes = locality::share_nodes(mpi, tags, coords);
-            let around = ownership::node_parts(mpi, &sorted.triangles, &parts, &nodes)?;
+            let around = ownership::node_parts(mpi, &sorted.triangles, &parts, &sorted.nodes)?;
             let lists =
                 ownership::part_lists(mpi, &sorted.file, &sorted.triangles, &parts, &around, 1);
             lists.into_iter().next()
