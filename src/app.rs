@@ -16,9 +16,9 @@ use crate::dd::comm::Mpi;
 use crate::dd::dist_split::{self, Conditions, PartCase};
 use crate::dd::full::{DirectStep, DirectSystem};
 use crate::dd::local_factor::LocalFactor;
-use crate::dd::ownership::PartLists;
+use crate::dd::ownership::{InterfaceFigures, PartLists};
 use crate::dd::share_cut::{cut_shares, ShareCut};
-use crate::dd::split::{split, SubProblem};
+use crate::dd::split::{split, GlobalMap, SubProblem};
 use crate::dd::step::{CondensedStep, LocalSystem, StepSetup};
 use crate::error::{Error, Result};
 use crate::fem::{AssemblyFigures, Material, Materials};
@@ -210,7 +210,13 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
             })
         });
         let mut cut = shares.and_then(|s| timer.time(Phase::Partition, || s.cut(&mpi)));
-        let lists = cut.as_mut().and_then(|c| c.lists.take());
+        let lists = cut.as_mut().and_then(|c| {
+            Some(OwnPart {
+                lists: c.lists.take()?,
+                figures: c.figures.take()?,
+                edge_cut: c.edge_cut,
+            })
+        });
         let cut_end = Instant::now();
         let read = reading.map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
         // How long the first rank's reading went on once the ranks had cut.
@@ -218,8 +224,9 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
         (read, (cut, lists))
     });
     let (cut, lists) = cut;
+    let own = lists.is_some();
     let prepared = read.map(|r| {
-        r.and_then(|r| host::on_idle_cores(mpi.node_ranks, || with_graph(r, cut, &timer)))
+        r.and_then(|r| host::on_idle_cores(mpi.node_ranks, || with_graph(r, cut, own, &timer)))
     });
     mpi.barrier_sleeping();
     let prepared = mpi.agree(prepared.transpose())?;
@@ -862,7 +869,12 @@ struct ReadProblem {
 /// ([`cut_and_split`] cuts it), unless the ranks cut the file from their shares
 /// (`share_cut`, with the seconds the first rank's reading went on after it): then only
 /// the triangles around each node, which the ownership rules read.
-fn with_graph(read: Read, share_cut: Option<(ShareCut, f64)>, timer: &Timer) -> Result<Prepared> {
+fn with_graph(
+    read: Read,
+    share_cut: Option<(ShareCut, f64)>,
+    own_parts: bool,
+    timer: &Timer,
+) -> Result<Prepared> {
     let read = match read {
         Stage::Ready(setup) => return Ok(Stage::Ready(setup)),
         Stage::Problem(r) => *r,
@@ -870,12 +882,16 @@ fn with_graph(read: Read, share_cut: Option<(ShareCut, f64)>, timer: &Timer) -> 
     let (prob, mesh_name, nparts) = (&read.prob, &read.mesh_name, read.nparts);
     let graph_start = Instant::now();
     let cut = share_cut.and_then(|(c, after)| ShareParts::of(c, after, prob, nparts));
-    let graph = timer.time(Phase::Partition, || match &cut {
-        Some(_) => {
+    // Where each rank builds its own part, the first rank needs no graph at all.
+    let on_ranks = own_parts && cut.is_some() && read.per_rank == 1;
+    let graph = timer.time(Phase::Partition, || match (&cut, on_ranks) {
+        (_, true) => Ok(None),
+        (Some(_), false) => {
             partition::MeshGraph::new(prob.mesh.num_nodes(), &prob.mesh.triangles, &[], false)
+                .map(Some)
                 .map_err(|e| cannot_partition(mesh_name, e))
         }
-        None => mesh_graph(prob, mesh_name, nparts),
+        (None, false) => mesh_graph(prob, mesh_name, nparts).map(Some),
     })?;
     let graph_s = graph_start.elapsed().as_secs_f64();
     Ok(Stage::Problem(Box::new(ToCut {
@@ -883,6 +899,7 @@ fn with_graph(read: Read, share_cut: Option<(ShareCut, f64)>, timer: &Timer) -> 
         graph,
         graph_s,
         cut,
+        on_ranks,
     })))
 }
 
@@ -920,11 +937,15 @@ impl ShareParts {
 /// The problem read, and the graph its partition needs.
 struct ToCut {
     read: ReadProblem,
-    graph: partition::MeshGraph,
+    /// `None` where each rank builds its own part (`on_ranks`).
+    graph: Option<partition::MeshGraph>,
     /// Seconds the graph took.
     graph_s: f64,
     /// The ranks' cut from their shares of the file, if they made it.
     cut: Option<ShareParts>,
+    /// Whether each rank builds its own part from the lists it made with the cut
+    /// (`dd::dist_split`).
+    on_ranks: bool,
 }
 
 /// What phase 1 leaves on a rank.
@@ -932,7 +953,15 @@ struct Phase1 {
     /// The first rank's problem, or its set-up.
     prepared: Option<Prepared>,
     /// This rank's part, where the ranks cut the mesh from their shares of the file.
-    lists: Option<PartLists>,
+    lists: Option<OwnPart>,
+}
+
+/// This rank's part as the ranks' cut from their shares of the file leaves it, with the
+/// partition's figures found on the ranks.
+struct OwnPart {
+    lists: PartLists,
+    figures: InterfaceFigures,
+    edge_cut: usize,
 }
 
 /// Phase 2, collective: the problem the first rank prepared cut into subdomains (by
@@ -956,10 +985,7 @@ fn cut_and_split(
         _ => None,
     });
     // The first rank's lists stand for every rank's: the ranks make them together.
-    let on_ranks = prepared.as_ref().map(|p| {
-        matches!(p, Stage::Problem(t) if t.cut.is_some() && t.read.nparts == mpi.size)
-            && lists.is_some()
-    });
+    let on_ranks = (prepared.as_ref()).map(|p| matches!(p, Stage::Problem(t) if t.on_ranks));
     let (asked, on_ranks) = match mpi.size {
         1 => (asked.flatten(), false),
         _ => mpi.broadcast(asked.zip(on_ranks))?,
@@ -967,7 +993,7 @@ fn cut_and_split(
     let cut = match asked {
         Some((triangles, nparts)) => {
             let graph = match &prepared {
-                Some(Stage::Problem(t)) => Some(&t.graph),
+                Some(Stage::Problem(t)) => t.graph.as_ref(),
                 _ => None,
             };
             let start = Instant::now();
@@ -1007,16 +1033,22 @@ fn cut_and_split(
         _ => (None, None),
     };
     let part_case = mpi.broadcast(part_case)?;
-    let lists = lists.unwrap_or_default();
+    let own =
+        mpi.agree(lists.ok_or_else(|| {
+            Error::Numerical("internal: a rank has no part lists of its own".into())
+        }))?;
     let start = Instant::now();
-    let (sub, map) = timer.time(Phase::Partition, || {
-        dist_split::build(mpi, &lists, conditions, part_case)
+    let (sub, map, quality) = timer.time(Phase::Partition, || {
+        let (sub, map) = dist_split::build(mpi, &own.lists, conditions, part_case)?;
+        let quality = dist_split::quality(mpi, &sub, &own.figures, own.edge_cut);
+        Ok::<_, Error>((sub, map, quality))
     })?;
-    drop(lists);
+    drop(own);
     let built_s = start.elapsed().as_secs_f64();
     let setup = done.map(|mut d| {
         d.facts.n_boundary = map.n_boundary;
         d.facts.n_interface = map.n_interface;
+        d.facts.partition = quality.to_string();
         d.figure.on_ranks_s = Some(built_s);
         d.setup(opts, layout, timer, print)
     });
@@ -1098,6 +1130,7 @@ fn split_cut(
         graph,
         graph_s,
         cut: from_shares,
+        ..
     } = t;
     let by_ranks = cut.as_ref().map(|c| c.1);
     let (mut cut_s, mut split_s) = (by_ranks.unwrap_or(0.0), 0.0);
@@ -1108,7 +1141,8 @@ fn split_cut(
             (Some((parts, _)), None) => (parts, None),
             (None, None) => {
                 let start = Instant::now();
-                let parts = graph.cut(nparts);
+                let no_graph = || Error::Numerical("internal: no graph to cut".into());
+                let parts = graph.as_ref().ok_or_else(no_graph)?.cut(nparts);
                 cut_s = start.elapsed().as_secs_f64();
                 (parts.map_err(|e| cannot_partition(&mesh_name, e))?, None)
             }
@@ -1119,7 +1153,11 @@ fn split_cut(
             element_part,
             edge_cut,
         };
-        let split = split_parts(&case, &prob, &mesh_name, graph, cut, on_ranks);
+        let split = match (graph, on_ranks) {
+            (_, true) => conditions(&case, &prob),
+            (Some(graph), false) => split_parts(&case, &prob, &mesh_name, graph, cut),
+            (None, false) => Err(Error::Numerical("internal: no graph to split".into())),
+        };
         split_s = start.elapsed().as_secs_f64();
         split
     })?;
@@ -1296,7 +1334,6 @@ fn split_parts(
     mesh_name: &str,
     graph: partition::MeshGraph,
     cut: Cut,
-    on_ranks: bool,
 ) -> Result<(Facts, SplitOut)> {
     let (triangles, contact) = (&prob.mesh.triangles, &prob.contact_nodes);
     let Cut {
@@ -1309,34 +1346,45 @@ fn split_parts(
         None => graph.finish(triangles, contact, nparts, element_part),
     }
     .map_err(|e| cannot_partition(mesh_name, e))?;
-    let frictional = Problem::is_frictional(case);
-    let (out, map) = match on_ranks {
-        true => {
-            let conditions = Conditions::of(case, prob, &part)?;
-            let on = PartCase {
-                body_force: case.body_force,
-                frictional,
-            };
-            (SplitOut::OnRanks(conditions, on), None)
-        }
-        false => {
-            let (subs, map) = split(prob, &part, frictional)?;
-            (SplitOut::Here(subs), Some(map))
-        }
+    let (subs, map) = split(prob, &part, Problem::is_frictional(case))?;
+    let facts = facts(prob, part.quality.to_string(), &map);
+    Ok((facts, SplitOut::Here(subs)))
+}
+
+/// What the ranks build their own parts from ([`SplitOut::OnRanks`]), and the figures of
+/// the whole problem but those the ranks find (the partition's, the boundary's and the
+/// interface's).
+fn conditions(case: &Case, prob: &Problem) -> Result<(Facts, SplitOut)> {
+    let conditions = Conditions::of(case, prob)?;
+    let on = PartCase {
+        body_force: case.body_force,
+        frictional: Problem::is_frictional(case),
     };
-    let facts = Facts {
+    let map = GlobalMap {
+        n_interface: 0,
+        n_boundary: 0,
+        contact_counts: Vec::new(),
+    };
+    Ok((
+        facts(prob, String::new(), &map),
+        SplitOut::OnRanks(conditions, on),
+    ))
+}
+
+/// The figures of the whole problem, its partition's report and the split's map.
+fn facts(prob: &Problem, partition: String, map: &GlobalMap) -> Facts {
+    Facts {
         lengths: prob.lengths(),
         contact_bodies: prob.contact_bodies.clone(),
-        n_boundary: map.as_ref().map_or(0, |m| m.n_boundary),
-        n_interface: map.as_ref().map_or(0, |m| m.n_interface),
+        n_boundary: map.n_boundary,
+        n_interface: map.n_interface,
         nodes: prob.mesh.num_nodes(),
         elements: prob.mesh.triangles.len(),
         free_dofs: prob.fixed.iter().filter(|f| f.is_none()).count(),
         contact_nodes: prob.contact_nodes.len(),
-        partition: part.quality.to_string(),
+        partition,
         holding: prob.holding.clone(),
-    };
-    Ok((facts, out))
+    }
 }
 
 /// The split made by the first rank, or what the ranks build their own parts from.
@@ -1407,9 +1455,9 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
                 element_part,
                 edge_cut: None,
             };
-            let (facts, subs) = split_parts(&case, &prob, &mesh_name, graph, cut, false)?;
+            let (facts, subs) = split_parts(&case, &prob, &mesh_name, graph, cut)?;
             let SplitOut::Here(subs) = subs else {
-                unreachable!("split here")
+                return Err(Error::Numerical("internal: the split was not made".into()));
             };
             drop(prob);
             let split = split_dir::write(&opts.out, &case, &facts, &subs)?;

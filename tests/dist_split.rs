@@ -5,8 +5,8 @@
 //! body forces, inclined and oblique obstacles, friction and none, and two materials:
 //! the same nodes, coordinates, owners, prescribed values, triangles and bodies, contact
 //! nodes in the same order with the same geometry, the same frames, contact dofs and
-//! interface dofs, one global number per interface dof, the same global map; the parts'
-//! loads sum to the whole problem's.
+//! interface dofs, one global number per interface dof, the same global map and the same
+//! partition figures; the parts' loads sum to the whole problem's.
 //!
 //! The test binary runs itself under `mpirun` (`--oversubscribe`; as root, set
 //! OMPI_ALLOW_RUN_AS_ROOT=1 and OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1); each rank then runs
@@ -130,7 +130,7 @@ fn check(mpi: &Mpi, name: &str, case: &Case) {
     let known = locality::directory(mpi, &share).expect("a directory");
     let around = ownership::node_parts(mpi, &triangles, &parts, &known).expect("the nodes");
     let lists = ownership::part_lists(mpi, &file, &triangles, &parts, &around, 1);
-    let conditions = (rank == 0).then(|| Conditions::of(case, &prob, &part).expect("conditions"));
+    let conditions = (rank == 0).then(|| Conditions::of(case, &prob).expect("conditions"));
     let on = PartCase {
         body_force: case.body_force,
         frictional,
@@ -141,6 +141,21 @@ fn check(mpi: &Mpi, name: &str, case: &Case) {
     assert_eq!(got.n_boundary, map.n_boundary, "{what}");
     assert_eq!(got.contact_counts, map.contact_counts, "{what}");
     same_part(&subs[rank], &sub, &what);
+    // The partition's figures found on the ranks are the crate's, but that a part's
+    // pieces are joined through shared nodes there, not only through edges.
+    let figures = ownership::interface_figures(mpi, &around, size);
+    let quality = dist_split::quality(mpi, &sub, &figures, part.quality.edge_cut);
+    let disconnected = (part.parts.iter())
+        .filter(|q| {
+            let t: Vec<[usize; 3]> = q.elements.iter().map(|&e| prob.mesh.triangles[e]).collect();
+            partition::node_pieces(&t) > 1
+        })
+        .count();
+    let want = partition::Quality {
+        disconnected_parts: disconnected,
+        ..part.quality.clone()
+    };
+    assert_eq!(quality, want, "{what}");
 
     // Every interface dof has one number over the parts, and the numbers are 0..n; the
     // parts' loads sum to the problem's.

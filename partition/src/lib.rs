@@ -963,7 +963,7 @@ fn part_node_pieces(stars: &Stars, element_part: &[u32], nparts: usize) -> Vec<u
 /// (union-find over the nodes). It counts two bodies touching at a single vertex as one
 /// piece, which the dual graph counts as two: the price of not building the graph for a
 /// one-part run, where the figure is only reported.
-fn node_pieces(triangles: &[[usize; 3]]) -> usize {
+pub fn node_pieces(triangles: &[[usize; 3]]) -> usize {
     fn root(parent: &mut [usize], mut x: usize) -> usize {
         while parent[x] != x {
             parent[x] = parent[parent[x]];

@@ -10,7 +10,7 @@
 //! of a start in which each rank builds its own part of the problem.
 
 use crate::dd::comm::Mpi;
-use crate::dd::ownership::{self, PartLists};
+use crate::dd::ownership::{self, InterfaceFigures, PartLists};
 use crate::dd::{dist_graph, locality};
 use std::time::Instant;
 
@@ -30,6 +30,8 @@ pub struct ShareCut {
     /// every node of the triangles is in one share: each rank then builds its own
     /// subproblem (`dd::dist_split`).
     pub lists: Option<PartLists>,
+    /// The interface's figures, on every rank, where the lists were made.
+    pub figures: Option<InterfaceFigures>,
 }
 
 /// The triangles of every rank's share (`triangles`: this rank's, as node tags, its
@@ -76,15 +78,17 @@ pub fn cut_shares(
     let gathered = mpi.gather_varcount(&parts, &sorted.counts);
     let cut_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    let lists = (nparts == mpi.size)
+    let (lists, figures) = (nparts == mpi.size)
         .then(|| {
             let parts: Vec<u32> = parts.iter().map(|&q| q as u32).collect();
             let around = ownership::node_parts(mpi, &sorted.triangles, &parts, &sorted.nodes)?;
+            let figures = ownership::interface_figures(mpi, &around, nparts);
             let lists =
                 ownership::part_lists(mpi, &sorted.file, &sorted.triangles, &parts, &around, 1);
-            lists.into_iter().next()
+            Some((lists.into_iter().next()?, figures))
         })
-        .flatten();
+        .flatten()
+        .unzip();
     let parts = file.zip(gathered).map(|(file, gathered)| {
         let mut by_file = vec![0u32; total];
         for (&f, &q) in file.iter().zip(&gathered) {
@@ -98,5 +102,6 @@ pub fn cut_shares(
         edge_cut,
         seconds: [order_s, graph_s, cut_s, start.elapsed().as_secs_f64()],
         lists,
+        figures,
     })
 }
