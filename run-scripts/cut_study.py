@@ -13,8 +13,9 @@ subdomain per rank), with each partitioner in turn, --runs times; a run is stopp
 its partition line is out (the rest of the run is not this study's). The partition line
 names its pieces: the graph (the first rank's dual graph; for `shares` only the
 triangles around each node), the cut (the first rank, or PT-Scotch on every rank; for
-`shares` also the ranks' locality order and graph), the ownership rules and the split
-(the first rank). Medians go to DIR/cut.csv (with --append, after its rows) and a table
+`shares` also the ranks' locality order and graph, the part lists, and the build of
+each rank's own part), the ownership rules and the split (the first rank; for `shares`
+with a part per rank, only the conditions it sends the ranks). Medians go to DIR/cut.csv (with --append, after its rows) and a table
 on stdout, with the edge cut and the interface nodes.
 
 A `shares` run that the ranks could not cut from their shares (a contact between two
@@ -39,7 +40,8 @@ import tempfile
 READ = re.compile(r"^read\s+done in .*?: (\d+) nodes, (\d+) triangles")
 PART = re.compile(
     r"^partition done in\s+([\d.]+) s: graph ([\d.]+) s, cut ([\d.]+) s \((.*?)\), "
-    r"split ([\d.]+) s: .*?edge cut (\d+); (\d+) interface nodes"
+    r"(?:split ([\d.]+) s|conditions ([\d.]+) s, parts built on their ranks ([\d.]+) s): "
+    r".*?edge cut (\d+); (\d+) interface nodes"
 )
 FIELDS = [
     "case", "nodes", "triangles", "ranks", "partitioner", "runs", "partition_s", "graph_s",
@@ -66,9 +68,13 @@ def one_run(binary, case, ranks, partitioner, out):
             nodes, tris = int(m.group(1)), int(m.group(2))
         m = PART.match(line)
         if m:
-            total, graph, cut, who, split, edges, itf = m.groups()
+            total, graph, cut, who, split, conditions, built, edges, itf = m.groups()
+            # Where each rank builds its own part, the first rank's split is the
+            # conditions it sends, and the build is the ranks' work, with their cut.
+            first = split if split is not None else conditions
+            ranks_s = float(cut) + (float(built) if built is not None else 0.0)
             row = dict(nodes=nodes, triangles=tris, partition_s=float(total),
-                       graph_s=float(graph), cut_s=float(cut), split_s=float(split),
+                       graph_s=float(graph), cut_s=ranks_s, split_s=float(first),
                        edge_cut=int(edges), interface_nodes=int(itf), who=who)
             break
     # The run past its partition is not measured: the whole job is stopped.
