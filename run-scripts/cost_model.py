@@ -237,10 +237,11 @@ class Cut:
     locality order, graph and PT-Scotch, from their shares of the file). The seconds on
     the ranks with a core per rank: PT-Scotch's, a T^g_T P^g_P in the triangles T and
     the ranks P (least squares in logs, on the `ptscotch` rows); for `shares` plus
-    b T / P, the order and the graph, each rank's share of the triangles (b the median
-    over the `shares` rows of what they took beyond PT-Scotch's law). And what stays on
-    the first rank (the graph, or for `shares` the triangles around each node, the
-    ownership rules and the split), its seconds per triangle on one core."""
+    b T / P, the order, the graph, the part lists and each rank's build of its own part,
+    each rank's share of the triangles (b the median over the `shares` rows of what they
+    took beyond PT-Scotch's law). And what stays on the first rank (the graph, the
+    ownership rules and the split; for `shares` the parts taken into its numbering and
+    the conditions it sends), its seconds per triangle on one core."""
 
     def __init__(self, directory, kind="ptscotch"):
         with open(os.path.join(directory, "cut.csv")) as fh:
@@ -279,7 +280,8 @@ class Cut:
     def describe(self):
         worst = max(abs(self.on_ranks(float(r["triangles"]), float(r["ranks"]))
                         / max(float(r["cut_rank_s"]), 1e-6) - 1) for r in self.rows)
-        order = f" + {self.b * 1e6:.3f} us T / P (the ranks' order and graph)" if self.b else ""
+        order = (f" + {self.b * 1e6:.3f} us T / P (the ranks' order, graph, lists and parts)"
+                 if self.b else "")
         return (f"  cut by PT-Scotch, a core per rank: {self.a:.3g} T^{self.g_t:.2f} P^{self.g_p:.2f}"
                 f"{order} s (within {worst:.0%} of every measured row); the first rank's graph and"
                 f" split {self.first * 1e6:.3f} us per triangle; {self.per_node:.2f} triangles per node")
@@ -394,7 +396,10 @@ def main():
             for P in sorted({64, 128, 256, a.ranks}):
                 secs = st.seconds(nodes, a.node_cores, P)
                 first, on_ranks = cut.seconds(nodes, P)
-                alone = sum(v for k, v in secs.items() if k != "partition") + first
+                # From the shares each rank builds its own part: the first rank
+                # scatters nothing (its split is the conditions it sends, in `first`).
+                dropped = ("partition", "scatter") if kind == "shares" else ("partition",)
+                alone = sum(v for k, v in secs.items() if k not in dropped) + first
                 # The ranks cut from their shares while the first rank builds the
                 # problem, but with a rank on every core its node's cores are theirs
                 # then: no overlap is counted.
