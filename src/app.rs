@@ -262,7 +262,8 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
 /// One subdomain's run, from its subproblem to its outputs (collective over all).
 fn run_subdomain(ctx: &Subdomain, subs: Option<Vec<SubProblem>>) -> Result<RunReport> {
     let mpi = ctx.mpi;
-    // From the first subdomain, or each its own from the split directory.
+    // From the first subdomain, or each its own: from the split directory, or built
+    // on its rank (`dd::dist_split`).
     let own = ctx.setup.own_parts;
     let sub = &ctx.timer.time(Phase::Scatter, || match &ctx.setup.split {
         Some(split) => mpi.agree(split.read_part(mpi.rank)),
@@ -868,7 +869,9 @@ struct ReadProblem {
 /// The start of phase 2 on the first rank: the graph the partition cuts
 /// ([`cut_and_split`] cuts it), unless the ranks cut the file from their shares
 /// (`share_cut`, with the seconds the first rank's reading went on after it): then only
-/// the triangles around each node, which the ownership rules read.
+/// the triangles around each node, which the ownership rules read, or nothing where
+/// each rank builds its own part from the lists it made (`own_parts`: one part per
+/// rank).
 fn with_graph(
     read: Read,
     share_cut: Option<(ShareCut, f64)>,

@@ -361,7 +361,8 @@ pub fn build(
         number[v][c] = (first + i) as u64;
     }
     let local_of_tag = |t: u64| lists.nodes.binary_search(&t).ok().map(|i| part.of_list[i]);
-    // To each neighbour, the numbers of the shared nodes this part owns: tag, x, y.
+    // To each neighbour, the numbers of the shared nodes this part owns: the tag, then
+    // the global numbers of its x and y dofs (u64::MAX where prescribed).
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
     for (q, tags) in &lists.neighbours {
         for &t in tags {
