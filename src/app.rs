@@ -1019,13 +1019,10 @@ fn cut_and_split(
         let (setup, subs) = done
             .map(|d| match d {
                 Err(setup) => (setup, None),
-                Ok(mut d) => {
-                    let subs = match std::mem::replace(&mut d.out, SplitOut::Here(Vec::new())) {
-                        SplitOut::Here(subs) => Some(subs),
-                        SplitOut::OnRanks(..) => None,
-                    };
-                    (d.setup(opts, layout, timer, print), subs)
-                }
+                Ok(d) => match d.setup(opts, layout, timer, print) {
+                    (setup, SplitOut::Here(subs)) => (setup, Some(subs)),
+                    (setup, SplitOut::OnRanks(..)) => (setup, None),
+                },
             })
             .unzip();
         return Ok((setup, subs.flatten()));
@@ -1053,7 +1050,7 @@ fn cut_and_split(
         d.facts.n_interface = map.n_interface;
         d.facts.partition = quality.to_string();
         d.figure.on_ranks_s = Some(built_s);
-        d.setup(opts, layout, timer, print)
+        d.setup(opts, layout, timer, print).0
     });
     Ok((setup, Some(vec![sub])))
 }
@@ -1158,7 +1155,8 @@ fn split_cut(
         };
         let split = match (graph, on_ranks) {
             (_, true) => conditions(&case, &prob),
-            (Some(graph), false) => split_parts(&case, &prob, &mesh_name, graph, cut),
+            (Some(graph), false) => split_parts(&case, &prob, &mesh_name, graph, cut)
+                .map(|(facts, subs)| (facts, SplitOut::Here(subs))),
             (None, false) => Err(Error::Numerical("internal: no graph to split".into())),
         };
         split_s = start.elapsed().as_secs_f64();
@@ -1205,8 +1203,14 @@ struct SplitDone {
 }
 
 impl SplitDone {
-    /// The set-up, once the partition's line is printed.
-    fn setup(self, opts: &Options, layout: Layout, timer: &Timer, print: &Printer) -> Setup {
+    /// The set-up, once the partition's line is printed, and the split.
+    fn setup(
+        self,
+        opts: &Options,
+        layout: Layout,
+        timer: &Timer,
+        print: &Printer,
+    ) -> (Setup, SplitOut) {
         print.line(timer::phase_line(
             Phase::Partition,
             timer.seconds(Phase::Partition),
@@ -1222,7 +1226,7 @@ impl SplitDone {
             self.per_rank,
         );
         setup.own_parts = own_parts;
-        setup
+        (setup, self.out)
     }
 }
 
@@ -1337,7 +1341,7 @@ fn split_parts(
     mesh_name: &str,
     graph: partition::MeshGraph,
     cut: Cut,
-) -> Result<(Facts, SplitOut)> {
+) -> Result<(Facts, Vec<SubProblem>)> {
     let (triangles, contact) = (&prob.mesh.triangles, &prob.contact_nodes);
     let Cut {
         nparts,
@@ -1350,8 +1354,7 @@ fn split_parts(
     }
     .map_err(|e| cannot_partition(mesh_name, e))?;
     let (subs, map) = split(prob, &part, Problem::is_frictional(case))?;
-    let facts = facts(prob, part.quality.to_string(), &map);
-    Ok((facts, SplitOut::Here(subs)))
+    Ok((facts(prob, part.quality.to_string(), Some(&map)), subs))
 }
 
 /// What the ranks build their own parts from ([`SplitOut::OnRanks`]), and the figures of
@@ -1363,24 +1366,20 @@ fn conditions(case: &Case, prob: &Problem) -> Result<(Facts, SplitOut)> {
         body_force: case.body_force,
         frictional: Problem::is_frictional(case),
     };
-    let map = GlobalMap {
-        n_interface: 0,
-        n_boundary: 0,
-        contact_counts: Vec::new(),
-    };
     Ok((
-        facts(prob, String::new(), &map),
+        facts(prob, String::new(), None),
         SplitOut::OnRanks(conditions, on),
     ))
 }
 
-/// The figures of the whole problem, its partition's report and the split's map.
-fn facts(prob: &Problem, partition: String, map: &GlobalMap) -> Facts {
+/// The figures of the whole problem, its partition's report and the split's map (the
+/// ranks fill in the counts of boundary and interface dofs where they split).
+fn facts(prob: &Problem, partition: String, map: Option<&GlobalMap>) -> Facts {
     Facts {
         lengths: prob.lengths(),
         contact_bodies: prob.contact_bodies.clone(),
-        n_boundary: map.n_boundary,
-        n_interface: map.n_interface,
+        n_boundary: map.map_or(0, |m| m.n_boundary),
+        n_interface: map.map_or(0, |m| m.n_interface),
         nodes: prob.mesh.num_nodes(),
         elements: prob.mesh.triangles.len(),
         free_dofs: prob.fixed.iter().filter(|f| f.is_none()).count(),
@@ -1459,9 +1458,7 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
                 edge_cut: None,
             };
             let (facts, subs) = split_parts(&case, &prob, &mesh_name, graph, cut)?;
-            let SplitOut::Here(subs) = subs else {
-                return Err(Error::Numerical("internal: the split was not made".into()));
-            };
+
             drop(prob);
             let split = split_dir::write(&opts.out, &case, &facts, &subs)?;
             let who = match on_ranks {

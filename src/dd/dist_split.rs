@@ -182,17 +182,16 @@ pub fn local_part(
             .ok()
             .map(|i| by_file[i].1)
     };
+    let not_held = |t: u64| {
+        Error::Numerical(format!(
+            "internal: part {} has a triangle on node tag {t}, which it does not hold",
+            lists.part
+        ))
+    };
     let local_of_tag = |t: u64| -> Result<usize> {
-        lists
-            .nodes
-            .binary_search(&t)
+        (lists.nodes.binary_search(&t))
             .map(|i| of_list[i])
-            .map_err(|_| {
-                Error::Numerical(format!(
-                    "internal: part {} has a triangle on node tag {t}, which it does not hold",
-                    lists.part
-                ))
-            })
+            .map_err(|_| not_held(t))
     };
     let nodes: Vec<[f64; 2]> = list_of.iter().map(|&i| lists.xy[i]).collect();
     let owned: Vec<bool> = list_of.iter().map(|&i| lists.owned[i]).collect();
@@ -209,7 +208,7 @@ pub fn local_part(
             at += 1;
         }
         if at == n || lists.nodes[at] != tag {
-            local_of_tag(tag)?;
+            return Err(not_held(tag));
         }
         corner[slot] = of_list[at];
     }

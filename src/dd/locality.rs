@@ -144,20 +144,16 @@ pub fn sort_triangles(
     mpi.max_in_place(&mut bbox);
     let bbox = [[-bbox[0], -bbox[1]], [bbox[2], bbox[3]]];
     let (file_first, triangles) = balanced(mpi, triangles);
-    let tags = tags_of_coordinates(mpi, tags, coords.len() / 3);
+    let share = share_nodes(mpi, tags, coords);
 
     // The directory: each node's key, file index and x, y on the rank its tag names.
-    let points: Vec<[f64; 2]> = coords.chunks_exact(3).map(|c| [c[0], c[1]]).collect();
-    let keys = hilbert_keys(&points, bbox);
-    let node_first = mpi.all_gather_counts(points.len())[..mpi.rank]
-        .iter()
-        .sum::<usize>() as u64;
+    let keys = hilbert_keys(&share.xy, bbox);
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
-    for (i, ((&t, &k), xy)) in tags.iter().zip(&keys).zip(&points).enumerate() {
-        let at = node_first + i as u64;
+    for (i, ((&t, &k), xy)) in share.tags.iter().zip(&keys).zip(&share.xy).enumerate() {
+        let at = share.first + i as u64;
         send[tag_rank(t, p)].extend_from_slice(&[t, k, at, xy[0].to_bits(), xy[1].to_bits()]);
     }
-    drop((keys, points));
+    drop((keys, share));
     let mut directory: Vec<[u64; 5]> = (mpi.exchange(send).iter())
         .flat_map(|v| v.chunks_exact(5).map(|c| [c[0], c[1], c[2], c[3], c[4]]))
         .collect();
