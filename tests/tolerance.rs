@@ -268,18 +268,30 @@ fn an_answer_free_to_turn_is_reported_as_not_unique() {
     );
 }
 
-/// Retunes whose statuses cycle end at the reference r: the shallow Coulomb arch
-/// (arch.msh, `make_cases.py --heldout`) alternated between two sets of statuses at
-/// every retune until the budget of 100 was spent (179 sweeps); now its retunes end at
-/// the third return (20 retunes, 83 sweeps), with the same answer on 1 and 3 ranks.
+/// Retunes whose statuses cycle end, and the loop then converges fast: the shallow
+/// Coulomb arch (arch.msh, `make_cases.py --heldout`), which ends standing on one slipping
+/// node of 253, alternated between two sets of statuses at every retune until the budget
+/// of 100 was spent (179 sweeps). Its retunes end at the third return (20 retunes). Then
+/// every direction went back to the reference r, and the 251 open nodes' springs held
+/// its bending: 74 sweeps, where the built-in block of about its size takes 30. With the
+/// two nodes that cycled and the pressed one at the reference r, and the open ones
+/// lowered as settled, 53;
+/// within twice the block is issue 24's target. The answer stays within tol on 1 and 3
+/// ranks.
 #[test]
 fn retunes_that_cycle_end() {
     check("arch.toml", &[], "arch");
+    let block = sweeps(&run_builtin("block", 1, &[]));
     let run = run_args(&[&case("arch.toml")]);
     run.expect_code(0);
     let retunes = run.summary()["r_retunes"].as_u64().unwrap();
-    println!("arch: {} sweeps, {retunes} retunes", sweeps(&run));
+    let arch = sweeps(&run);
+    println!("arch: {arch} sweeps, {retunes} retunes, block {block}");
     assert!(retunes <= 30, "{retunes} retunes");
+    assert!(
+        arch <= 2 * block,
+        "{arch} sweeps against the block's {block}"
+    );
 }
 
 /// A body standing on one node under Tresca friction settles in few sweeps: the thin

@@ -315,6 +315,7 @@ mod tests {
             r_n: vec![1000.0 * r, r / 1000.0],
             r_t: vec![r / 10.0, 10.0 * r],
             settled: false,
+            ended: false,
         };
         let omega = metric(&w, &aug, r, true);
         let dx = [1e-3, 1e3, 10.0, 0.1];

@@ -449,6 +449,9 @@ pub(super) struct Sweeper<'a, S: LinearStep> {
     pub(super) margin: f64,
     /// Each node's key for the status fingerprint ([`node_key`]).
     keys: Vec<u64>,
+    /// The sweep at which each node's statuses last changed (0: never), which tells the
+    /// nodes that cycle ([`Augmentation::after_cycle`]).
+    pub(super) changed_at: Vec<usize>,
     force_n: Vec<f64>,
     force_t: Vec<f64>,
     pub(super) un: Vec<f64>,
@@ -473,6 +476,7 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             last_held: Vec::new(),
             margin: f64::INFINITY,
             keys: (0..n).map(|i| node_key(nodes, i)).collect(),
+            changed_at: vec![0; n],
             force_n: vec![0.0; n],
             force_t: vec![0.0; n],
             un: vec![0.0; n],
@@ -480,8 +484,9 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
         }
     }
 
-    /// One sweep of ALG2 from the state x, then this rank's sums of it.
-    pub(super) fn eval(&mut self, x: &[f64], law: Law) -> Result<Eval> {
+    /// One sweep of ALG2 (the loop's `sweep`-th) from the state x, then this rank's sums
+    /// of it.
+    pub(super) fn eval(&mut self, x: &[f64], law: Law, sweep: usize) -> Result<Eval> {
         let frictional = law.frictional();
         // (p, lambda, q, mu) of the state: steps 2 and 3 of the sweep that produced it.
         let inp = project_and_update(x, self.nodes, law, &self.aug);
@@ -493,13 +498,19 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
         let out = project_and_update(&gx, self.nodes, law, &self.aug);
         let f: Vec<f64> = gx.iter().zip(x).map(|(a, b)| a - b).collect();
         let sums = self.local_sums(&inp, &out, &f, frictional);
-        self.remember_statuses(&out, frictional);
+        self.remember_statuses(&out, frictional, sweep);
         Ok(Eval { gx, f, out, sums })
     }
 
     /// Keeps the statuses of an image, which the next evaluation's `changed` compares with.
-    pub(super) fn remember_statuses(&mut self, image: &Derived, frictional: bool) {
-        self.last_held = image.statuses(frictional);
+    pub(super) fn remember_statuses(&mut self, image: &Derived, frictional: bool, sweep: usize) {
+        let now = image.statuses(frictional);
+        for (i, (a, b)) in self.last_held.iter().zip(&now).enumerate() {
+            if a != b {
+                self.changed_at[i] = sweep;
+            }
+        }
+        self.last_held = now;
     }
 
     /// Step 1: A u = F + N' w (r p - lambda) + T' w (r q - mu), seen as (Nu, Tu).

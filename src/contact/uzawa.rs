@@ -41,7 +41,7 @@
 
 use super::anderson::{dot, metric, span_secant, Anderson, FLAT_SECANT};
 use super::kernels::{coulomb_threshold, first_crossing, state};
-use super::retune::{retuned, Augmentation, Held};
+use super::retune::{retuned, Augmentation, Held, Retune};
 use super::sweep::{
     error_estimate, project_and_update, relative, Derived, Law, Reduced, Sweep, Sweeper, ROUNDOFF,
 };
@@ -136,6 +136,9 @@ pub struct Snapshot {
     /// The piece of the last refusal (see [`Run::safeguard`]).
     #[serde(default)]
     pub refused_on: Option<(usize, usize, usize)>,
+    /// The sweep of each of this rank's contact nodes' last status change.
+    #[serde(default)]
+    pub changed_at: Vec<usize>,
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -540,7 +543,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// records the sweep.
     fn evaluate(&mut self, law: Law, x: &[f64], aa: Option<&Anderson>) -> Result<Evaluated> {
         let r = self.sweeper.r_ref;
-        let e = self.sweeper.eval(x, law)?;
+        let e = self.sweeper.eval(x, law, self.history.len() + 1)?;
         let omega = metric(
             &self.sweeper.nodes.w,
             &self.sweeper.aug,
@@ -718,13 +721,18 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         };
         let n = last.p.len();
         let held: Vec<Held> = (0..n).map(|i| last.held(i, frictional)).collect();
-        let aug = Augmentation::for_statuses(
-            kind,
-            &held,
-            frictional,
-            self.sweeper.r_ref,
-            self.sweeper.mesh_stiffness,
-        );
+        if self.sweeper.aug.ended {
+            return Ok(false);
+        }
+        let (r, stiffness) = (self.sweeper.r_ref, self.sweeper.mesh_stiffness);
+        let aug = match kind {
+            Retune::EndCycle { since } => {
+                let cycled: Vec<bool> =
+                    self.sweeper.changed_at.iter().map(|&c| c > since).collect();
+                Augmentation::after_cycle(&held, &cycled, frictional, r, stiffness)
+            }
+            _ => Augmentation::for_statuses(kind, &held, frictional, r, stiffness),
+        };
         if !self.sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
             self.can_retune = false;
             return Ok(false);
@@ -814,7 +822,10 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         let out = project_and_update(&snap.gx, sweeper.nodes, law, &sweeper.aug);
         let (active, slip) = snap.history.last().map_or((0, 0), |s| (s.active, s.slip));
         self.refused_on = snap.refused_on;
-        sweeper.remember_statuses(&out, law.frictional());
+        sweeper.remember_statuses(&out, law.frictional(), 0);
+        if snap.changed_at.len() == sweeper.changed_at.len() {
+            sweeper.changed_at = snap.changed_at;
+        }
         self.retunes = snap.retunes;
         self.min_secant = snap.min_secant;
         self.anchor = None;
@@ -865,6 +876,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             r_ref: self.sweeper.r_ref,
             applied: self.applied.clone(),
             refused_on: self.refused_on,
+            changed_at: self.sweeper.changed_at.clone(),
         };
         (self.ckpt.save)(&snap)
     }
