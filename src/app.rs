@@ -884,7 +884,7 @@ fn with_graph(
     };
     let (prob, mesh_name, nparts) = (&read.prob, &read.mesh_name, read.nparts);
     let graph_start = Instant::now();
-    let cut = share_cut.and_then(|(c, after)| ShareParts::of(c, after, prob, nparts));
+    let cut = share_cut.and_then(|(c, after)| ShareParts::of(c, after, prob, nparts, own_parts));
     // Where each rank builds its own part, the first rank needs no graph at all.
     let on_ranks = own_parts && cut.is_some() && read.per_rank == 1;
     let graph = timer.time(Phase::Partition, || match (&cut, on_ranks) {
@@ -909,7 +909,8 @@ fn with_graph(
 /// The ranks' cut of the file's triangles ([`Shares::cut`]) in the problem's triangle
 /// order.
 struct ShareParts {
-    element_part: Vec<u32>,
+    /// `None` where the ranks made their part lists, which then stand for it.
+    element_part: Option<Vec<u32>>,
     edge_cut: usize,
     /// Seconds of the ranks' locality order, graph, cut, and part lists.
     seconds: [f64; 4],
@@ -922,14 +923,22 @@ impl ShareParts {
     /// `None` where the problem does not match the cut: another number of parts, a
     /// triangle the reading dropped as a repeat, ties between bodies. The first rank
     /// then cuts the problem as it does without the shares.
-    fn of(cut: ShareCut, read_after: f64, prob: &Problem, nparts: usize) -> Option<Self> {
-        let by_file = cut.parts?;
+    /// `lists`: whether the ranks made their part lists.
+    fn of(
+        cut: ShareCut,
+        read_after: f64,
+        prob: &Problem,
+        nparts: usize,
+        lists: bool,
+    ) -> Option<Self> {
         let tied = prob.contact_masters.iter().any(|m| !m.is_empty());
-        if cut.nparts != nparts || by_file.len() != prob.file_triangle.len() || tied {
+        let made = cut.parts.is_some() || lists;
+        if !made || cut.nparts != nparts || cut.triangles != prob.file_triangle.len() || tied {
             return None;
         }
         Some(ShareParts {
-            element_part: prob.file_triangle.iter().map(|&f| by_file[f]).collect(),
+            element_part: (cut.parts)
+                .map(|by_file| prob.file_triangle.iter().map(|&f| by_file[f]).collect()),
             edge_cut: cut.edge_cut,
             seconds: cut.seconds,
             read_after,
@@ -1136,8 +1145,19 @@ fn split_cut(
     let (mut cut_s, mut split_s) = (by_ranks.unwrap_or(0.0), 0.0);
     let shares_s = from_shares.as_ref().map(|c| (c.seconds, c.read_after));
     let (facts, out) = timer.time(Phase::Partition, || {
+        if on_ranks {
+            let start = Instant::now();
+            let conditions = conditions(&case, &prob);
+            split_s = start.elapsed().as_secs_f64();
+            return conditions;
+        }
         let (element_part, edge_cut) = match (cut, from_shares) {
-            (_, Some(c)) => (c.element_part, Some(c.edge_cut)),
+            (_, Some(c)) => {
+                let parts = c.element_part.ok_or_else(|| {
+                    Error::Numerical("internal: the ranks' cut did not reach the first rank".into())
+                })?;
+                (parts, Some(c.edge_cut))
+            }
             (Some((parts, _)), None) => (parts, None),
             (None, None) => {
                 let start = Instant::now();
@@ -1153,11 +1173,10 @@ fn split_cut(
             element_part,
             edge_cut,
         };
-        let split = match (graph, on_ranks) {
-            (_, true) => conditions(&case, &prob),
-            (Some(graph), false) => split_parts(&case, &prob, &mesh_name, graph, cut)
+        let split = match graph {
+            Some(graph) => split_parts(&case, &prob, &mesh_name, graph, cut)
                 .map(|(facts, subs)| (facts, SplitOut::Here(subs))),
-            (None, false) => Err(Error::Numerical("internal: no graph to split".into())),
+            None => Err(Error::Numerical("internal: no graph to split".into())),
         };
         split_s = start.elapsed().as_secs_f64();
         split

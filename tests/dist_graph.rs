@@ -248,6 +248,13 @@ fn locality_child() {
     } else {
         assert!(cut.parts.is_none());
     }
+    assert_eq!(cut.triangles, all.len());
+    // One part per rank: each rank its part's lists, and no part per triangle on the
+    // first rank.
+    let own = share_cut::cut_shares(&mpi, &tags, &coords, &tris, size, 0.03).expect("a cut");
+    assert!(own.lists.is_some() && own.figures.is_some());
+    assert!(own.parts.is_none(), "rank {rank}: the parts were gathered");
+    assert_eq!(own.triangles, all.len());
 
     // Each node's parts on the directory, for parts given by the file's index (the
     // shuffled file scatters them: most nodes lie on the interface).

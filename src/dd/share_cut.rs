@@ -1,8 +1,9 @@
 //! The partition of a mesh file's triangles found by every rank from its own share of
 //! the file, before any rank holds the whole mesh: the triangles put in a locality
 //! order (`dd::locality`), their dual graph built on the ranks (`dd::dist_graph`), cut
-//! by PT-Scotch, the edges cut counted; the first rank receives each triangle's part,
-//! by the triangle's index among the file's triangle records.
+//! by PT-Scotch, the edges cut counted; where the parts are not one per rank, the first
+//! rank receives each triangle's part, by the triangle's index among the file's
+//! triangle records.
 //!
 //! Why: the graph, the largest piece of the partition, then never exists on the first
 //! rank, which on a cluster has only its own node's cores (docs/cost-model.md, "The
@@ -17,8 +18,13 @@ use std::time::Instant;
 /// The cut made on the ranks.
 #[derive(Debug, Clone)]
 pub struct ShareCut {
-    /// On the first rank, each of the file's triangle records' part; `None` elsewhere.
+    /// On the first rank, each of the file's triangle records' part, where the ranks
+    /// made no part lists (`lists`); `None` elsewhere. Where they made them, each rank
+    /// builds its own part, and the first rank, should its problem not match the cut,
+    /// cuts it itself: a part per triangle on it would be its largest array.
     pub parts: Option<Vec<u32>>,
+    /// The file's triangle records in all the shares.
+    pub triangles: usize,
     /// The number of parts.
     pub nparts: usize,
     /// Edges of the dual graph between two parts.
@@ -74,8 +80,6 @@ pub fn cut_shares(
     let parts = parts.unwrap_or_default();
     let edge_cut = dist_graph::edge_cut(mpi, &dual, &parts, &sorted.counts);
     drop(dual);
-    let file = mpi.gather_varcount(&sorted.file, &sorted.counts);
-    let gathered = mpi.gather_varcount(&parts, &sorted.counts);
     let cut_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let (lists, figures) = (nparts == mpi.size)
@@ -89,18 +93,34 @@ pub fn cut_shares(
         })
         .flatten()
         .unzip();
-    let parts = file.zip(gathered).map(|(file, gathered)| {
-        let mut by_file = vec![0u32; total];
-        for (&f, &q) in file.iter().zip(&gathered) {
-            by_file[f as usize] = q as u32;
+    let lists_s = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    // Collective: every rank made the lists or none did.
+    let parts = match lists {
+        Some(_) => None,
+        None => {
+            let file = mpi.gather_varcount(&sorted.file, &sorted.counts);
+            let gathered = mpi.gather_varcount(&parts, &sorted.counts);
+            file.zip(gathered).map(|(file, gathered)| {
+                let mut by_file = vec![0u32; total];
+                for (&f, &q) in file.iter().zip(&gathered) {
+                    by_file[f as usize] = q as u32;
+                }
+                by_file
+            })
         }
-        by_file
-    });
+    };
     Some(ShareCut {
         parts,
+        triangles: total,
         nparts,
         edge_cut,
-        seconds: [order_s, graph_s, cut_s, start.elapsed().as_secs_f64()],
+        seconds: [
+            order_s,
+            graph_s,
+            cut_s + start.elapsed().as_secs_f64(),
+            lists_s,
+        ],
         lists,
         figures,
     })
