@@ -1514,9 +1514,15 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
 /// each part).
 fn read(opts: &Options, early: Option<Early>) -> Result<(Case, Problem, String, String)> {
     let start = Instant::now();
-    let (case, together) = match early {
-        Some(e) => (e.case?, e.mesh),
-        None => (load_case(opts)?, None),
+    let (case, together, numbering) = match early {
+        Some(e) => {
+            let numbering = match e.own_parts {
+                true => problem::Numbering::File,
+                false => problem::Numbering::Locality,
+            };
+            (e.case?, e.mesh, numbering)
+        }
+        None => (load_case(opts)?, None, problem::Numbering::Locality),
     };
     let file = matches!(case.mesh, MeshSource::File(_));
     let (mesh, mesh_name, mut how) = match together {
@@ -1543,7 +1549,7 @@ fn read(opts: &Options, early: Option<Early>) -> Result<(Case, Problem, String, 
         }
     };
     let problem_start = Instant::now();
-    let prob = problem::build(&case, mesh, &mesh_name)?;
+    let prob = problem::build_numbered(&case, mesh, &mesh_name, numbering)?;
     if file {
         how += &format!(", problem {:.3} s", problem_start.elapsed().as_secs_f64());
     }
@@ -1555,6 +1561,10 @@ fn read(opts: &Options, early: Option<Early>) -> Result<(Case, Problem, String, 
 struct Early {
     case: Result<Case>,
     mesh: Option<Together>,
+    /// Whether the ranks cut the file into one part each from their shares, and so will
+    /// build their own parts: the first rank's problem is then only where the
+    /// conditions come from, and keeps the file's numbering ([`problem::Numbering`]).
+    own_parts: bool,
 }
 
 /// Every rank's share of a Gmsh file read together, kept for the partition on the
@@ -1717,7 +1727,15 @@ fn read_together(
         alone_s,
         together_s,
     });
-    (Some(Early { case, mesh }), shares)
+    let own_parts = shares.is_some() && nparts == Some(mpi.size);
+    (
+        Some(Early {
+            case,
+            mesh,
+            own_parts,
+        }),
+        shares,
+    )
 }
 
 /// The number of subdomains the ranks cut a file of `triangles` triangle records into
