@@ -1025,7 +1025,7 @@ mod tests {
                 assert_eq!(a, b, "{name}: triangle {f}");
             }
             // The contact nodes, each in its numbering's increasing order.
-            let by_file = |p: &Problem| -> Vec<(usize, f64, f64, [f64; 2], [u32; 2])> {
+            let by_file = |p: &Problem| {
                 let c = &p.contact;
                 let mut v: Vec<_> = (p.contact_nodes.iter().enumerate())
                     .map(|(k, &v)| (p.file_node[v], c.w[k], c.g[k], c.normal[k], c.part[k]))
