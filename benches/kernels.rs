@@ -29,6 +29,11 @@
 //!   of hertz levels 4 and 6 (a Hertz-like profile, with p_t) and for histories of 20
 //!   sweeps (hertz level 4) and 330 (block level 2 with `--coulomb outer`).
 //!
+//! * `problem/locality/level{2,4}`, `problem/file/level{2,4}`: `problem::build` (the
+//!   mesh checks, groups, contact geometry, held check, the locality renumbering) against
+//!   `problem::build_numbered` in the file's numbering, what the first rank builds where
+//!   each rank builds its own part (the mesh cloned outside the timing).
+//!
 //! A sweep is `contact_par::contact::solve` with a budget of one plain (unaccelerated)
 //! sweep, through the public `LinearStep` trait, so it is the loop body the program
 //! runs, residual norms included.
@@ -52,7 +57,7 @@ use contact_par::fem::{self, assemble, Assembled, DofMap, Materials};
 use contact_par::linear::{interior_groups, NodeGraph, SparseCholesky};
 use contact_par::problem::{self, Problem};
 use contact_par::timer::Timer;
-use criterion::{black_box, criterion_group, criterion_main, Criterion, SamplingMode};
+use criterion::{black_box, criterion_group, criterion_main, BatchSize, Criterion, SamplingMode};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
 use std::time::Duration;
 
@@ -386,6 +391,30 @@ fn budget(g: &mut Group<'_>, secs: f64) {
         .measurement_time(Duration::from_secs_f64((12.0 * secs).clamp(0.5, 20.0)));
 }
 
+const PROBLEM_S: [f64; 2] = [0.01, 0.2];
+
+fn problems(c: &mut Criterion) {
+    set_threads();
+    for (k, level) in LEVELS.into_iter().enumerate() {
+        let case = case::builtin_case("block", level).expect("built-in case");
+        let (mesh, name) = load_mesh(&case).expect("built-in mesh");
+        let mut g = heavy(c, "problem", PROBLEM_S[k]);
+        for (label, numbering) in [
+            ("locality", problem::Numbering::Locality),
+            ("file", problem::Numbering::File),
+        ] {
+            g.bench_function(format!("{label}/level{level}"), |b| {
+                b.iter_batched(
+                    || mesh.clone(),
+                    |m| problem::build_numbered(&case, m, &name, numbering).expect("problem"),
+                    BatchSize::LargeInput,
+                )
+            });
+        }
+        g.finish();
+    }
+}
+
 fn element(c: &mut Criterion) {
     set_threads();
     let d = fem::elasticity_matrix(&case::builtin_case("block", 0).unwrap().materials[0].material);
@@ -588,6 +617,7 @@ criterion_group!(
     factorization,
     sweeps,
     node_kernels,
-    plots
+    plots,
+    problems
 );
 criterion_main!(benches);

@@ -323,6 +323,11 @@ def main():
                     "predict the start from one Gmsh file")
     ap.add_argument("--cut", help="cut_study.py's output directory (cut.csv): the start with the "
                     "partition by every rank (needs --start)")
+    ap.add_argument("--file-numbering", type=float, default=0.55,
+                    help="the first rank's problem in the file's numbering (where each rank "
+                    "builds its own part) over the problem in the locality numbering: "
+                    "0.41-0.57 in start_study.py runs on the 1M-node meshes (the larger kept), "
+                    "0.39 in benches/kernels.rs problem/file over problem/locality at level 4")
     ap.add_argument("--node-cores", type=int, default=64,
                     help="cores of the first rank's node, which it borrows for the start")
     a = ap.parse_args()
@@ -391,10 +396,15 @@ def main():
             print()
             print(f"{title}; fitted on {a.cut}:")
             print(cut.describe())
+            if kind == "shares":
+                print(f"  the first rank's problem in the file's numbering: {a.file_numbering:.2f} x"
+                      " the start's (no locality renumbering)")
             print(f"{'P':>5} {'first rank: graph + split':>26} {'cut, all ranks':>15} "
                   f"{'first rank alone s':>19} {'start s':>8} {'serial share':>12} {'start share':>11}")
             for P in sorted({64, 128, 256, a.ranks}):
                 secs = st.seconds(nodes, a.node_cores, P)
+                if kind == "shares":
+                    secs["problem"] *= a.file_numbering
                 first, on_ranks = cut.seconds(nodes, P)
                 # From the shares each rank builds its own part: the first rank
                 # scatters nothing (its split is the conditions it sends, in `first`).
