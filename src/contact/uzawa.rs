@@ -716,14 +716,14 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         if !(self.params.adapt_r && self.can_retune) {
             return Ok(false);
         }
+        if self.sweeper.aug.ended {
+            return Ok(false);
+        }
         let Some(kind) = retuned(&self.history, frictional, self.n_contact) else {
             return Ok(false);
         };
         let n = last.p.len();
         let held: Vec<Held> = (0..n).map(|i| last.held(i, frictional)).collect();
-        if self.sweeper.aug.ended {
-            return Ok(false);
-        }
         let (r, stiffness) = (self.sweeper.r_ref, self.sweeper.mesh_stiffness);
         let aug = match kind {
             Retune::EndCycle { since } => {
