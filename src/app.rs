@@ -267,10 +267,20 @@ fn run_subdomain(ctx: &Subdomain, subs: Option<Vec<SubProblem>>) -> Result<RunRe
     let own = ctx.setup.own_parts;
     let sub = &ctx.timer.time(Phase::Scatter, || match &ctx.setup.split {
         Some(split) => mpi.agree(split.read_part(mpi.rank)),
-        None if own => mpi.agree(
-            subs.and_then(|mut s| s.pop())
-                .ok_or_else(|| Error::Numerical("internal: a rank has no part of its own".into())),
-        ),
+        None if own => {
+            // The rank's leader built its team's parts, one per subdomain thread.
+            let k = mpi.per_rank();
+            let dealt = subs.map(|s| {
+                let mut s: Vec<Result<SubProblem>> = s.into_iter().map(Ok).collect();
+                s.resize_with(k, || {
+                    Err(Error::Numerical(
+                        "internal: a rank has too few parts of its own".into(),
+                    ))
+                });
+                s
+            });
+            mpi.agree(mpi.deal(dealt))
+        }
         None => mpi.agree(mpi.scatter_parts(subs)),
     })?;
     ctx.phase_done(
@@ -870,8 +880,7 @@ struct ReadProblem {
 /// ([`cut_and_split`] cuts it), unless the ranks cut the file from their shares
 /// (`share_cut`, with the seconds the first rank's reading went on after it): then only
 /// the triangles around each node, which the ownership rules read, or nothing where
-/// each rank builds its own part from the lists it made (`own_parts`: one part per
-/// rank).
+/// each rank builds its own parts from the lists it made (`own_parts`).
 fn with_graph(
     read: Read,
     share_cut: Option<(ShareCut, f64)>,
@@ -886,7 +895,7 @@ fn with_graph(
     let graph_start = Instant::now();
     let cut = share_cut.and_then(|(c, after)| ShareParts::of(c, after, prob, nparts, own_parts));
     // Where each rank builds its own part, the first rank needs no graph at all.
-    let on_ranks = own_parts && cut.is_some() && read.per_rank == 1;
+    let on_ranks = own_parts && cut.is_some();
     let graph = timer.time(Phase::Partition, || match (&cut, on_ranks) {
         (_, true) => Ok(None),
         (Some(_), false) => {
@@ -971,7 +980,7 @@ struct Phase1 {
 /// This rank's part as the ranks' cut from their shares of the file leaves it, with the
 /// partition's figures found on the ranks.
 struct OwnPart {
-    lists: PartLists,
+    lists: Vec<PartLists>,
     figures: InterfaceFigures,
     edge_cut: usize,
 }
@@ -1047,10 +1056,10 @@ fn cut_and_split(
             Error::Numerical("internal: a rank has no part lists of its own".into())
         }))?;
     let start = Instant::now();
-    let (sub, map, quality) = timer.time(Phase::Partition, || {
-        let (sub, map) = dist_split::build(mpi, &own.lists, conditions, part_case)?;
-        let quality = dist_split::quality(mpi, &sub, &own.figures, own.edge_cut);
-        Ok::<_, Error>((sub, map, quality))
+    let (subs, map, quality) = timer.time(Phase::Partition, || {
+        let (subs, map) = dist_split::build(mpi, &own.lists, conditions, part_case)?;
+        let quality = dist_split::quality(mpi, &subs, &own.figures, own.edge_cut);
+        Ok::<_, Error>((subs, map, quality))
     })?;
     drop(own);
     let built_s = start.elapsed().as_secs_f64();
@@ -1061,7 +1070,7 @@ fn cut_and_split(
         d.figure.on_ranks_s = Some(built_s);
         d.setup(opts, layout, timer, print).0
     });
-    Ok((setup, Some(vec![sub])))
+    Ok((setup, Some(subs)))
 }
 
 /// The first rank's graph cut into `nparts` parts by PT-Scotch on every rank, each
@@ -1561,8 +1570,8 @@ fn read(opts: &Options, early: Option<Early>) -> Result<(Case, Problem, String, 
 struct Early {
     case: Result<Case>,
     mesh: Option<Together>,
-    /// Whether the ranks cut the file into one part each from their shares, and so will
-    /// build their own parts: the first rank's problem is then only where the
+    /// Whether the ranks cut the file into their parts from their shares (as many on
+    /// every rank), and so will build them: the first rank's problem is then only where the
     /// conditions come from, and keeps the file's numbering ([`problem::Numbering`]).
     own_parts: bool,
 }
@@ -1727,7 +1736,7 @@ fn read_together(
         alone_s,
         together_s,
     });
-    let own_parts = shares.is_some() && nparts == Some(mpi.size);
+    let own_parts = shares.is_some() && nparts.is_some_and(|n| n % mpi.size == 0);
     (
         Some(Early {
             case,

@@ -225,36 +225,13 @@ fn locality_child() {
     }
     assert!(locality::sort_triangles(&mpi, &tags, &coords, &bad).is_none());
 
-    // The cut: a part per file triangle on the first rank, the serial edge cut.
-    let nparts = size + 1;
-    let cut = share_cut::cut_shares(&mpi, &tags, &coords, &tris, nparts, 0.03).expect("a cut");
-    assert_eq!(cut.nparts, nparts);
-    if rank == 0 {
-        let parts = cut.parts.expect("the parts on the first rank");
-        assert_eq!(parts.len(), all.len());
-        for q in 0..nparts as u32 {
-            assert!(parts.contains(&q), "part {q} is empty");
-        }
-        let serial_graph = partition::dual_graph(nodes, &all).expect("a valid mesh");
-        let serial_cut = (0..all.len())
-            .map(|g| {
-                (serial_graph.neighbours(g).iter())
-                    .filter(|&&h| parts[h] != parts[g])
-                    .count()
-            })
-            .sum::<usize>()
-            / 2;
-        assert_eq!(cut.edge_cut, serial_cut);
-    } else {
-        assert!(cut.parts.is_none());
+    // The cut, with parts not a multiple of the ranks (from 2 ranks): a part per file
+    // triangle on the first rank, the serial edge cut; with as many parts on every rank
+    // (one, two): each rank its parts' lists, none gathered.
+    for nparts in [size + 1, size, 2 * size] {
+        let cut = share_cut::cut_shares(&mpi, &tags, &coords, &tris, nparts, 0.03).expect("a cut");
+        check_cut(&mpi, &cut, nparts, &all, nodes);
     }
-    assert_eq!(cut.triangles, all.len());
-    // One part per rank: each rank its part's lists, and no part per triangle on the
-    // first rank.
-    let own = share_cut::cut_shares(&mpi, &tags, &coords, &tris, size, 0.03).expect("a cut");
-    assert!(own.lists.is_some() && own.figures.is_some());
-    assert!(own.parts.is_none(), "rank {rank}: the parts were gathered");
-    assert_eq!(own.triangles, all.len());
 
     // Each node's parts on the directory, for parts given by the file's index (the
     // shuffled file scatters them: most nodes lie on the interface).
@@ -331,4 +308,72 @@ fn locality_child() {
             q.neighbours.iter().map(|(p, n)| (*p, tags(n))).collect();
         assert_eq!(l.neighbours, neighbours, "part {}", l.part);
     }
+}
+
+/// The cut's parts (gathered, or from the ranks' lists) on the first rank: every part
+/// used, and the serial count of the edges cut.
+fn check_cut(
+    mpi: &Mpi,
+    cut: &share_cut::ShareCut,
+    nparts: usize,
+    all: &[[usize; 3]],
+    nodes: usize,
+) {
+    let (rank, size) = (mpi.rank, mpi.size);
+    assert_eq!(cut.nparts, nparts);
+    assert_eq!(cut.triangles, all.len());
+    let listed = nparts % size == 0;
+    assert_eq!(
+        cut.lists.is_some(),
+        listed,
+        "{nparts} parts on {size} ranks"
+    );
+    assert_eq!(cut.figures.is_some(), listed);
+    // Each part's triangles from its lists, to the first rank.
+    let mut send = vec![Vec::new(); size];
+    for l in cut.lists.iter().flatten() {
+        assert_eq!(
+            l.part as usize / (nparts / size),
+            rank,
+            "part {} here",
+            l.part
+        );
+        send[0].extend(l.elements.iter().flat_map(|&e| [e, u64::from(l.part)]));
+    }
+    let listed_parts = mpi.exchange(send);
+    if rank != 0 {
+        assert!(cut.parts.is_none());
+        return;
+    }
+    let parts = match &cut.parts {
+        Some(parts) => {
+            assert!(!listed, "the parts were gathered");
+            parts.clone()
+        }
+        None => {
+            assert!(
+                listed,
+                "{nparts} parts on {size} ranks: none reached the first rank"
+            );
+            let mut parts = vec![u32::MAX; all.len()];
+            for r in listed_parts.iter().flat_map(|v| v.chunks_exact(2)) {
+                parts[r[0] as usize] = r[1] as u32;
+            }
+            parts
+        }
+    };
+    assert_eq!(parts.len(), all.len());
+    for q in 0..nparts as u32 {
+        assert!(parts.contains(&q), "part {q} is empty");
+    }
+    let serial_graph = partition::dual_graph(nodes, all).expect("a valid mesh");
+    let serial_cut = (0..all.len())
+        .map(|g| {
+            (serial_graph.neighbours(g).iter())
+                .filter(|&&h| parts[h] != parts[g])
+                .count()
+        })
+        .sum::<usize>()
+        / 2;
+    assert_eq!(cut.edge_cut, serial_cut);
 }

@@ -1,7 +1,7 @@
-//! Each rank's subproblem built on its own rank (`dd::dist_split`) from its part's lists
+//! Each rank's subproblems built on its own rank (`dd::dist_split`) from its parts' lists
 //! (found on the ranks from their ranges of the file, `dd::ownership`) and the first
-//! rank's conditions is the first rank's split (`dd::split::split`) of the same
-//! partition, on 1, 2, 3 and 4 ranks, for held-out cases with Dirichlet lines, tractions,
+//! rank's conditions are the first rank's split (`dd::split::split`) of the same
+//! partition, on 1, 2, 3 and 4 ranks with one and two parts per rank, for held-out cases with Dirichlet lines, tractions,
 //! body forces, inclined and oblique obstacles, friction and none, and two materials:
 //! the same nodes, coordinates, owners, prescribed values, triangles and bodies, contact
 //! nodes in the same order with the same geometry, the same frames, contact dofs and
@@ -77,7 +77,9 @@ fn child() {
     let mpi = Mpi::new(universe.world());
     for (name, dir, text) in cases() {
         let case = parse_case(&text, &name, &dir).expect("a case");
-        check(&mpi, &name, &case);
+        for k in [1, 2] {
+            check(&mpi, &name, &case, k);
+        }
     }
 }
 
@@ -90,20 +92,22 @@ fn range(r: usize, size: usize, n: usize) -> std::ops::Range<usize> {
     n * r / size..n * (r + 1) / size
 }
 
-fn check(mpi: &Mpi, name: &str, case: &Case) {
+/// `k` parts per rank.
+fn check(mpi: &Mpi, name: &str, case: &Case, k: usize) {
     let (rank, size) = (mpi.rank, mpi.size);
+    let nparts = size * k;
     let (mesh, mesh_name) = contact_par::app::load_mesh(case).expect("the mesh");
     let file_mesh = mesh.clone();
     let prob = problem::build(case, mesh, &mesh_name).expect("the problem");
     assert!(prob.contact_masters.iter().all(Vec::is_empty));
     let nt = prob.mesh.triangles.len();
     // Compact parts: consecutive triangles of the problem's locality order.
-    let element_part: Vec<u32> = (0..nt).map(|t| (t * size / nt) as u32).collect();
+    let element_part: Vec<u32> = (0..nt).map(|t| (t * nparts / nt) as u32).collect();
     let part = partition::partition_from_element_parts(
         prob.mesh.num_nodes(),
         &prob.mesh.triangles,
         &prob.contact_nodes,
-        size,
+        nparts,
         element_part.clone(),
     )
     .expect("a partition");
@@ -129,22 +133,25 @@ fn check(mpi: &Mpi, name: &str, case: &Case) {
     let share = locality::share_nodes(mpi, &tags, &coords);
     let known = locality::directory(mpi, &share).expect("a directory");
     let around = ownership::node_parts(mpi, &triangles, &parts, &known).expect("the nodes");
-    let lists = ownership::part_lists(mpi, &file, &triangles, &parts, &around, 1);
+    let lists = ownership::part_lists(mpi, &file, &triangles, &parts, &around, k);
     let conditions = (rank == 0).then(|| Conditions::of(case, &prob).expect("conditions"));
     let on = PartCase {
         body_force: case.body_force,
         frictional,
     };
-    let (sub, got) = dist_split::build(mpi, &lists[0], conditions, on).expect("the parts");
-    let what = format!("{name}, part {rank} of {size}");
+    let (built, got) = dist_split::build(mpi, &lists, conditions, on).expect("the parts");
+    let what = format!("{name}, rank {rank} of {size}, {k} parts each");
+    assert_eq!(built.len(), k, "{what}");
     assert_eq!(got.n_interface, map.n_interface, "{what}");
     assert_eq!(got.n_boundary, map.n_boundary, "{what}");
     assert_eq!(got.contact_counts, map.contact_counts, "{what}");
-    same_part(&subs[rank], &sub, &what);
+    for (j, sub) in built.iter().enumerate() {
+        same_part(&subs[rank * k + j], sub, &format!("{what}, part {j}"));
+    }
     // The partition's figures found on the ranks are the crate's, but that a part's
     // pieces are joined through shared nodes there, not only through edges.
-    let figures = ownership::interface_figures(mpi, &around, size);
-    let quality = dist_split::quality(mpi, &sub, &figures, part.quality.edge_cut);
+    let figures = ownership::interface_figures(mpi, &around, nparts);
+    let quality = dist_split::quality(mpi, &built, &figures, part.quality.edge_cut);
     let disconnected = (part.parts.iter())
         .filter(|q| {
             let t: Vec<[usize; 3]> = q.elements.iter().map(|&e| prob.mesh.triangles[e]).collect();
@@ -160,18 +167,22 @@ fn check(mpi: &Mpi, name: &str, case: &Case) {
     // Every interface dof has one number over the parts, and the numbers are 0..n; the
     // parts' loads sum to the problem's.
     let mut send = vec![Vec::new(); size];
-    for (&d, &b) in sub.boundary_dofs[sub.n_contact_dofs..]
-        .iter()
-        .zip(&sub.interface_global)
-    {
-        let f = sub.global_nodes[d / 2] as u64;
-        send[0].extend_from_slice(&[f, (d % 2) as u64, b as u64]);
+    for sub in &built {
+        for (&d, &b) in sub.boundary_dofs[sub.n_contact_dofs..]
+            .iter()
+            .zip(&sub.interface_global)
+        {
+            let f = sub.global_nodes[d / 2] as u64;
+            send[0].extend_from_slice(&[f, (d % 2) as u64, b as u64]);
+        }
     }
     let numbers = mpi.exchange(send);
     let mut send = vec![Vec::new(); size];
-    for (l, &f) in sub.global_nodes.iter().enumerate() {
-        for c in 0..2 {
-            send[0].extend_from_slice(&[(2 * f + c) as u64, sub.load[2 * l + c].to_bits()]);
+    for sub in &built {
+        for (l, &f) in sub.global_nodes.iter().enumerate() {
+            for c in 0..2 {
+                send[0].extend_from_slice(&[(2 * f + c) as u64, sub.load[2 * l + c].to_bits()]);
+            }
         }
     }
     let loads = mpi.exchange(send);

@@ -215,9 +215,9 @@ fn check_from_shares(p: &Path, law: Option<Law>, what: &str) {
             let from = format!("PT-Scotch on {np} ranks from their shares of the file");
             assert!(line.contains(&from), "{what}, {np} x {k}: {line}");
             assert!(line.contains(&format!("in {} parts", np * k)), "{line}");
-            // With a part per rank, each rank builds its own (`dd::dist_split`).
+            // Each rank builds its own parts (`dd::dist_split`), one or several.
             let built = line.contains("parts built on their ranks");
-            assert_eq!(built, k == 1, "{what}, {np} x {k}: {line}");
+            assert!(built, "{what}, {np} x {k}: {line}");
             let rows = read_contact(&p.join(&out).join("contact.csv"));
             let name = format!("{what}, 1 vs {np} ranks x {k} from the shares");
             assert_same_columns(&one, &rows, 1e-8, &name);

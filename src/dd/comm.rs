@@ -696,6 +696,12 @@ impl Mpi {
         self.team.scatter(self.member, team_values)
     }
 
+    /// The leader's `values` (one per member of its team, on the leader), each to its
+    /// member: nothing crosses ranks.
+    pub fn deal<T: Send + 'static>(&self, values: Option<Vec<T>>) -> T {
+        self.team.scatter(self.member, values)
+    }
+
     /// Sends a value from the first subdomain to every other one.
     pub fn broadcast<T>(&self, value: Option<T>) -> Result<T>
     where

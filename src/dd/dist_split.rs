@@ -327,90 +327,116 @@ fn owned_interface_dofs(part: &LocalPart) -> Vec<(usize, usize)> {
         .collect()
 }
 
-/// Each rank's subproblem (one part per rank: part q on rank q) from its part's
-/// `lists` and the first rank's `conditions` (sent to every rank), with the global map. The interface dofs
-/// are numbered part after part, each part's by file index and component; each part
-/// tells its neighbours the numbers of the shared nodes it owns. Collective.
+/// Each rank's subproblems (`lists`: its parts, the same number k on every rank, part
+/// `rank * k + j` at j, as the run's subdomains) from their lists and the first rank's
+/// `conditions` (sent to every rank), with the global map. The interface dofs are
+/// numbered part after part, each part's by file index and component; each part tells
+/// its neighbours the numbers of the shared nodes it owns (through the exchange where
+/// they are on another rank). Collective; before any team of subdomains exists.
 pub fn build(
     mpi: &Mpi,
-    lists: &PartLists,
+    lists: &[PartLists],
     conditions: Option<Conditions>,
     case: PartCase,
-) -> Result<(SubProblem, GlobalMap)> {
-    let p = mpi.size;
+) -> Result<(Vec<SubProblem>, GlobalMap)> {
+    let (p, k) = (mpi.size, lists.len());
     let conditions = match p {
         1 => conditions.unwrap_or_default(),
         _ => mpi.broadcast(conditions)?,
     };
-    let part = mpi.agree(local_part(
-        lists,
-        &conditions.nodes,
-        &conditions.bodies,
-        case,
-    ))?;
+    let parts = mpi.agree(
+        (lists.iter())
+            .map(|l| local_part(l, &conditions.nodes, &conditions.bodies, case))
+            .collect::<Result<Vec<LocalPart>>>(),
+    )?;
     drop(conditions);
 
-    let own = owned_interface_dofs(&part);
-    let counts = mpi.all_gather_counts(own.len());
-    let first: usize = counts[..mpi.rank].iter().sum();
+    let own: Vec<Vec<(usize, usize)>> = parts.iter().map(owned_interface_dofs).collect();
+    let counts = per_part(mpi, own.iter().map(Vec::len), k);
+    let before = mpi.rank * k;
     let n_interface: usize = counts.iter().sum();
-    let n = part.sub.nodes.len();
-    let mut number = vec![[u64::MAX; 2]; n];
-    for (i, &(v, c)) in own.iter().enumerate() {
-        number[v][c] = (first + i) as u64;
+    let mut number: Vec<Vec<[u64; 2]>> = (parts.iter())
+        .map(|part| vec![[u64::MAX; 2]; part.sub.nodes.len()])
+        .collect();
+    for (j, own) in own.iter().enumerate() {
+        let first: usize = counts[..before + j].iter().sum();
+        for (i, &(v, c)) in own.iter().enumerate() {
+            number[j][v][c] = (first + i) as u64;
+        }
     }
-    let local_of_tag = |t: u64| lists.nodes.binary_search(&t).ok().map(|i| part.of_list[i]);
-    // To each neighbour, the numbers of the shared nodes this part owns: the tag, then
-    // the global numbers of its x and y dofs (u64::MAX where prescribed).
+    let local_of_tag =
+        |j: usize, t: u64| (lists[j].nodes.binary_search(&t).ok()).map(|i| parts[j].of_list[i]);
+    // To each neighbour's rank, the numbers of the shared nodes a part owns: the tag,
+    // then the global numbers of its x and y dofs (u64::MAX where prescribed); those for
+    // a part on this rank kept here.
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
-    for (q, tags) in &lists.neighbours {
-        for &t in tags {
-            let v = local_of_tag(t).ok_or_else(|| {
-                Error::Numerical(format!(
-                    "internal: a shared node tag {t} is not in its part"
-                ))
-            })?;
-            if part.sub.owned[v] {
-                send[*q as usize].extend_from_slice(&[t, number[v][0], number[v][1]]);
-            }
-        }
-    }
-    for got in mpi.exchange(send) {
-        for r in got.chunks_exact(3) {
-            if let Some(v) = local_of_tag(r[0]) {
-                number[v] = [r[1], r[2]];
-            }
-        }
-    }
-    let mut interface: Vec<(usize, usize)> = Vec::new();
-    let mut missing = false;
-    for &t in &lists.interface {
-        let v = local_of_tag(t).unwrap_or(usize::MAX);
-        for c in 0..2 {
-            if v == usize::MAX {
-                missing = true;
-            } else if part.sub.fixed[2 * v + c].is_none() {
-                match number[v][c] {
-                    u64::MAX => missing = true,
-                    b => interface.push((b as usize, 2 * v + c)),
+    let mut here: Vec<u64> = Vec::new();
+    for (j, list) in lists.iter().enumerate() {
+        for (q, tags) in &list.neighbours {
+            let rank = (*q as usize / k).min(p - 1);
+            for &t in tags {
+                let v = local_of_tag(j, t).ok_or_else(|| {
+                    Error::Numerical(format!(
+                        "internal: a shared node tag {t} is not in its part"
+                    ))
+                })?;
+                if parts[j].sub.owned[v] {
+                    let to = if rank == mpi.rank {
+                        &mut here
+                    } else {
+                        &mut send[rank]
+                    };
+                    to.extend_from_slice(&[t, number[j][v][0], number[j][v][1]]);
                 }
             }
         }
     }
-    let mut sub = part.sub;
+    let mut got = mpi.exchange(send);
+    got.push(here);
+    for r in got.iter().flat_map(|g| g.chunks_exact(3)) {
+        for (j, number) in number.iter_mut().enumerate() {
+            if let Some(v) = local_of_tag(j, r[0]) {
+                if !parts[j].sub.owned[v] {
+                    number[v] = [r[1], r[2]];
+                }
+            }
+        }
+    }
+    let mut missing = false;
+    let mut subs = Vec::with_capacity(k);
+    for ((list, part), number) in lists.iter().zip(parts).zip(&number) {
+        let mut interface: Vec<(usize, usize)> = Vec::new();
+        for &t in &list.interface {
+            let v = (list.nodes.binary_search(&t).ok()).map_or(usize::MAX, |i| part.of_list[i]);
+            for c in 0..2 {
+                if v == usize::MAX {
+                    missing = true;
+                } else if part.sub.fixed[2 * v + c].is_none() {
+                    match number[v][c] {
+                        u64::MAX => missing = true,
+                        b => interface.push((b as usize, 2 * v + c)),
+                    }
+                }
+            }
+        }
+        let mut sub = part.sub;
+        interface.sort_unstable();
+        let (global, dofs): (Vec<usize>, Vec<usize>) = interface.into_iter().unzip();
+        sub.interface_global = global;
+        sub.boundary_dofs.extend(dofs);
+        subs.push(sub);
+    }
     if !mpi.all_ok(!missing) {
         return Err(Error::Numerical(
             "internal: an interface dof has no global number".into(),
         ));
     }
-    interface.sort_unstable();
-    let (global, dofs): (Vec<usize>, Vec<usize>) = interface.into_iter().unzip();
-    sub.interface_global = global;
-    sub.boundary_dofs.extend(dofs);
-    let contact_counts = mpi.all_gather_counts(sub.contact_nodes.len());
-    let contact_dofs: usize = mpi.all_gather_counts(sub.n_contact_dofs).iter().sum();
+    let contact_counts = per_part(mpi, subs.iter().map(|s| s.contact_nodes.len()), k);
+    let contact_dofs: usize = per_part(mpi, subs.iter().map(|s| s.n_contact_dofs), k)
+        .iter()
+        .sum();
     Ok((
-        sub,
+        subs,
         GlobalMap {
             n_interface,
             n_boundary: n_interface + contact_dofs,
@@ -419,18 +445,30 @@ pub fn build(
     ))
 }
 
-/// The partition's figures (`partition::Quality`) from every rank's part (`sub`), the
+/// Every part's count (`k` parts on every rank, this rank's in `mine`), in part order.
+fn per_part(mpi: &Mpi, mine: impl Iterator<Item = usize>, k: usize) -> Vec<usize> {
+    let local: Vec<f64> = mine.map(|c| c as f64).collect();
+    let mut all = Vec::new();
+    mpi.all_gather(&local, &vec![k; mpi.size], &mut all);
+    all.into_iter().map(|c| c as usize).collect()
+}
+
+/// The partition's figures (`partition::Quality`) from every rank's parts (`subs`), the
 /// interface's figures and the edge cut found on the ranks: a part's pieces are its
 /// triangles joined through shared nodes, as where the first rank takes the cut from
 /// elsewhere. Collective.
 pub fn quality(
     mpi: &Mpi,
-    sub: &SubProblem,
+    subs: &[SubProblem],
     figures: &InterfaceFigures,
     edge_cut: usize,
 ) -> Quality {
-    let sizes = mpi.all_gather_counts(sub.triangles.len());
-    let disconnected = mpi.all_gather_counts(usize::from(node_pieces(&sub.triangles) > 1));
+    let k = subs.len();
+    let sizes = per_part(mpi, subs.iter().map(|s| s.triangles.len()), k);
+    let pieces = subs
+        .iter()
+        .map(|s| usize::from(node_pieces(&s.triangles) > 1));
+    let disconnected = per_part(mpi, pieces, k);
     let num_elements: usize = sizes.iter().sum();
     let max_part_elements = sizes.iter().copied().max().unwrap_or(0);
     let mean = num_elements as f64 / sizes.len().max(1) as f64;

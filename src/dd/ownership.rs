@@ -13,8 +13,8 @@
 //! of the problem from its share of the mesh file (docs/cost-model.md, "The partition
 //! from the ranks' shares of the file"): the nodes each part holds and which of them it
 //! owns and shares, and the partition's figures, without the whole mesh on one rank.
-//! Runs use it where the ranks cut the mesh from their shares, one part per rank
-//! (`dd::share_cut`, `dd::dist_split`).
+//! Runs use it where the ranks cut the mesh from their shares, the same number of
+//! parts on every rank (`dd::share_cut`, `dd::dist_split`).
 
 use crate::dd::comm::Mpi;
 use crate::dd::locality::{tag_rank, Directory};

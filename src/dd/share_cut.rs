@@ -32,10 +32,10 @@ pub struct ShareCut {
     /// Seconds of the locality order, the graph, the cut with its count and gather,
     /// and the part lists.
     pub seconds: [f64; 4],
-    /// This rank's part's lists (`dd::ownership`), where there is one part per rank and
-    /// every node of the triangles is in one share: each rank then builds its own
-    /// subproblem (`dd::dist_split`).
-    pub lists: Option<PartLists>,
+    /// This rank's parts' lists (`dd::ownership`: the same number of parts on every
+    /// rank, parts `rank * k ..`), where every node of the triangles is in one share:
+    /// each rank then builds its own subproblems (`dd::dist_split`).
+    pub lists: Option<Vec<PartLists>>,
     /// The interface's figures, on every rank, where the lists were made.
     pub figures: Option<InterfaceFigures>,
 }
@@ -82,14 +82,21 @@ pub fn cut_shares(
     drop(dual);
     let cut_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    let (lists, figures) = (nparts == mpi.size)
+    let per_rank = nparts / mpi.size;
+    let (lists, figures) = (nparts % mpi.size == 0)
         .then(|| {
             let parts: Vec<u32> = parts.iter().map(|&q| q as u32).collect();
             let around = ownership::node_parts(mpi, &sorted.triangles, &parts, &sorted.nodes)?;
             let figures = ownership::interface_figures(mpi, &around, nparts);
-            let lists =
-                ownership::part_lists(mpi, &sorted.file, &sorted.triangles, &parts, &around, 1);
-            Some((lists.into_iter().next()?, figures))
+            let lists = ownership::part_lists(
+                mpi,
+                &sorted.file,
+                &sorted.triangles,
+                &parts,
+                &around,
+                per_rank,
+            );
+            Some((lists, figures))
         })
         .flatten()
         .unzip();
