@@ -200,44 +200,7 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
         ranks: mpi.size,
         threads,
     };
-    let (early, shares) = read_together(opts, &mpi, layout, &timer);
-    let (read, cut) = std::thread::scope(|scope| {
-        let reading = mpi.is_root().then(|| {
-            scope.spawn(|| {
-                host::on_idle_cores(mpi.node_ranks, || {
-                    prepare(opts, layout, &timer, print, early)
-                })
-            })
-        });
-        let mut cut = shares.and_then(|s| timer.time(Phase::Partition, || s.cut(&mpi)));
-        let lists = cut.as_mut().and_then(|c| {
-            Some(OwnPart {
-                lists: c.lists.take()?,
-                figures: c.figures.take()?,
-                edge_cut: c.edge_cut,
-            })
-        });
-        let cut_end = Instant::now();
-        let read = reading.map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
-        // How long the first rank's reading went on once the ranks had cut.
-        let cut = cut.map(|c| (c, cut_end.elapsed().as_secs_f64()));
-        (read, (cut, lists))
-    });
-    let (cut, lists) = cut;
-    let own = lists.is_some();
-    let prepared = read.map(|r| {
-        r.and_then(|r| host::on_idle_cores(mpi.node_ranks, || with_graph(r, cut, own, &timer)))
-    });
-    mpi.barrier_sleeping();
-    let prepared = mpi.agree(prepared.transpose())?;
-    let (setup, subs) = cut_and_split(
-        opts,
-        &mpi,
-        layout,
-        &timer,
-        print,
-        Phase1 { prepared, lists },
-    )?;
+    let (setup, subs) = read_and_split(opts, &mpi, layout, &timer, print)?;
 
     // 3. Distribute: the set-up to every rank, every subdomain of a rank on a thread of
     // its own (this one included), then each its subproblem (`run_subdomain`).
@@ -257,6 +220,47 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     };
     let ctx = Subdomain::new(opts, &leader, setup, &timer, print);
     host::on_subdomain_threads(members, leader.rank, member, || run_subdomain(&ctx, subs))
+}
+
+/// Phases 1-2, collective: the set-up on the first rank, and the subproblems: all of
+/// them on the first rank, or each rank's own where the ranks built them.
+fn read_and_split(
+    opts: &Options,
+    mpi: &Mpi,
+    layout: Layout,
+    timer: &Timer,
+    print: &Printer,
+) -> Result<(Option<Setup>, Option<Vec<SubProblem>>)> {
+    let (early, shares) = read_together(opts, mpi, layout, timer);
+    let node_ranks = mpi.node_ranks;
+    let (read, cut) = std::thread::scope(|scope| {
+        let reading = mpi.is_root().then(|| {
+            scope.spawn(|| {
+                host::on_idle_cores(node_ranks, || prepare(opts, layout, timer, print, early))
+            })
+        });
+        let mut cut = shares.and_then(|s| timer.time(Phase::Partition, || s.cut(mpi)));
+        let lists = cut.as_mut().and_then(|c| {
+            Some(OwnPart {
+                lists: c.lists.take()?,
+                figures: c.figures.take()?,
+                edge_cut: c.edge_cut,
+            })
+        });
+        let cut_end = Instant::now();
+        let read = reading.map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
+        // How long the first rank's reading went on once the ranks had cut.
+        let cut = cut.map(|c| (c, cut_end.elapsed().as_secs_f64()));
+        (read, (cut, lists))
+    });
+    let (cut, lists) = cut;
+    let own = lists.is_some();
+    let prepared = read.map(|r| {
+        r.and_then(|r| host::on_idle_cores(node_ranks, || with_graph(r, cut, own, timer)))
+    });
+    mpi.barrier_sleeping();
+    let prepared = mpi.agree(prepared.transpose())?;
+    cut_and_split(opts, mpi, layout, timer, print, Phase1 { prepared, lists })
 }
 
 /// One subdomain's run, from its subproblem to its outputs (collective over all).
@@ -1438,8 +1442,12 @@ pub struct SplitOptions {
 
 /// `contact-par split`: reads the case and its mesh, partitions and splits them into
 /// `parts` subdomains, the same as a run on that many would, and writes one file per
-/// part (see `split_dir`). Serial: one process holds the whole mesh, once.
+/// part (see `split_dir`). The first rank reads the whole mesh; the parts are made by
+/// it, or by their ranks (`split_on_ranks`).
 pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()> {
+    if mpi.size > 1 && opts.parts % mpi.size == 0 && opts.partitioner.on_ranks(mpi, opts.parts) {
+        return split_on_ranks(opts, mpi, print);
+    }
     // The first rank reads and builds the problem while the others sleep; all cut the
     // graph (PT-Scotch) when there are several; the first splits and writes the parts.
     let prepared = mpi.is_root().then(|| {
@@ -1516,6 +1524,96 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
     });
     mpi.barrier_sleeping();
     mpi.agree(done.unwrap_or(Ok(())))
+}
+
+/// `contact-par split` on several ranks, the parts a multiple of them, cut by every
+/// rank: the start of a run on them (`read_and_split`, the file read in shares), after
+/// which, where the ranks built their own parts (`dd::dist_split`), each writes its
+/// parts' files and the first the manifest, so that no rank holds the others' parts;
+/// otherwise (a contact between two bodies, a built-in mesh) the first rank writes the
+/// split it made.
+fn split_on_ranks(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()> {
+    let k = opts.parts / mpi.size;
+    let run = Options {
+        case_file: opts.case_file.clone(),
+        builtin: opts.builtin.clone(),
+        level: opts.level,
+        out: opts.out.clone(),
+        nodes_csv: false,
+        plots: false,
+        quiet: true,
+        r: None,
+        tol: None,
+        max_iter: None,
+        coulomb: None,
+        acceleration: None,
+        monitor_every: 0,
+        linear: LinearMode::Condensed,
+        checkpoint_every: 0,
+        restart: false,
+        ordering: Ordering::Auto,
+        interface: InterfaceMode::Auto,
+        subdomains_per_rank: Some(k),
+        mesh_split: None,
+        mesh_read: MeshRead::Shared,
+        partitioner: opts.partitioner,
+    };
+    let layout = Layout {
+        ranks: mpi.size,
+        threads: rayon::current_num_threads(),
+    };
+    let quiet = Printer { enabled: false };
+    let (setup, subs) = read_and_split(&run, mpi, layout, &Timer::start(), &quiet)?;
+    let own = mpi.broadcast(setup.as_ref().map(|s| s.own_parts))?;
+    let dir = &opts.out;
+    let split = match own {
+        true => {
+            let begin = |s: &Setup| split_dir::begin(dir, &s.case, opts.parts);
+            let begun = mpi.agree(setup.as_ref().map(begin).transpose())?;
+            let id = mpi.broadcast(begun.as_ref().map(|b| b.id.clone()))?;
+            let wrote = (subs.iter().flatten().enumerate()).try_for_each(|(j, sub)| {
+                split_dir::write_part(dir, &id, mpi.rank * k + j, opts.parts, sub)
+            });
+            mpi.agree(wrote)?;
+            let finish =
+                |(s, b): (&Setup, _)| split_dir::finish(dir, &s.case, &s.facts, opts.parts, b);
+            mpi.agree(setup.as_ref().zip(begun).map(finish).transpose())?
+        }
+        false => {
+            let subs = subs.unwrap_or_default();
+            let write = |s: &Setup| split_dir::write(dir, &s.case, &s.facts, &subs);
+            mpi.agree(setup.as_ref().map(write).transpose())?
+        }
+    };
+    if let Some((split, setup)) = split.zip(setup) {
+        let f = &setup.facts;
+        let who = match own {
+            true => format!(
+                "built on their {} ranks from their shares of the file: ",
+                mpi.size
+            ),
+            false => format!("cut by PT-Scotch on {} ranks: ", mpi.size),
+        };
+        print.line(format!(
+            "split: {} nodes, {} triangles, {} contact nodes into {} parts ({who}{}) in {}",
+            f.nodes,
+            f.elements,
+            f.contact_nodes,
+            split.parts,
+            f.partition,
+            dir.display()
+        ));
+        let case_arg = match &opts.case_file {
+            Some(p) => p.display().to_string(),
+            None => format!("--builtin {} --level {}", opts.builtin, opts.level),
+        };
+        print.line(format!(
+            "run it with: mpirun -n N contact-par {case_arg} --mesh-split {}   (N dividing {})",
+            dir.display(),
+            split.parts
+        ));
+    }
+    Ok(())
 }
 
 /// The case, its problem on its mesh, the mesh's name for messages, and for a Gmsh

@@ -366,8 +366,8 @@ fn run() -> i32 {
     }
 }
 
-/// `contact-par split`: one process, as it holds the whole mesh (several would write the
-/// same files).
+/// `contact-par split`: on one process, or under mpirun with the ranks cutting (and
+/// building and writing their own parts, `app::split_case`).
 fn split(args: SplitArgs, mpi: Mpi) -> i32 {
     let opts = app::SplitOptions {
         case_file: args.case,

@@ -188,12 +188,32 @@ fn mesh_file(case: &Case) -> Result<Option<MeshFile>> {
 /// that the directory holds one split only.
 pub fn write(dir: &Path, case: &Case, facts: &Facts, subs: &[SubProblem]) -> Result<Split> {
     let parts = subs.len();
-    let out = |e: std::io::Error| {
-        Error::Output(format!(
-            "{}: cannot write the split: {e}; check that the directory is writable",
-            dir.display()
-        ))
-    };
+    let begun = begin(dir, case, parts)?;
+    for (part, sub) in subs.iter().enumerate() {
+        write_part(dir, &begun.id, part, parts, sub)?;
+    }
+    finish(dir, case, facts, parts, begun)
+}
+
+/// A split begun ([`begin`]): its id, which every part file carries, and the mesh
+/// file's fingerprint for the manifest (hashed once).
+pub struct Begun {
+    pub id: String,
+    mesh_file: Option<MeshFile>,
+}
+
+fn out_failed(dir: &Path, e: std::io::Error) -> Error {
+    Error::Output(format!(
+        "{}: cannot write the split: {e}; check that the directory is writable",
+        dir.display()
+    ))
+}
+
+/// The start of a split of `parts` parts into `dir` ([`write`], or its parts written by
+/// their ranks): the directory made, an old manifest and part files beyond `parts`
+/// removed.
+pub fn begin(dir: &Path, case: &Case, parts: usize) -> Result<Begun> {
+    let out = |e| out_failed(dir, e);
     std::fs::create_dir_all(dir).map_err(out)?;
     // An old manifest must not vouch for a half-written new split.
     match std::fs::remove_file(dir.join(MANIFEST)) {
@@ -213,27 +233,35 @@ pub fn write(dir: &Path, case: &Case, facts: &Facts, subs: &[SubProblem]) -> Res
     }
     let mesh_file = mesh_file(case)?;
     let fingerprint = fingerprint(case);
-    let id = {
-        let mut h = Sha256::new();
-        h.update(env!("CARGO_PKG_VERSION").as_bytes());
-        h.update(format!("{FORMAT} {parts} {fingerprint:?}").as_bytes());
-        if let Some(m) = &mesh_file {
-            h.update(m.sha256.as_bytes());
-        }
-        hex(&h.finalize())[..16].to_string()
-    };
-    for (part, sub) in subs.iter().enumerate() {
-        let header = PartHeader {
-            format: FORMAT,
-            id: id.clone(),
-            part,
-            parts,
-        };
-        let mut bytes = MAGIC.to_vec();
-        bytes = postcard::to_extend(&header, bytes).map_err(|e| encode_failed(dir, e))?;
-        bytes = postcard::to_extend(sub, bytes).map_err(|e| encode_failed(dir, e))?;
-        write_atomic(&part_path(dir, part), &bytes)?;
+    let mut h = Sha256::new();
+    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(format!("{FORMAT} {parts} {fingerprint:?}").as_bytes());
+    if let Some(m) = &mesh_file {
+        h.update(m.sha256.as_bytes());
     }
+    Ok(Begun {
+        id: hex(&h.finalize())[..16].to_string(),
+        mesh_file,
+    })
+}
+
+/// Part `part` of a split `id` of `parts` parts, atomically.
+pub fn write_part(dir: &Path, id: &str, part: usize, parts: usize, sub: &SubProblem) -> Result<()> {
+    let header = PartHeader {
+        format: FORMAT,
+        id: id.to_string(),
+        part,
+        parts,
+    };
+    let mut bytes = MAGIC.to_vec();
+    bytes = postcard::to_extend(&header, bytes).map_err(|e| encode_failed(dir, e))?;
+    bytes = postcard::to_extend(sub, bytes).map_err(|e| encode_failed(dir, e))?;
+    write_atomic(&part_path(dir, part), &bytes)
+}
+
+/// The manifest, once every part is written: what makes the split whole.
+pub fn finish(dir: &Path, case: &Case, facts: &Facts, parts: usize, begun: Begun) -> Result<Split> {
+    let Begun { id, mesh_file } = begun;
     let manifest = Manifest {
         format: FORMAT,
         program: format!("contact-par {}", env!("CARGO_PKG_VERSION")),
@@ -241,7 +269,7 @@ pub fn write(dir: &Path, case: &Case, facts: &Facts, subs: &[SubProblem]) -> Res
         id: id.clone(),
         case: case.origin.clone(),
         mesh_file,
-        fingerprint,
+        fingerprint: fingerprint(case),
         facts: facts.clone(),
     };
     let text = serde_json::to_string_pretty(&manifest).map_err(|e| encode_failed(dir, e))?;

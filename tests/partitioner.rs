@@ -157,44 +157,68 @@ fn dragged_blocks() -> String {
 }
 
 /// `mpirun -n 3 contact-par split --partitioner ptscotch` cuts on its 3 ranks (one line,
-/// from the first); runs from the split on 1 and 3 ranks agree with the unsplit run.
+/// from the first). With 3 or 6 parts each rank builds its own parts from its share of
+/// the file and writes them, the first rank the manifest; with 4 the first rank splits
+/// the ranks' cut and writes every part. Runs from each split agree with the unsplit
+/// run on every rank count that divides its parts.
 #[test]
 fn a_split_cut_by_every_rank_gives_the_same_answer() {
     let case = disc_case();
     let mesh = gmsh_dir().join("quarter_disc_v41_ascii.msh");
     let dir = case_dir(&case, &mesh, "mesh.msh");
     let p = dir.path();
-    let split = [
-        "split",
-        "case.toml",
-        "--parts",
-        "3",
-        "--out",
-        "parts",
-        "--partitioner",
-        "ptscotch",
-    ];
-    let (code, stdout, stderr) = run_on_ranks(p, 3, &split);
-    assert_eq!(code, 0, "{stderr}");
-    let lines: Vec<&str> = stdout.lines().filter(|l| l.starts_with("split:")).collect();
-    assert_eq!(lines.len(), 1, "{stdout}");
-    assert!(lines[0].contains("cut by PT-Scotch on 3 ranks"), "{stdout}");
     run(p, 1, "one", "metis");
     let one = read_contact(&p.join("one/contact.csv"));
-    for np in [1, 3] {
-        let out = format!("from{np}");
-        let args = [
+    for (parts, who, ranks) in [
+        (
+            3,
+            "built on their 3 ranks from their shares of the file",
+            &[1, 3][..],
+        ),
+        (
+            6,
+            "built on their 3 ranks from their shares of the file",
+            &[2, 6][..],
+        ),
+        (4, "cut by PT-Scotch on 3 ranks", &[1, 4][..]),
+    ] {
+        let out = format!("parts{parts}");
+        let n = parts.to_string();
+        let split = [
+            "split",
             "case.toml",
+            "--parts",
+            &n,
             "--out",
             &out,
-            "--no-plots",
-            "--mesh-split",
-            "parts",
+            "--partitioner",
+            "ptscotch",
         ];
-        let (code, _, stderr) = run_on_ranks(p, np, &args);
-        assert_eq!(code, 0, "{np} ranks: {stderr}");
-        let rows = read_contact(&p.join(&out).join("contact.csv"));
-        assert_same_columns(&one, &rows, 1e-8, &format!("split of 3, {np} ranks"));
+        let (code, stdout, stderr) = run_on_ranks(p, 3, &split);
+        assert_eq!(code, 0, "{stderr}");
+        let lines: Vec<&str> = stdout.lines().filter(|l| l.starts_with("split:")).collect();
+        assert_eq!(lines.len(), 1, "{stdout}");
+        assert!(lines[0].contains(who), "{parts} parts: {stdout}");
+        assert!(
+            lines[0].contains(&format!("into {parts} parts")),
+            "{stdout}"
+        );
+        for &np in ranks {
+            let run_out = format!("from{parts}_{np}");
+            let args = [
+                "case.toml",
+                "--out",
+                &run_out,
+                "--no-plots",
+                "--mesh-split",
+                &out,
+            ];
+            let (code, _, stderr) = run_on_ranks(p, np, &args);
+            assert_eq!(code, 0, "{parts} parts, {np} ranks: {stderr}");
+            let rows = read_contact(&p.join(&run_out).join("contact.csv"));
+            let what = format!("split of {parts}, {np} ranks");
+            assert_same_columns(&one, &rows, 1e-8, &what);
+        }
     }
 }
 
