@@ -1501,24 +1501,7 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
                 true => format!("cut by PT-Scotch on {ranks} ranks: "),
                 false => String::new(),
             };
-            print.line(format!(
-                "split: {} nodes, {} triangles, {} contact nodes into {} parts ({who}{}) in {}",
-                facts.nodes,
-                facts.elements,
-                facts.contact_nodes,
-                split.parts,
-                facts.partition,
-                opts.out.display()
-            ));
-            let case_arg = match &opts.case_file {
-                Some(p) => p.display().to_string(),
-                None => format!("--builtin {} --level {}", opts.builtin, opts.level),
-            };
-            print.line(format!(
-                "run it with: mpirun -n N contact-par {case_arg} --mesh-split {}   (N dividing {})",
-                opts.out.display(),
-                split.parts
-            ));
+            print_split(print, opts, &facts, split.parts, &who);
             Ok(())
         })
     });
@@ -1594,26 +1577,29 @@ fn split_on_ranks(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
             ),
             false => format!("cut by PT-Scotch on {} ranks: ", mpi.size),
         };
-        print.line(format!(
-            "split: {} nodes, {} triangles, {} contact nodes into {} parts ({who}{}) in {}",
-            f.nodes,
-            f.elements,
-            f.contact_nodes,
-            split.parts,
-            f.partition,
-            dir.display()
-        ));
-        let case_arg = match &opts.case_file {
-            Some(p) => p.display().to_string(),
-            None => format!("--builtin {} --level {}", opts.builtin, opts.level),
-        };
-        print.line(format!(
-            "run it with: mpirun -n N contact-par {case_arg} --mesh-split {}   (N dividing {})",
-            dir.display(),
-            split.parts
-        ));
+        print_split(print, opts, f, split.parts, &who);
     }
     Ok(())
+}
+
+/// The split's two lines: what was split, by whom (`who`), and how to run it.
+fn print_split(print: &Printer, opts: &SplitOptions, facts: &Facts, parts: usize, who: &str) {
+    print.line(format!(
+        "split: {} nodes, {} triangles, {} contact nodes into {parts} parts ({who}{}) in {}",
+        facts.nodes,
+        facts.elements,
+        facts.contact_nodes,
+        facts.partition,
+        opts.out.display()
+    ));
+    let case_arg = match &opts.case_file {
+        Some(p) => p.display().to_string(),
+        None => format!("--builtin {} --level {}", opts.builtin, opts.level),
+    };
+    print.line(format!(
+        "run it with: mpirun -n N contact-par {case_arg} --mesh-split {}   (N dividing {parts})",
+        opts.out.display(),
+    ));
 }
 
 /// The case, its problem on its mesh, the mesh's name for messages, and for a Gmsh
