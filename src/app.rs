@@ -1820,7 +1820,8 @@ fn read_together(
         alone_s,
         together_s,
     });
-    let own_parts = shares.is_some() && nparts.is_some_and(|n| n % mpi.size == 0);
+    // The ranks keep shares only to cut them into ranks x per-rank parts.
+    let own_parts = shares.is_some();
     (
         Some(Early {
             case,

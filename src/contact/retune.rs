@@ -366,6 +366,13 @@ const MAX_RETUNE_DOFS: usize = 2048;
 mod tests {
     use super::*;
 
+    /// An open node under Coulomb: no threshold, its tangent carries no force.
+    const OPEN: Held = Held {
+        n: false,
+        t: false,
+        loose: true,
+    };
+
     fn sweep(changed: usize, mistuned: usize, retunes: usize) -> Sweep {
         Sweep {
             iter: 1,
@@ -524,19 +531,13 @@ mod tests {
     #[test]
     fn free_directions_are_lowered_further_once_settled() {
         let r = 10.0;
-        // An open node under Coulomb: no threshold, its tangent carries no force.
-        let open = Held {
-            n: false,
-            t: false,
-            loose: true,
-        };
         // While the zone moves, as before: the normal / 1000, the tangent as slipping.
         assert_eq!(
-            tuned(open, true, r, 0.0, false),
+            tuned(OPEN, true, r, 0.0, false),
             (r / NORMAL_FACTOR, r / TANGENT_FACTOR)
         );
         let settled = r / SETTLED_FREE_FACTOR;
-        assert_eq!(tuned(open, true, r, 0.0, true), (settled, settled));
+        assert_eq!(tuned(OPEN, true, r, 0.0, true), (settled, settled));
         // An open node slipping under Tresca: its force is the threshold, its motion
         // free, so its tangent goes as low.
         let open_tresca = Held::new(false, false);
@@ -560,7 +561,7 @@ mod tests {
             (settled, r * TANGENT_FACTOR)
         );
         // Settling is what the tangents' retune does; the normals' undoes it.
-        let held = [open, Held::new(true, true)];
+        let held = [OPEN, Held::new(true, true)];
         let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0);
         assert_eq!(a.r_n, vec![r / NORMAL_FACTOR, r * NORMAL_FACTOR]);
         assert!(!a.settled);
@@ -599,12 +600,7 @@ mod tests {
     #[test]
     fn a_cycle_returns_only_its_nodes_to_the_reference() {
         let r = 10.0;
-        let open = Held {
-            n: false,
-            t: false,
-            loose: true,
-        };
-        let held = [Held::new(true, true), open, Held::new(true, false), open];
+        let held = [Held::new(true, true), OPEN, Held::new(true, false), OPEN];
         let cycled = [false, false, true, true];
         let a = Augmentation::after_cycle(&held, &cycled, true, r, 0.0);
         assert!(a.ended && a.settled);
@@ -616,6 +612,6 @@ mod tests {
         // An open node that stayed open at its settled r.
         let settled = r / SETTLED_FREE_FACTOR;
         assert_eq!((a.r_n[1], a.r_t[1]), (settled, settled));
-        assert_eq!((a.r_n[1], a.r_t[1]), tuned(open, true, r, 0.0, true));
+        assert_eq!((a.r_n[1], a.r_t[1]), tuned(OPEN, true, r, 0.0, true));
     }
 }

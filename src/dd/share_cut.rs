@@ -1,9 +1,9 @@
 //! The partition of a mesh file's triangles found by every rank from its own share of
 //! the file, before any rank holds the whole mesh: the triangles put in a locality
 //! order (`dd::locality`), their dual graph built on the ranks (`dd::dist_graph`), cut
-//! by PT-Scotch, the edges cut counted; where the parts are not one per rank, the first
-//! rank receives each triangle's part, by the triangle's index among the file's
-//! triangle records.
+//! by PT-Scotch, the edges cut counted; each rank then finds its parts' lists, or,
+//! where the parts are not as many on every rank, the first rank receives each
+//! triangle's part, by the triangle's index among the file's triangle records.
 //!
 //! Why: the graph, the largest piece of the partition, then never exists on the first
 //! rank, which on a cluster has only its own node's cores (docs/cost-model.md, "The
@@ -20,7 +20,7 @@ use std::time::Instant;
 pub struct ShareCut {
     /// On the first rank, each of the file's triangle records' part, where the ranks
     /// made no part lists (`lists`); `None` elsewhere. Where they made them, each rank
-    /// builds its own part, and the first rank, should its problem not match the cut,
+    /// builds its own parts, and the first rank, should its problem not match the cut,
     /// cuts it itself: a part per triangle on it would be its largest array.
     pub parts: Option<Vec<u32>>,
     /// The file's triangle records in all the shares.
