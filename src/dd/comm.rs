@@ -215,9 +215,14 @@ impl Leader<'_> {
         let me = self.mpi.mpi_rank;
         let others: usize = (0..p).filter(|&q| q != me).map(|q| send[q].len()).sum();
         count_sent(4 * p + others * std::mem::size_of::<T>());
-        let flat: Vec<T> = send.concat();
+        // Never an empty buffer's dangling address: for a type of one byte it is 1, which
+        // Open MPI takes for MPI_IN_PLACE (and refuses as a receive buffer).
+        let mut flat: Vec<T> = send.concat();
+        flat.reserve(1);
         let (sd, rd) = (displs(&counts), displs(&recv_counts));
-        let mut received = vec![T::default(); recv_counts.iter().sum::<i32>() as usize];
+        let total = recv_counts.iter().sum::<i32>() as usize;
+        let mut received = Vec::with_capacity(total + 1);
+        received.resize(total, T::default());
         {
             let out = Partition::new(&flat[..], &counts[..], &sd[..]);
             let mut into = PartitionMut::new(&mut received[..], &recv_counts[..], &rd[..]);

@@ -66,6 +66,7 @@
 
 pub mod comm;
 pub mod condense;
+pub mod dist_check;
 pub mod dist_graph;
 pub mod dist_split;
 pub mod full;

@@ -124,13 +124,12 @@ fn duplicate_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
     // Columns of width tol, then y: the duplicates of a node are in its column or the next
     // one, within tol in y. Sorting keeps this O(n log n) for any mesh, even one whose
     // nodes share a few x values (structured meshes).
-    let width = tol.max(f64::MIN_POSITIVE);
     // Ties (one column, one y) may come in any order: the pairs found and the first one
     // reported do not depend on it.
     let mut order: Vec<(i64, f64, usize)> = nodes
         .par_iter()
         .enumerate()
-        .map(|(i, p)| (((p[0] - lo[0]) / width).floor() as i64, p[1], i))
+        .map(|(i, p)| (column(p[0], lo[0], tol), p[1], i))
         .collect();
     order.par_sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
     let close = |i: usize, j: usize| {
@@ -141,10 +140,52 @@ fn duplicate_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
     // Two bodies meshed on their own may touch: coincident nodes of different parts of
     // the mesh (no triangle path between them) are two bodies' nodes, not a crack.
     let mut part: Option<Vec<usize>> = None;
+    column_pairs(
+        &order,
+        tol,
+        |_| true,
+        |i, j| {
+            if close(i, j) && (used[i] || used[j]) {
+                let part = part.get_or_insert_with(|| parts(mesh).0);
+                if used[i] && used[j] && part[i] != part[j] {
+                    return;
+                }
+                pairs += 1;
+                let pair = (i.min(j), i.max(j));
+                if first.is_none_or(|f| pair < f) {
+                    first = Some(pair);
+                }
+            }
+        },
+    );
+    let Some((i, j)) = first else {
+        return Ok(());
+    };
+    input(duplicate_message(name, (i, nodes[i]), (j, nodes[j]), pairs))
+}
+
+/// The column of width `tol` (a tiny width for a zero one) from `lo` that holds `x`.
+pub fn column(x: f64, lo: f64, tol: f64) -> i64 {
+    ((x - lo) / tol.max(f64::MIN_POSITIVE)).floor() as i64
+}
+
+/// Every pair of entries of `order` (column, y, node), sorted by column then y, that
+/// lie in one column or in two next to each other and within `tol` in y, the first of
+/// them in a column that `from` takes: `found(first's node, other's node)`, each pair
+/// once.
+pub fn column_pairs(
+    order: &[(i64, f64, usize)],
+    tol: f64,
+    from: impl Fn(i64) -> bool,
+    mut found: impl FnMut(usize, usize),
+) {
     // The first entry at or after (column + 1, y - tol): that bound only grows along the
     // sorted order, so one pointer walks it for all nodes.
     let mut next = 0;
     for (pos, &(column, y, i)) in order.iter().enumerate() {
+        if !from(column) {
+            continue;
+        }
         while next < order.len()
             && (order[next].0 < column + 1
                 || (order[next].0 == column + 1 && order[next].1 < y - tol))
@@ -158,29 +199,25 @@ fn duplicate_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
             .iter()
             .take_while(|e| e.0 == column + 1 && e.1 <= y + tol);
         for &(_, _, j) in same.chain(beside) {
-            if close(i, j) && (used[i] || used[j]) {
-                let part = part.get_or_insert_with(|| parts(mesh).0);
-                if used[i] && used[j] && part[i] != part[j] {
-                    continue;
-                }
-                pairs += 1;
-                let pair = (i.min(j), i.max(j));
-                if first.is_none_or(|f| pair < f) {
-                    first = Some(pair);
-                }
-            }
+            found(i, j);
         }
     }
-    let Some((i, j)) = first else {
-        return Ok(());
-    };
-    let (a, b) = (nodes[i], nodes[j]);
+}
+
+/// The message of two nodes at one place (`(index, point)` each, from 0), one of
+/// `pairs` such pairs.
+pub fn duplicate_message(
+    name: &str,
+    (i, a): (usize, [f64; 2]),
+    (j, b): (usize, [f64; 2]),
+    pairs: usize,
+) -> String {
     let more = if pairs > 1 {
         format!(" ({pairs} such pairs)")
     } else {
         String::new()
     };
-    input(format!(
+    format!(
         "{name}: nodes {} at ({}, {}) and {} at ({}, {}) are the same point (within {SAME_POINT:e} of the mesh size){more}: duplicate nodes cut the body apart and contact-par has no cracks; merge them (Gmsh: `Coherence Mesh;`) and export again",
         i + 1,
         a[0],
@@ -188,7 +225,7 @@ fn duplicate_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
         j + 1,
         b[0],
         b[1]
-    ))
+    )
 }
 
 /// Rejects nodes that no triangle uses: their displacement has no stiffness at all, so
@@ -198,7 +235,6 @@ fn unused_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
     let Some(first) = used.iter().position(|&u| !u) else {
         return Ok(());
     };
-    let p = mesh.nodes[first];
     let group = mesh
         .line_groups
         .iter()
@@ -209,17 +245,32 @@ fn unused_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
                 .iter()
                 .find(|(_, v)| v.contains(&first))
                 .map(|(g, _)| g)
-        })
-        .map_or(String::new(), |g| format!(" (in group \"{g}\")"));
+        });
+    input(unused_message(
+        name,
+        count,
+        (first, mesh.nodes[first]),
+        group.map(String::as_str),
+    ))
+}
+
+/// The message of `count` unused nodes, the first (index from 0, point) in `group`.
+pub fn unused_message(
+    name: &str,
+    count: usize,
+    (first, p): (usize, [f64; 2]),
+    group: Option<&str>,
+) -> String {
+    let group = group.map_or(String::new(), |g| format!(" (in group \"{g}\")"));
     let node = format!("node {} at ({}, {}){group}", first + 1, p[0], p[1]);
     let (what, them) = if count == 1 {
         (format!("{node} belongs"), "it")
     } else {
         (format!("{count} nodes, the first {node}, belong"), "them")
     };
-    input(format!(
+    format!(
         "{name}: {what} to no triangle, so nothing holds {them}; remove {them} or re-export with Mesh.SaveAll = 0 (and keep construction points out of physical groups)"
-    ))
+    )
 }
 
 /// Orients every triangle counter-clockwise and rejects degenerate ones; returns, per
@@ -229,21 +280,7 @@ fn unused_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
 pub fn orient(mesh: &mut Mesh, name: &str) -> Result<Vec<bool>> {
     let size = size(mesh);
     let nodes = &mesh.nodes;
-    // Whether a triangle is listed clockwise; None for a degenerate one.
-    let clockwise = |&[i, j, k]: &[usize; 3]| {
-        let a2 = signed_area2(nodes, [i, j, k]);
-        // Squared lengths: hypot took a third of this check on millions of triangles.
-        // The doubled area is a product of coordinate differences as well, so the squares
-        // overflow or underflow no sooner than it does.
-        let length2 = |a: usize, b: usize| {
-            let (p, q) = (nodes[a], nodes[b]);
-            (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
-        };
-        let longest2 = length2(i, j).max(length2(j, k)).max(length2(k, i));
-        // Relative to the element's own size (and the mesh's, for zero-length edges).
-        let degenerate = a2.abs() <= 1e-12 * longest2 || longest2 <= (1e-14 * size).powi(2);
-        (!degenerate).then_some(a2 < 0.0)
-    };
+    let clockwise = |t: &[usize; 3]| clockwise(nodes, *t, size);
     let listed_cw: Option<Vec<bool>> = mesh
         .triangles
         .par_iter_mut()
@@ -265,9 +302,31 @@ pub fn orient(mesh: &mut Mesh, name: &str) -> Result<Vec<bool>> {
         .iter()
         .position(|t| clockwise(t).is_none())
         .unwrap_or(0);
-    let [i, j, k] = mesh.triangles[t];
-    let p = nodes[i];
-    input(format!(
+    let tri = mesh.triangles[t];
+    input(degenerate_message(name, t, tri, nodes[tri[0]]))
+}
+
+/// Whether triangle `t` of `nodes` is listed clockwise; `None` for a degenerate one
+/// (`size`: the mesh's, for its zero-length edges).
+pub fn clockwise(nodes: &[[f64; 2]], [i, j, k]: [usize; 3], size: f64) -> Option<bool> {
+    let a2 = signed_area2(nodes, [i, j, k]);
+    // Squared lengths: hypot took a third of this check on millions of triangles.
+    // The doubled area is a product of coordinate differences as well, so the squares
+    // overflow or underflow no sooner than it does.
+    let length2 = |a: usize, b: usize| {
+        let (p, q) = (nodes[a], nodes[b]);
+        (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
+    };
+    let longest2 = length2(i, j).max(length2(j, k)).max(length2(k, i));
+    // Relative to the element's own size (and the mesh's, for zero-length edges).
+    let degenerate = a2.abs() <= 1e-12 * longest2 || longest2 <= (1e-14 * size).powi(2);
+    (!degenerate).then_some(a2 < 0.0)
+}
+
+/// The message of degenerate triangle `t` with its `nodes` (indices from 0), the
+/// first at `p`.
+pub fn degenerate_message(name: &str, t: usize, [i, j, k]: [usize; 3], p: [f64; 2]) -> String {
+    format!(
         "{name}: triangle {} (nodes {}, {}, {}, near ({}, {})) is degenerate (zero area); fix the mesh",
         t + 1,
         i + 1,
@@ -275,7 +334,7 @@ pub fn orient(mesh: &mut Mesh, name: &str) -> Result<Vec<bool>> {
         k + 1,
         p[0],
         p[1]
-    ))
+    )
 }
 
 /// After [`orient`]: rejects a mesh that folds over itself (inverted triangles) and
@@ -347,18 +406,7 @@ fn edges(mesh: &Mesh, listed_cw: &[bool], name: &str) -> Result<HashSet<(usize, 
                         [_] => found.push((low, high)),
                         [x, y] if (x.1 ^ y.1) & 1 == 1 => {}
                         _ => {
-                            // Two triangles that run this edge the same way (there are
-                            // two among three or more, whatever their directions).
-                            let (x, y) = run
-                                .iter()
-                                .enumerate()
-                                .find_map(|(k, x)| {
-                                    run[k + 1..]
-                                        .iter()
-                                        .find(|y| (x.1 ^ y.1) & 1 == 0)
-                                        .map(|y| (x.1 >> 1, y.1 >> 1))
-                                })
-                                .unwrap_or((run[0].1 >> 1, run[1].1 >> 1));
+                            let (x, y) = same_way(run.iter().map(|e| u64::from(e.1)));
                             return Err(Fold {
                                 edge: (low, high),
                                 triangles: (x as usize, y as usize),
@@ -378,33 +426,67 @@ fn edges(mesh: &Mesh, listed_cw: &[bool], name: &str) -> Result<HashSet<(usize, 
                 edge: (low, high),
                 triangles: (x, y),
             }) => {
-                let against = |t: usize| listed_cw[t] != cw_majority;
-                let (bad, other) = match (against(x), against(y)) {
-                    (true, false) => (x, y),
-                    (false, true) => (y, x),
-                    _ => (x.max(y), x.min(y)),
-                };
-                let [i, j, k] = mesh.triangles[bad];
-                let (p, q) = (mesh.nodes[low], mesh.nodes[high]);
-                let c = centroid(mesh, bad);
-                return input(format!(
-                    "{name}: triangle {} (nodes {}, {}, {}, near ({}, {})) is inverted: it lies on the same side of its edge ({}, {}) - ({}, {}) as triangle {}, so the mesh folds over itself; move the misplaced nodes back or re-mesh",
-                    bad + 1,
-                    i + 1,
-                    j + 1,
-                    k + 1,
-                    c[0],
-                    c[1],
-                    p[0],
-                    p[1],
-                    q[0],
-                    q[1],
-                    other + 1
+                let bad = inverted([x, y], |t| listed_cw[t] != cw_majority);
+                let other = x + y - bad;
+                return input(fold_message(
+                    name,
+                    (bad, mesh.triangles[bad], centroid(mesh, bad)),
+                    [mesh.nodes[low], mesh.nodes[high]],
+                    other,
                 ));
             }
         }
     }
     Ok(boundary)
+}
+
+/// Two triangles that run one edge the same way, from its `run` of (triangle << 1 | 1
+/// when it runs the edge from low to high), sorted: there are two among three or more,
+/// whatever their directions; the first such pair in the run's order.
+pub fn same_way(run: impl Iterator<Item = u64> + Clone) -> (u64, u64) {
+    let codes: Vec<u64> = run.collect();
+    (codes.iter().enumerate())
+        .find_map(|(k, x)| {
+            (codes[k + 1..].iter())
+                .find(|y| (x ^ *y) & 1 == 0)
+                .map(|y| (x >> 1, y >> 1))
+        })
+        .unwrap_or((codes[0] >> 1, codes[1] >> 1))
+}
+
+/// Of the two triangles of a fold, the one to name: the one listed against the
+/// orientation of most of the file (`against`), which is the inverted one in a mesh
+/// from Gmsh; else the later.
+pub fn inverted<T: Copy + Ord>([x, y]: [T; 2], against: impl Fn(T) -> bool) -> T {
+    match (against(x), against(y)) {
+        (true, false) => x,
+        (false, true) => y,
+        _ => x.max(y),
+    }
+}
+
+/// The message of a fold: the inverted triangle (index from 0, its nodes as turned
+/// counter-clockwise, its centroid), the ends of the edge, the other triangle.
+pub fn fold_message(
+    name: &str,
+    (bad, [i, j, k], c): (usize, [usize; 3], [f64; 2]),
+    [p, q]: [[f64; 2]; 2],
+    other: usize,
+) -> String {
+    format!(
+        "{name}: triangle {} (nodes {}, {}, {}, near ({}, {})) is inverted: it lies on the same side of its edge ({}, {}) - ({}, {}) as triangle {}, so the mesh folds over itself; move the misplaced nodes back or re-mesh",
+        bad + 1,
+        i + 1,
+        j + 1,
+        k + 1,
+        c[0],
+        c[1],
+        p[0],
+        p[1],
+        q[0],
+        q[1],
+        other + 1
+    )
 }
 
 /// An edge run the same way by two triangles (see [`edges`]).
