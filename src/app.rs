@@ -13,6 +13,7 @@ use crate::contact::{
     self, Acceleration, CoulombMode, Friction, LinearStep, Outcome, Reduce, Status, Sweep,
 };
 use crate::dd::comm::Mpi;
+use crate::dd::dist_problem;
 use crate::dd::dist_split::{self, Conditions, PartCase};
 use crate::dd::full::{DirectStep, DirectSystem};
 use crate::dd::local_factor::LocalFactor;
@@ -232,6 +233,9 @@ fn read_and_split(
     print: &Printer,
 ) -> Result<(Option<Setup>, Option<Vec<SubProblem>>)> {
     let (early, shares) = read_together(opts, mpi, layout, timer);
+    if let Some(shares) = shares {
+        return split_on_groups(opts, mpi, layout, timer, print, (early, shares));
+    }
     let node_ranks = mpi.node_ranks;
     let (read, cut) = std::thread::scope(|scope| {
         let reading = mpi.is_root().then(|| {
@@ -780,6 +784,166 @@ struct Layout {
     threads: usize,
 }
 
+/// [`read_and_split`] where the ranks kept their shares of a Gmsh file: they cut it
+/// into their parts, check the mesh on them and find the conditions of the groups'
+/// nodes (`dd::dist_problem`), so that no rank holds the whole mesh; each then builds
+/// its own parts. Should the conditions fall back (a fault of the input, anything the
+/// ranks do not expect), the first rank reads the whole file and builds the problem as
+/// it does without the shares, and names any fault.
+fn split_on_groups(
+    opts: &Options,
+    mpi: &Mpi,
+    layout: Layout,
+    timer: &Timer,
+    print: &Printer,
+    (early, shares): (Option<Early>, Shares),
+) -> Result<(Option<Setup>, Option<Vec<SubProblem>>)> {
+    let z = shares.z;
+    let mut cut = timer.time(Phase::Partition, || shares.cut(mpi));
+    let start = Instant::now();
+    let built = match cut.as_mut() {
+        Some(ShareCut {
+            lists: Some(lists),
+            directory: Some((directory, around)),
+            triangles,
+            ..
+        }) => {
+            let first = early.as_ref().and_then(|e| {
+                let (scan, group_values) = e.mesh.as_ref()?.groups.as_ref()?;
+                Some(dist_problem::First {
+                    case: e.case.as_ref().ok()?,
+                    scan,
+                    group_values,
+                })
+            });
+            timer.time(Phase::Read, || {
+                dist_problem::build(mpi, first, lists, (directory, around), *triangles, z)
+            })?
+        }
+        _ => None,
+    };
+    let built_s = start.elapsed().as_secs_f64();
+    if let Some(c) = cut.as_mut() {
+        c.directory = None;
+    }
+    let lists = cut.as_mut().and_then(|c| {
+        Some(OwnPart {
+            lists: c.lists.take()?,
+            figures: c.figures.take()?,
+            edge_cut: c.edge_cut,
+        })
+    });
+    let prepared = match built {
+        Some(on_groups) => early
+            .zip(on_groups)
+            .zip(cut.as_ref())
+            .map(|((early, og), cut)| {
+                let start = GroupsStart { og, cut, built_s };
+                done_on_groups(opts, layout, print, timer, early, start)
+                    .map(|d| Stage::Split(Box::new(d)))
+            }),
+        None => {
+            let start = Instant::now();
+            let own = lists.is_some();
+            let read = early.map(|e| prepare(opts, layout, timer, print, Some(e)));
+            let after = start.elapsed().as_secs_f64();
+            let cut = cut.map(|c| (c, after));
+            read.map(|r| {
+                r.and_then(|r| {
+                    host::on_idle_cores(mpi.node_ranks, || with_graph(r, cut, own, timer))
+                })
+            })
+        }
+    };
+    mpi.barrier_sleeping();
+    let prepared = mpi.agree(prepared.transpose())?;
+    cut_and_split(opts, mpi, layout, timer, print, Phase1 { prepared, lists })
+}
+
+/// A start on the groups' nodes: the conditions, the ranks' cut and the seconds of the
+/// checks and the conditions on the ranks.
+struct GroupsStart<'a> {
+    og: dist_problem::OnGroups,
+    cut: &'a ShareCut,
+    /// Seconds of the checks and the conditions on the ranks.
+    built_s: f64,
+}
+
+/// The first rank's set-up of a start on the groups' nodes ([`split_on_groups`]): the
+/// run's first lines, and the conditions the ranks build their parts from.
+fn done_on_groups(
+    opts: &Options,
+    layout: Layout,
+    print: &Printer,
+    timer: &Timer,
+    early: Early,
+    figure: GroupsStart,
+) -> Result<SplitDone> {
+    let og = figure.og;
+    let case = early.case?;
+    check_linear(opts, &case)?;
+    let cut = figure.cut;
+    let per_rank = cut.nparts / layout.ranks;
+    let facts = og.facts;
+    let size = Size {
+        nodes: facts.nodes,
+        elements: facts.elements,
+        contact_nodes: facts.contact_nodes,
+    };
+    let e_eff = contact_modulus(&case, &facts.contact_bodies);
+    let r = case
+        .solver
+        .r
+        .unwrap_or_else(|| facts.lengths.default_r(e_eff));
+    print.line(header_line(&case, &size, r, layout, per_rank));
+    let (name, how) = match &early.mesh {
+        Some(t) => (
+            t.name.clone(),
+            format!(
+                "; mesh read on {} ranks in {:.3} s (the first rank alone {:.3} s: case, file \
+                 and scan), checked and its conditions found on the ranks in {:.3} s, no \
+                 rank holding it whole",
+                t.ranks,
+                t.alone_s + t.together_s,
+                t.alone_s,
+                figure.built_s
+            ),
+        ),
+        None => (String::new(), String::new()),
+    };
+    print.line(timer::phase_line(
+        Phase::Read,
+        timer.seconds(Phase::Read),
+        &format!(
+            "{name}: {} nodes, {} triangles, {} contact nodes{how}",
+            size.nodes, size.elements, size.contact_nodes
+        ),
+    ));
+    let part_case = PartCase {
+        body_force: case.body_force,
+        frictional: Problem::is_frictional(&case),
+    };
+    let [order, graph, cut_s, lists] = cut.seconds;
+    Ok(SplitDone {
+        case,
+        facts,
+        per_rank,
+        out: SplitOut::OnRanks(og.conditions, part_case),
+        figure: PartitionFigure {
+            nparts: cut.nparts,
+            graph_s: 0.0,
+            cut_s: order + graph + cut_s + lists,
+            who: format!(
+                "PT-Scotch on {} ranks from their shares of the file: order {order:.3} s, \
+                 graph {graph:.3} s, cut {cut_s:.3} s, part lists {lists:.3} s",
+                layout.ranks
+            ),
+            split_s: 0.0,
+            on_ranks_s: None,
+        },
+    })
+}
+
 /// Phases 1 and 2 on the first rank: the set-up, and the subproblems unless each
 /// subdomain reads its own from a split directory. Prints the run's first line once the
 /// case is read and checked, and each phase's line.
@@ -863,6 +1027,9 @@ fn prepare(
 enum Stage<T> {
     Ready(Box<Setup>),
     Problem(Box<T>),
+    /// The conditions the ranks build their own parts from, found without the whole
+    /// mesh ([`split_on_groups`]).
+    Split(Box<SplitDone>),
 }
 
 /// Phase 1 on the first rank.
@@ -893,6 +1060,7 @@ fn with_graph(
 ) -> Result<Prepared> {
     let read = match read {
         Stage::Ready(setup) => return Ok(Stage::Ready(setup)),
+        Stage::Split(done) => return Ok(Stage::Split(done)),
         Stage::Problem(r) => *r,
     };
     let (prob, mesh_name, nparts) = (&read.prob, &read.mesh_name, read.nparts);
@@ -1010,7 +1178,8 @@ fn cut_and_split(
         _ => None,
     });
     // The first rank's lists stand for every rank's: the ranks make them together.
-    let on_ranks = (prepared.as_ref()).map(|p| matches!(p, Stage::Problem(t) if t.on_ranks));
+    let on_ranks = (prepared.as_ref())
+        .map(|p| matches!(p, Stage::Split(_)) || matches!(p, Stage::Problem(t) if t.on_ranks));
     let (asked, on_ranks) = match mpi.size {
         1 => (asked.flatten(), false),
         _ => mpi.broadcast(asked.zip(on_ranks))?,
@@ -1031,6 +1200,7 @@ fn cut_and_split(
     };
     let done = prepared.map(|p| match p {
         Stage::Ready(setup) => Ok(Err(*setup)),
+        Stage::Split(done) => Ok(Ok(*done)),
         Stage::Problem(t) => host::on_idle_cores(mpi.node_ranks, || {
             split_cut(*t, cut, on_ranks, layout, timer).map(Ok)
         }),
@@ -1668,6 +1838,8 @@ struct Shares {
     coords: Vec<f64>,
     triangles: Vec<[u64; 3]>,
     nparts: usize,
+    /// Its nodes' z ([`z_range`]).
+    z: [f64; 3],
 }
 
 impl Shares {
@@ -1686,6 +1858,25 @@ impl Shares {
     }
 }
 
+/// What the first rank gathers from the ranks' shares of a Gmsh file.
+enum FromShares {
+    /// Every record's values: node tags, coordinates, elements' node tags.
+    Whole(Option<Vec<u64>>, Option<Vec<f64>>, Option<Vec<u64>>),
+    /// The groups' elements' values alone, where the ranks keep their shares.
+    Groups(Option<Vec<u64>>),
+}
+
+/// The largest z of `coords` (x, y, z each), minus the smallest, and the first's where
+/// they start the file's nodes (`first`), else minus infinity: for the check that the
+/// mesh is planar (`dd::dist_problem`).
+fn z_range(coords: &[f64], first: bool) -> [f64; 3] {
+    let z = coords.chunks_exact(3).map(|c| c[2]);
+    let max = z.clone().fold(f64::NEG_INFINITY, f64::max);
+    let min = z.fold(f64::INFINITY, f64::min);
+    let z0 = coords.get(2).filter(|_| first).copied();
+    [max, -min, z0.unwrap_or(f64::NEG_INFINITY)]
+}
+
 /// A Gmsh file read by every rank: the file, and from the ranks its records' values.
 struct Together {
     name: String,
@@ -1693,6 +1884,10 @@ struct Together {
     /// `None` where the records were not shared or a share could not be parsed: the
     /// first rank then parses `bytes` itself.
     shared: Option<(gmsh::shares::Scan, [Vec<u64>; 2], Vec<f64>)>,
+    /// Where the ranks keep their shares: the scan and the groups' elements' values,
+    /// which the conditions are built from without the whole mesh
+    /// (`dd::dist_problem`). Should that fall back, the first rank parses `bytes`.
+    groups: Option<(gmsh::shares::Scan, Vec<u64>)>,
     ranks: usize,
     /// Seconds of the first rank alone (the case, the file, the scan), then of all
     /// ranks (their shares, the gathers).
@@ -1791,31 +1986,47 @@ fn read_together(
         }
         let share = share.unwrap_or_default();
         let [tags, coords, elements] = plan.counts();
-        let tags_all = mpi.gather_varcount(&share.tags, &tags);
-        let coords_all = mpi.gather_varcount(&share.coords, &coords);
-        let elements_all = mpi.gather_varcount(&share.elements, &elements);
-        let kept = nparts.map(|nparts| Shares {
-            triangles: share.triangles(plan.share(mpi.rank)),
+        let stretches = plan.share(mpi.rank);
+        // Where the ranks keep their shares they build their own parts, and the first
+        // rank needs only the groups' elements (`dd::dist_problem`).
+        let Some(nparts) = nparts else {
+            let tags_all = mpi.gather_varcount(&share.tags, &tags);
+            let coords_all = mpi.gather_varcount(&share.coords, &coords);
+            let elements_all = mpi.gather_varcount(&share.elements, &elements);
+            return Some((FromShares::Whole(tags_all, coords_all, elements_all), None));
+        };
+        let groups = share.group_values(stretches);
+        let groups = mpi.gather_varcount(&groups, &mpi.all_gather_counts(groups.len()));
+        let before: usize = coords[..mpi.rank].iter().sum();
+        let kept = Shares {
+            triangles: share.triangles(stretches),
+            z: z_range(&share.coords, before == 0),
             tags: share.tags,
             coords: share.coords,
             nparts,
-        });
-        Some((tags_all, coords_all, elements_all, kept))
+        };
+        Some((FromShares::Groups(groups), Some(kept)))
     });
     let (gathered, shares) = match gathered {
-        Some((tags, coords, elements, kept)) => (tags.zip(coords).zip(elements), kept),
+        Some((gathered, kept)) => (Some(gathered), kept),
         None => (None, None),
     };
     let together_s = start.elapsed().as_secs_f64() - alone_s;
     let Some(case) = case else {
         return (None, shares);
     };
+    let (shared, groups) = match (scanned, gathered) {
+        (Some((scan, _)), Some(FromShares::Whole(Some(tags), Some(coords), Some(elements)))) => {
+            (Some((scan, [tags, elements], coords)), None)
+        }
+        (Some((scan, _)), Some(FromShares::Groups(Some(values)))) => (None, Some((scan, values))),
+        _ => (None, None),
+    };
     let mesh = file.map(|(bytes, path)| Together {
         name: path.display().to_string(),
         bytes,
-        shared: scanned
-            .zip(gathered)
-            .map(|((scan, _), ((tags, coords), elements))| (scan, [tags, elements], coords)),
+        shared,
+        groups,
         ranks: mpi.size,
         alone_s,
         together_s,

@@ -12,7 +12,7 @@ use crate::fem::{Hypothesis, Material};
 use crate::mesh::validate::{self, ContactHold, Free, Holds};
 use crate::mesh::{renumber, Mesh};
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 /// What tells, at the answer, whether each separate part of the mesh is held (see
 /// [`free_at_answer`]): its Dirichlet conditions as lines of action, and a node of it to
@@ -148,17 +148,7 @@ impl Problem {
 
     /// The mesh's two lengths behind r: h, and L the smaller side of the bounding box.
     pub fn lengths(&self) -> Lengths {
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in &self.mesh.nodes {
-            for c in 0..2 {
-                lo[c] = lo[c].min(p[c]);
-                hi[c] = hi[c].max(p[c]);
-            }
-        }
-        Lengths {
-            contact_h: self.contact_h,
-            compact: (hi[0] - lo[0]).min(hi[1] - lo[1]).max(self.contact_h),
-        }
+        Lengths::of(validate::bounding_box(&self.mesh.nodes), self.contact_h)
     }
 
     pub fn is_frictional(case: &Case) -> bool {
@@ -215,6 +205,15 @@ pub struct Lengths {
 }
 
 impl Lengths {
+    /// The lengths of a mesh in the box `(lo, hi)` with contact edges `contact_h` long
+    /// on average.
+    pub fn of((lo, hi): ([f64; 2], [f64; 2]), contact_h: f64) -> Lengths {
+        Lengths {
+            contact_h,
+            compact: (hi[0] - lo[0]).min(hi[1] - lo[1]).max(contact_h),
+        }
+    }
+
     /// See [`Problem::default_r`]; `e_eff` from [`contact_modulus`].
     pub fn default_r(&self, e_eff: f64) -> f64 {
         (self.mesh_stiffness(e_eff) * self.compact_stiffness(e_eff)).sqrt()
@@ -428,40 +427,16 @@ pub fn build_numbered(
     numbering: Numbering,
 ) -> Result<Problem> {
     let boundary = validate::check(&mut mesh, mesh_name)?;
-    let n = mesh.num_nodes();
     let triangles = mesh.triangles.len();
-
-    let mut fixed: Vec<Option<f64>> = vec![None; 2 * n];
-    for d in &case.dirichlet {
-        for node in group_nodes(case, &mesh, "dirichlet", &d.group)? {
-            for (c, v) in [d.ux, d.uy].into_iter().enumerate() {
-                if let Some(v) = v {
-                    fixed[2 * node + c] = Some(v);
-                }
-            }
-        }
-    }
-
-    for t in &case.traction {
-        line_group(case, &mesh, "traction", &t.group)?;
-    }
-
-    let ContactGeometry {
-        nodes: contact_nodes,
-        mut contact,
-        h: contact_h,
-        masters: contact_masters,
-    } = contact_geometry(case, &mesh, &boundary)?;
-
-    let (holding, parts) = check_held(
-        case,
-        &mesh,
-        &fixed,
-        &contact_nodes,
-        &contact,
-        &contact_masters,
-    )?;
-    contact.part = parts;
+    let parts = Parts::of(&mesh);
+    let Conditioned {
+        fixed,
+        contact_nodes,
+        contact,
+        contact_h,
+        contact_masters,
+        holding,
+    } = conditioned(case, &mesh, &boundary, &parts)?;
     // Checked here so that every fault of the input is reported before any work; the
     // bodies are found again in the new numbering below.
     bodies(case, &mesh)?;
@@ -501,6 +476,136 @@ pub fn build_numbered(
     );
     prob.load = load;
     Ok(prob)
+}
+
+/// The conditions of a problem on its mesh.
+struct Conditioned {
+    fixed: Vec<Option<f64>>,
+    contact_nodes: Vec<usize>,
+    contact: ContactNodes,
+    contact_h: f64,
+    contact_masters: Vec<Vec<(usize, f64)>>,
+    holding: Holding,
+}
+
+/// The prescribed dofs, the traction groups' check, the contact nodes and their
+/// geometry, and the check that the conditions hold every part (`boundary`: the mesh's
+/// boundary edges; `parts`: its separate parts).
+fn conditioned(
+    case: &Case,
+    mesh: &Mesh,
+    boundary: &HashSet<(usize, usize)>,
+    parts: &Parts,
+) -> Result<Conditioned> {
+    let mut fixed: Vec<Option<f64>> = vec![None; 2 * mesh.num_nodes()];
+    for d in &case.dirichlet {
+        for node in group_nodes(case, mesh, "dirichlet", &d.group)? {
+            for (c, v) in [d.ux, d.uy].into_iter().enumerate() {
+                if let Some(v) = v {
+                    fixed[2 * node + c] = Some(v);
+                }
+            }
+        }
+    }
+    for t in &case.traction {
+        line_group(case, mesh, "traction", &t.group)?;
+    }
+    let ContactGeometry {
+        nodes: contact_nodes,
+        mut contact,
+        h: contact_h,
+        masters: contact_masters,
+    } = contact_geometry(case, mesh, boundary)?;
+    let (holding, held) = check_held(
+        case,
+        (mesh, parts),
+        &fixed,
+        &contact_nodes,
+        &contact,
+        &contact_masters,
+    )?;
+    contact.part = held;
+    Ok(Conditioned {
+        fixed,
+        contact_nodes,
+        contact,
+        contact_h,
+        contact_masters,
+        holding,
+    })
+}
+
+/// The problem's conditions alone, where the ranks hold the triangles
+/// (`dd::dist_problem`): on `mesh`, the mesh of the groups' elements (their nodes by
+/// increasing index among the file's, `file_node`; no triangles), with the boundary
+/// edges among its nodes and their separate parts, which the ranks found. Its load,
+/// bodies and triangles are left empty: each rank finds its own.
+pub fn build_on_groups(
+    case: &Case,
+    mesh: Mesh,
+    file_node: Vec<usize>,
+    boundary: &HashSet<(usize, usize)>,
+    parts: &Parts,
+) -> Result<Problem> {
+    let Conditioned {
+        fixed,
+        contact_nodes,
+        contact,
+        contact_h,
+        contact_masters,
+        holding,
+    } = conditioned(case, &mesh, boundary, parts)?;
+    Ok(Problem {
+        mesh,
+        fixed,
+        load: Vec::new(),
+        contact_nodes,
+        contact,
+        contact_masters,
+        contact_h,
+        file_node,
+        file_triangle: Vec::new(),
+        body: Vec::new(),
+        contact_bodies: Vec::new(),
+        holding,
+    })
+}
+
+/// Each file triangle record's body (its `[[material]]` entry), in runs (first record,
+/// body) over the file's triangle blocks (`blocks`: each one's count and the names of its
+/// physical surfaces); `None` where a triangle is in two materials' groups or none, or a
+/// material's group is no surface of the mesh: the whole mesh's [`build`] names the
+/// fault.
+pub fn body_runs(case: &Case, blocks: &[(usize, Vec<String>)]) -> Option<Vec<(u64, u32)>> {
+    if case.materials.iter().all(|b| b.group.is_none()) {
+        return Some(vec![(0, 0)]);
+    }
+    let surface = |g: &String| blocks.iter().any(|b| b.1.contains(g));
+    if !case
+        .materials
+        .iter()
+        .all(|m| m.group.as_ref().is_some_and(surface))
+    {
+        return None;
+    }
+    let mut runs: Vec<(u64, u32)> = Vec::new();
+    let mut first = 0u64;
+    for (count, names) in blocks {
+        let mut of = case
+            .materials
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.group.as_ref().is_some_and(|g| names.contains(g)));
+        let (body, two) = (of.next()?.0 as u32, of.next());
+        if two.is_some() {
+            return None;
+        }
+        if *count > 0 && runs.last().is_none_or(|r| r.1 != body) {
+            runs.push((first, body));
+        }
+        first += *count as u64;
+    }
+    Some(runs)
 }
 
 /// The nodal forces of the case's tractions alone, one entry per dof of `mesh`.
@@ -833,6 +938,35 @@ fn component(v: [f64; 2]) -> &'static str {
     }
 }
 
+/// The separate parts of a mesh (triangles joined through nodes) as [`check_held`] reads
+/// them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parts {
+    /// The part of each node of the mesh given.
+    pub of_node: Vec<usize>,
+    /// Each part's lowest node (its index among the file's nodes, its point), the parts
+    /// numbered in their order.
+    pub first: Vec<(usize, [f64; 2])>,
+    /// The mesh's size (the larger side of its bounding box), for the tolerances.
+    pub size: f64,
+}
+
+impl Parts {
+    /// The parts of a whole mesh, its nodes in the file's order.
+    pub fn of(mesh: &Mesh) -> Parts {
+        let (of_node, count) = validate::parts(mesh);
+        let mut first = vec![usize::MAX; count];
+        for (node, &p) in of_node.iter().enumerate().rev() {
+            first[p] = node;
+        }
+        Parts {
+            of_node,
+            first: first.into_iter().map(|n| (n, mesh.nodes[n])).collect(),
+            size: validate::size(mesh),
+        }
+    }
+}
+
 /// Rejects a problem whose stiffness matrix would be singular because a rigid motion of
 /// some part of the mesh is held by nothing, before anything is assembled or factored.
 ///
@@ -846,14 +980,14 @@ fn component(v: [f64; 2]) -> &'static str {
 /// hinge is left to the factorization, which reports a numerical failure.
 pub fn check_held(
     case: &Case,
-    mesh: &Mesh,
+    (mesh, parts): (&Mesh, &Parts),
     fixed: &[Option<f64>],
     contact_nodes: &[usize],
     contact: &ContactNodes,
     masters: &[Vec<(usize, f64)>],
 ) -> Result<(Holding, Vec<[u32; 2]>)> {
-    let (part, count) = validate::parts(mesh);
-    let tol = validate::SAME_LINE * validate::size(mesh);
+    let (part, count) = (&parts.of_node, parts.first.len());
+    let tol = validate::SAME_LINE * parts.size;
     let mut holds = vec![Holds::new(tol); count];
     // Per part: ux fixed, uy fixed, contact along the normal, friction along the tangent.
     let mut kinds = vec![[false; 4]; count];
@@ -863,13 +997,9 @@ pub fn check_held(
         holds[part[node]].add(mesh.nodes[node], dir);
         kinds[part[node]][c] = true;
     }
-    let mut first = vec![usize::MAX; count];
-    for (node, &p) in part.iter().enumerate().rev() {
-        first[p] = node;
-    }
     let holding = Holding {
         dirichlet: holds.clone(),
-        first: first.iter().map(|&n| mesh.nodes[n]).collect(),
+        first: parts.first.iter().map(|f| f.1).collect(),
     };
     let frictional = Problem::is_frictional(case);
     let rows: Vec<ContactHold> = (contact_nodes.iter().enumerate())
@@ -908,10 +1038,10 @@ pub fn check_held(
     let body = if count == 1 {
         "the body".to_string()
     } else {
-        let x = mesh.nodes[first[p]];
+        let (node, x) = parts.first[p];
         format!(
             "the part of the mesh with node {} at ({}, {}) (one of {count} separate parts)",
-            first[p] + 1,
+            node + 1,
             x[0],
             x[1]
         )

@@ -7,7 +7,8 @@
 //! together: runs from its parts give the same answer. And the cut the ranks make from
 //! their shares of a Gmsh file read together (`--mesh-read shared`), before any rank
 //! holds the mesh: ASCII, binary and a shuffled copy, the one-rank answer on 2-4 ranks,
-//! each rank then building its own part where it holds one;
+//! each rank then building its own part where it holds one, and the first rank only
+//! the conditions, no rank holding the whole mesh;
 //! two bodies, whose ties only the problem knows, and a file with a repeated triangle,
 //! whose records are not the problem's triangles, are cut on the first rank's graph.
 
@@ -28,7 +29,7 @@ fn case_dir(case: &str, from: &Path, file: &str) -> TempDir {
     dir
 }
 
-/// Runs `dir`'s case on `np` ranks into `out`; returns its partition line.
+/// Runs `dir`'s case on `np` ranks into `out`; returns its read and partition lines.
 fn run(dir: &Path, np: usize, out: &str, partitioner: &str) -> String {
     run_with(dir, np, out, partitioner, &[])
 }
@@ -47,9 +48,12 @@ fn run_with(dir: &Path, np: usize, out: &str, partitioner: &str, extra: &[&str])
     args.extend_from_slice(extra);
     let (code, stdout, stderr) = run_on_ranks(dir, np, &args);
     assert_eq!(code, 0, "{np} ranks, {partitioner} {extra:?}: {stderr}");
-    let line = stdout.lines().find(|l| l.starts_with("partition "));
-    line.unwrap_or_else(|| panic!("no partition line:\n{stdout}"))
-        .to_string()
+    let line = |start: &str| {
+        let line = stdout.lines().find(|l| l.starts_with(start));
+        line.unwrap_or_else(|| panic!("no {start}line:\n{stdout}"))
+            .to_string()
+    };
+    format!("{}\n{}", line("read "), line("partition "))
 }
 
 /// The edge cut of a partition line.
@@ -239,9 +243,12 @@ fn check_from_shares(p: &Path, law: Option<Law>, what: &str) {
             let from = format!("PT-Scotch on {np} ranks from their shares of the file");
             assert!(line.contains(&from), "{what}, {np} x {k}: {line}");
             assert!(line.contains(&format!("in {} parts", np * k)), "{line}");
-            // Each rank builds its own parts (`dd::dist_split`), one or several.
+            // Each rank builds its own parts (`dd::dist_split`), one or several, and
+            // the first rank only the conditions (`dd::dist_problem`).
             let built = line.contains("parts built on their ranks");
             assert!(built, "{what}, {np} x {k}: {line}");
+            let whole = line.contains("no rank holding it whole");
+            assert!(whole, "{what}, {np} x {k}: {line}");
             let rows = read_contact(&p.join(&out).join("contact.csv"));
             let name = format!("{what}, 1 vs {np} ranks x {k} from the shares");
             assert_same_columns(&one, &rows, 1e-8, &name);
@@ -360,4 +367,102 @@ fn a_file_with_a_repeated_triangle_is_cut_on_the_first_ranks_graph() {
     std::fs::write(dir.path().join("mesh.msh"), disc_with_a_repeated_triangle()).unwrap();
     let law = Some(Law::Coulomb(0.2));
     cut_on_the_first_ranks_graph(dir.path(), law, "a repeated triangle");
+}
+
+/// Where the ranks cut a Gmsh file from their shares and build their own parts, the
+/// first rank builds only the conditions, from the groups' elements, the boundary and
+/// the separate parts the ranks find (`dd::dist_problem`): the same problem as the
+/// whole mesh gives, shown on 2 and 3 ranks by the same first line (its sizes and r,
+/// which the contact edges, the bounding box and the bodies at the contact set) and the
+/// one-rank answer, for cases with Coulomb and Tresca friction, a wedge against an
+/// inclined line, tractions, a body force and two materials.
+#[test]
+fn conditions_found_without_the_whole_mesh_are_the_whole_problems() {
+    let tolerance = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/tolerance");
+    let two_materials = "title = \"two materials\"\n[mesh]\nfile = \"mesh.msh\"\n\
+        [[material]]\ngroup = \"lower\"\nyoung = 1.0e3\npoisson = 0.3\n\
+        [[material]]\ngroup = \"upper\"\nyoung = 5.0e3\npoisson = 0.25\n\
+        [[dirichlet]]\ngroup = \"left\"\nux = 0.0\n[[traction]]\ngroup = \"top\"\nt = [0.5, -10.0]\n\
+        [body_force]\nf = [0.0, -2.0]\n\
+        [contact]\ngroup = \"bottom\"\nobstacle_point = [0.0, -0.002]\nobstacle_normal = [0.0, 1.0]\n\
+        friction = \"tresca\"\nthreshold = 2.0\n";
+    let mut cases = vec![(
+        two_materials.to_string(),
+        gmsh_dir().join("bimaterial_v41_ascii.msh"),
+        "two materials",
+    )];
+    for name in ["wedge", "wall", "cantilever"] {
+        let case = std::fs::read_to_string(tolerance.join(format!("{name}.toml"))).unwrap();
+        let case = case.replace(&format!("\"{name}.msh\""), "\"mesh.msh\"");
+        cases.push((case, tolerance.join(format!("{name}.msh")), name));
+    }
+    for (case, mesh, what) in cases {
+        let dir = case_dir(&case, &mesh, "mesh.msh");
+        let p = dir.path();
+        let first_line = |np: usize, out: &str, extra: &[&str]| {
+            let mut args = vec!["case.toml", "--out", out, "--no-plots", "--nodes-csv"];
+            args.extend_from_slice(extra);
+            let (code, stdout, stderr) = run_on_ranks(p, np, &args);
+            assert_eq!(code, 0, "{what}, {np} ranks: {stderr}");
+            let head = stdout.lines().next().unwrap_or_default();
+            // The layout ends the line: the rest must be the same.
+            let head = head.split(" | ").take(4).collect::<Vec<_>>().join(" | ");
+            (head, stdout)
+        };
+        let (one_head, _) = first_line(1, "one", &[]);
+        let one = read_contact(&p.join("one/contact.csv"));
+        for np in [2, 3] {
+            let out = format!("groups{np}");
+            let extra = [SHARED[0], SHARED[1], "--partitioner", "ptscotch"];
+            let (head, stdout) = first_line(np, &out, &extra);
+            assert!(
+                stdout.contains("no rank holding it whole"),
+                "{what}, {np} ranks:\n{stdout}"
+            );
+            assert_eq!(head, one_head, "{what}, {np} ranks");
+            let rows = read_contact(&p.join(&out).join("contact.csv"));
+            same_answer(p, "one", &out, &one, &rows, &format!("{what}, {np} ranks"));
+        }
+    }
+}
+
+/// The contact pressures of runs `a` and `b` (their rows `ra`, `rb`) within 1e-8 of
+/// their largest, and every node's displacement (matched by its point) within 1e-8 of
+/// the largest: the contact nodes' own displacements may all be zero (a body pressed
+/// flat and stuck), where only round-off tells them apart.
+fn same_answer(p: &Path, a: &str, b: &str, ra: &[Row], rb: &[Row], what: &str) {
+    for (c, name) in [(4, "p_n"), (5, "p_t")] {
+        let scale = max_abs(ra, c).max(f64::MIN_POSITIVE);
+        let d = ra
+            .iter()
+            .zip(rb)
+            .map(|(x, y)| (x.col(c) - y.col(c)).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            d <= 1e-8 * scale,
+            "{what}: {name} differs by {d} of {scale}"
+        );
+    }
+    let key = |n: &[f64; 4]| (n[0].to_bits(), n[1].to_bits());
+    let nb: std::collections::HashMap<(u64, u64), [f64; 4]> =
+        read_nodes(&p.join(b).join("nodes.csv"))
+            .iter()
+            .map(|n| (key(n), *n))
+            .collect();
+    let na = read_nodes(&p.join(a).join("nodes.csv"));
+    assert_eq!(na.len(), nb.len(), "{what}");
+    let scale = na.iter().map(|n| n[2].hypot(n[3])).fold(0.0, f64::max);
+    assert!(scale > 0.0, "{what}: nothing moves");
+    for n in &na {
+        let m = nb
+            .get(&key(n))
+            .unwrap_or_else(|| panic!("{what}: no node at {n:?}"));
+        let d = (n[2] - m[2]).hypot(n[3] - m[3]);
+        assert!(
+            d <= 1e-8 * scale,
+            "{what}: u at ({}, {}) differs by {d}",
+            n[0],
+            n[1]
+        );
+    }
 }

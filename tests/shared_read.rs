@@ -169,3 +169,121 @@ fn a_malformed_file_gives_the_first_ranks_one_line_on_any_number_of_ranks() {
         }
     }
 }
+
+/// `text` (MSH 4.1 ASCII) with the point of node `tag` set to `xyz`.
+fn with_point(text: &str, tag: u64, xyz: [f64; 3]) -> String {
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let mut at = lines.iter().position(|l| l == "$Nodes").unwrap() + 2;
+    loop {
+        let head: Vec<usize> = (lines[at].split_whitespace())
+            .map(|v| v.parse().unwrap())
+            .collect();
+        let count = head[3];
+        let tags = at + 1..at + 1 + count;
+        if let Some(k) = tags
+            .clone()
+            .position(|i| lines[i].trim() == tag.to_string())
+        {
+            lines[at + 1 + count + k] = format!("{} {} {}", xyz[0], xyz[1], xyz[2]);
+            return lines.join("\n") + "\n";
+        }
+        at += 1 + 2 * count;
+    }
+}
+
+/// Where the ranks cut the mesh from their shares and the first rank builds only the
+/// conditions (`dd::dist_problem`), a fault of the mesh or of the case sends them back
+/// to the first rank's reading of the whole file: the one-rank line on 2 and 3 ranks.
+#[test]
+fn a_faulty_mesh_or_case_gives_the_one_rank_line_where_the_ranks_cut() {
+    let text = String::from_utf8(fixture("quarter_disc_v41_ascii.msh")).unwrap();
+    let disc = disc_case();
+    let frictionless = quarter_disc_case_on("mesh.msh", "friction = \"none\"");
+    // Node 60 lies inside the disc; node 61 is another one.
+    let meshes = [
+        (
+            "a node moved out",
+            with_point(&text, 60, [3.0, 3.0, 0.0]),
+            disc.clone(),
+        ),
+        (
+            "a node on another",
+            with_point(&text, 60, point(&text, 61)),
+            disc.clone(),
+        ),
+        (
+            "a node off the plane",
+            with_point(&text, 60, with_z(point(&text, 60))),
+            disc.clone(),
+        ),
+        (
+            "a misspelled group",
+            text.clone(),
+            disc.replace("\"axis\"", "\"axes\""),
+        ),
+        (
+            "no Dirichlet condition",
+            text.clone(),
+            without_dirichlet(&frictionless),
+        ),
+        (
+            "a penetrating node",
+            text.clone(),
+            disc.replace("[0.0, 0.0]", "[0.0, 0.5]"),
+        ),
+    ];
+    for (what, mesh, case) in meshes {
+        let dir = case_dir(&case, mesh.as_bytes());
+        let one = refused(dir.path(), 1, "metis");
+        assert_eq!(one.len(), 1, "{what}: {one:?}");
+        for np in [2, 3] {
+            let lines = refused(dir.path(), np, "ptscotch");
+            assert_eq!(lines, one, "{what} on {np} ranks");
+        }
+    }
+}
+
+/// The point of node `tag` in `text` (MSH 4.1 ASCII).
+fn point(text: &str, tag: u64) -> [f64; 3] {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut at = lines.iter().position(|l| *l == "$Nodes").unwrap() + 2;
+    loop {
+        let count: usize = lines[at]
+            .split_whitespace()
+            .nth(3)
+            .unwrap()
+            .parse()
+            .unwrap();
+        let tags = at + 1..at + 1 + count;
+        if let Some(k) = tags
+            .clone()
+            .position(|i| lines[i].trim() == tag.to_string())
+        {
+            let v: Vec<f64> = (lines[at + 1 + count + k].split_whitespace())
+                .map(|v| v.parse().unwrap())
+                .collect();
+            return [v[0], v[1], v[2]];
+        }
+        at += 1 + 2 * count;
+    }
+}
+
+fn with_z(p: [f64; 3]) -> [f64; 3] {
+    [p[0], p[1], 0.25]
+}
+
+/// The disc's case without its `[[dirichlet]]` entries.
+fn without_dirichlet(case: &str) -> String {
+    let mut out = String::new();
+    let mut skip = false;
+    for line in case.lines() {
+        if line.starts_with('[') {
+            skip = line == "[[dirichlet]]";
+        }
+        if !skip {
+            out += line;
+            out += "\n";
+        }
+    }
+    out
+}

@@ -237,7 +237,7 @@ impl Local {
 
 /// The corners of `triangles` (node tags) as indices into `nodes` (tags, increasing,
 /// every corner among them): one sort of the corners and a walk along the tags.
-fn corners(nodes: &[u64], triangles: &[[u64; 3]]) -> Vec<[usize; 3]> {
+pub fn corners(nodes: &[u64], triangles: &[[u64; 3]]) -> Vec<[usize; 3]> {
     let mut all: Vec<(u64, usize)> = (triangles.par_iter().enumerate())
         .flat_map_iter(|(i, t)| (0..3).map(move |c| (t[c], 3 * i + c)))
         .collect();

@@ -69,6 +69,20 @@ impl Conditions {
     /// The conditions of `prob`. Refuses a problem with mortar rows (see the module's
     /// notes).
     pub fn of(case: &Case, prob: &Problem) -> Result<Conditions> {
+        let nodes = Self::records(case, prob)?;
+        let mut by_file = vec![0u32; prob.file_triangle.len()];
+        for (&f, &b) in prob.file_triangle.iter().zip(&prob.body) {
+            by_file[f] = b;
+        }
+        Ok(Conditions {
+            nodes,
+            bodies: runs(&by_file),
+        })
+    }
+
+    /// The records of `prob`'s nodes that carry a condition, by increasing file index
+    /// (`prob` may hold only those nodes, `Problem::file_node` placing them).
+    pub fn records(case: &Case, prob: &Problem) -> Result<Vec<NodeRecord>> {
         if prob.contact_masters.iter().any(|m| !m.is_empty()) {
             return Err(Error::Numerical(
                 "internal: a contact between two bodies is split on the first rank".into(),
@@ -106,14 +120,7 @@ impl Conditions {
         };
         let mut nodes: Vec<NodeRecord> = (0..prob.mesh.num_nodes()).filter_map(record).collect();
         nodes.sort_unstable_by_key(|r| r.file);
-        let mut by_file = vec![0u32; prob.file_triangle.len()];
-        for (&f, &b) in prob.file_triangle.iter().zip(&prob.body) {
-            by_file[f] = b;
-        }
-        Ok(Conditions {
-            nodes,
-            bodies: runs(&by_file),
-        })
+        Ok(nodes)
     }
 }
 
@@ -129,7 +136,7 @@ fn runs(values: &[u32]) -> Vec<(u64, u32)> {
 }
 
 /// The value of the run holding index `i` of [`runs`].
-fn run_value(runs: &[(u64, u32)], i: u64) -> u32 {
+pub fn run_value(runs: &[(u64, u32)], i: u64) -> u32 {
     let at = runs.partition_point(|&(first, _)| first <= i);
     runs[at.saturating_sub(1)].1
 }

@@ -68,6 +68,7 @@ pub mod comm;
 pub mod condense;
 pub mod dist_check;
 pub mod dist_graph;
+pub mod dist_problem;
 pub mod dist_split;
 pub mod full;
 pub mod interface_mumps;

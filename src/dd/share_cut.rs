@@ -11,7 +11,8 @@
 //! of a start in which each rank builds its own part of the problem.
 
 use crate::dd::comm::Mpi;
-use crate::dd::ownership::{self, InterfaceFigures, PartLists};
+use crate::dd::locality::Directory;
+use crate::dd::ownership::{self, InterfaceFigures, NodeParts, PartLists};
 use crate::dd::{dist_graph, locality};
 use std::time::Instant;
 
@@ -38,6 +39,10 @@ pub struct ShareCut {
     pub lists: Option<Vec<PartLists>>,
     /// The interface's figures, on every rank, where the lists were made.
     pub figures: Option<InterfaceFigures>,
+    /// Where the lists were made, this rank's share of the nodes' directory (every node
+    /// of the file) and of the used nodes with their parts: the mesh checks on the ranks
+    /// read them (`dd::dist_check`).
+    pub directory: Option<(Directory, NodeParts)>,
 }
 
 /// The triangles of every rank's share (`triangles`: this rank's, as node tags, its
@@ -83,7 +88,7 @@ pub fn cut_shares(
     let cut_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let per_rank = nparts / mpi.size;
-    let (lists, figures) = (nparts % mpi.size == 0)
+    let made = (nparts % mpi.size == 0)
         .then(|| {
             let parts: Vec<u32> = parts.iter().map(|&q| q as u32).collect();
             let around = ownership::node_parts(mpi, &sorted.triangles, &parts, &sorted.nodes)?;
@@ -96,10 +101,13 @@ pub fn cut_shares(
                 &around,
                 per_rank,
             );
-            Some((lists, figures))
+            Some((lists, figures, around))
         })
-        .flatten()
-        .unzip();
+        .flatten();
+    let (lists, figures, around) = match made {
+        Some((l, f, a)) => (Some(l), Some(f), Some(a)),
+        None => (None, None, None),
+    };
     let lists_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
     // Collective: every rank made the lists or none did.
@@ -130,5 +138,6 @@ pub fn cut_shares(
         ],
         lists,
         figures,
+        directory: around.map(|a| (sorted.nodes, a)),
     })
 }

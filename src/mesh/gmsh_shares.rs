@@ -131,6 +131,43 @@ impl Share {
     }
 }
 
+impl Share {
+    /// The node tags of this share's records of points and lines (the groups'
+    /// elements), in file order: all but its triangles' values.
+    pub fn group_values(&self, stretches: &[Stretch]) -> Vec<u64> {
+        let mut out = Vec::new();
+        let mut at = 0;
+        for s in stretches {
+            let Record::Element { nodes } = s.record else {
+                continue;
+            };
+            let values = nodes as usize * s.records as usize;
+            if nodes != 3 {
+                out.extend_from_slice(&self.elements[at..at + values]);
+            }
+            at += values;
+        }
+        out
+    }
+}
+
+/// The mesh of the groups' elements alone, which the first rank builds the problem's
+/// conditions on where the ranks hold the triangles (`dd::dist_problem`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GroupMesh {
+    /// The groups' nodes, by increasing index among the file's nodes, and their line and
+    /// point groups; no triangles; every physical surface by name, without its
+    /// triangles.
+    pub mesh: Mesh,
+    /// Each node's index among the file's nodes.
+    pub file: Vec<u64>,
+    /// Each node's tag.
+    pub tags: Vec<u64>,
+    /// The file's triangle blocks in order: each one's count and the names of its
+    /// physical surfaces.
+    pub triangle_blocks: Vec<(usize, Vec<String>)>,
+}
+
 /// A block of `$Nodes` or `$Elements`, in file order.
 #[derive(Debug)]
 enum Block {
@@ -352,6 +389,109 @@ impl Scan {
             records,
             record: s.record,
         }
+    }
+
+    /// The node tags of the groups' elements (points and lines), increasing, from their
+    /// values in file order ([`Share::group_values`] of every share, concatenated in
+    /// process order); `None` where they do not match the blocks.
+    pub fn group_tags(&self, values: &[u64]) -> Option<Vec<u64>> {
+        self.group_records(values)?;
+        let mut tags = values.to_vec();
+        tags.sort_unstable();
+        tags.dedup();
+        Some(tags)
+    }
+
+    /// Each non-triangle block's kind, physicals and records, in file order; `None`
+    /// where `values` do not match the blocks.
+    #[allow(clippy::type_complexity)]
+    fn group_records<'a>(&'a self, values: &'a [u64]) -> Option<Vec<(Kind, &'a [i32], &'a [u64])>> {
+        let mut out = Vec::new();
+        let mut e = 0usize;
+        for block in &self.blocks {
+            let Block::Elements {
+                kind,
+                count,
+                physicals,
+            } = block
+            else {
+                continue;
+            };
+            if *kind == Kind::Triangle {
+                continue;
+            }
+            let n = count.checked_mul(kind.nodes())?;
+            let mine = values.get(e..e.checked_add(n)?)?;
+            e += n;
+            out.push((*kind, &physicals[..], mine));
+        }
+        (e == values.len()).then_some(out)
+    }
+
+    /// The [`GroupMesh`] of the groups' elements (`values`, as for [`Scan::group_tags`])
+    /// on their nodes (`nodes`: tag, index among the file's nodes, x, y, by increasing
+    /// tag, every tag of the elements among them). `None` where they do not match.
+    pub fn group_mesh(&self, values: &[u64], nodes: &[(u64, u64, [f64; 2])]) -> Option<GroupMesh> {
+        let records = self.group_records(values)?;
+        let mut by_file: Vec<&(u64, u64, [f64; 2])> = nodes.iter().collect();
+        by_file.sort_unstable_by_key(|n| n.1);
+        let mut index = vec![0usize; nodes.len()];
+        for (i, n) in by_file.iter().enumerate() {
+            index[nodes.binary_search_by_key(&n.0, |m| m.0).ok()?] = i;
+        }
+        let at = |tag: u64| -> Option<usize> {
+            Some(index[nodes.binary_search_by_key(&tag, |m| m.0).ok()?])
+        };
+        let mut lines: std::collections::BTreeMap<i32, Vec<[usize; 2]>> = Default::default();
+        let mut points: std::collections::BTreeMap<i32, Vec<usize>> = Default::default();
+        for (kind, physicals, mine) in records {
+            for record in mine.chunks_exact(kind.nodes()) {
+                let a = at(record[0])?;
+                match kind {
+                    Kind::Line => {
+                        let b = at(record[1])?;
+                        for &p in physicals {
+                            lines.entry(p).or_default().push([a, b]);
+                        }
+                    }
+                    _ => {
+                        for &p in physicals {
+                            points.entry(p).or_default().push(a);
+                        }
+                    }
+                }
+            }
+        }
+        let names = &self.builder.names;
+        let mut surfaces: std::collections::BTreeMap<i32, Vec<usize>> = Default::default();
+        let mut triangle_blocks = Vec::new();
+        for block in &self.blocks {
+            if let Block::Elements {
+                kind: Kind::Triangle,
+                count,
+                physicals,
+            } = block
+            {
+                for &p in physicals {
+                    surfaces.entry(p).or_default();
+                }
+                let named =
+                    super::named(physicals.iter().map(|&p| (p, vec![()])).collect(), 2, names);
+                triangle_blocks.push((*count, named.into_keys().collect()));
+            }
+        }
+        Some(GroupMesh {
+            mesh: Mesh {
+                nodes: by_file.iter().map(|n| n.2).collect(),
+                triangles: Vec::new(),
+                line_groups: super::named(lines, 1, names),
+                point_groups: super::named(points, 0, names),
+                surface_groups: super::named(surfaces, 2, names),
+            },
+            file: by_file.iter().map(|n| n.1).collect(),
+            tags: by_file.iter().map(|n| n.0).collect(),
+            triangle_blocks,
+        })
     }
 
     /// The mesh from every share's values, concatenated in process order: the same

@@ -1,0 +1,302 @@
+//! The problem's conditions built by the first rank without the whole mesh, where the
+//! ranks cut a Gmsh file from their shares and hold their parts' lists
+//! (`dd::share_cut`): the mesh checked on the ranks (`dd::dist_check`), and on the first
+//! rank only what is sized like the boundary: the groups' elements (lines and points)
+//! with their nodes' places and points from the directory, the boundary edges among
+//! those nodes, each node's separate part and the bodies of the triangles around it.
+//! From these, the same conditions ([`Conditions`]) and figures ([`Facts`]) as the
+//! whole problem gives (`problem::build`, `Conditions::of`).
+//!
+//! Why: the whole mesh on the first rank was the last thing on it sized like the mesh
+//! where the ranks build their own parts (docs/cost-model.md, "The start from one Gmsh
+//! file"): 20 GiB and 20 s of a 10^8-dof start by the model.
+//!
+//! Any fault of the input (a mesh check, a group, a condition, a material, a mesh that
+//! is not planar) and anything these steps do not expect send every rank back to the
+//! first rank's reading of the whole file, which names the fault as it always has; the
+//! ranks keep their cut and their lists.
+
+use crate::case::Case;
+use crate::dd::comm::Mpi;
+use crate::dd::dist_check;
+use crate::dd::dist_split::{run_value, Conditions};
+use crate::dd::locality::{tag_rank, Directory};
+use crate::dd::ownership::{NodeParts, PartLists};
+use crate::error::Result;
+use crate::mesh::gmsh::shares::{GroupMesh, Scan};
+use crate::problem::{self, Lengths, Parts};
+use crate::split_dir::Facts;
+use std::collections::HashSet;
+
+/// What the first rank brings: the case, the file's scan, and the groups' elements'
+/// values of every share, in file order (`gmsh::shares::Share::group_values`).
+pub struct First<'a> {
+    pub case: &'a Case,
+    pub scan: &'a Scan,
+    pub group_values: &'a [u64],
+}
+
+/// The conditions and figures, on the first rank.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OnGroups {
+    pub conditions: Conditions,
+    /// Without the partition's figures, which the ranks find.
+    pub facts: Facts,
+}
+
+/// The conditions of the mesh whose parts this rank holds (`lists`, with its shares of
+/// the directory), the first rank's `first`; `z`: this rank's share of the nodes' z
+/// (the largest, minus the smallest, and the first node's of the file where this rank
+/// holds it, else minus infinity). `None` on every rank where they fall back to the
+/// first rank's reading (see the module's notes); else the conditions on the first rank.
+/// Collective; one subdomain per rank.
+pub fn build(
+    mpi: &Mpi,
+    first: Option<First>,
+    lists: &[PartLists],
+    (directory, around): (&Directory, &NodeParts),
+    triangles: usize,
+    mut z: [f64; 3],
+) -> Result<Option<Option<OnGroups>>> {
+    let Ok(checked) = dist_check::check(mpi, directory, around, lists)? else {
+        return Ok(None);
+    };
+    mpi.max_in_place(&mut z);
+    let (lo, hi) = checked.bbox;
+    let tolerance = 1e-9 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    if (z[0] - z[2]).max(z[2] + z[1]) > tolerance {
+        return Ok(None);
+    }
+    let nodes: usize = mpi.all_gather_counts(directory.tags.len()).iter().sum();
+    let edges: Vec<u64> = checked.boundary.iter().flatten().copied().collect();
+    let edges = mpi.gather_varcount(&edges, &mpi.all_gather_counts(edges.len()));
+
+    // The groups' nodes from the directory.
+    let tags = first
+        .as_ref()
+        .and_then(|f| f.scan.group_tags(f.group_values));
+    let found = look_up(mpi, tags.as_deref().unwrap_or_default(), directory);
+    let groups = first.as_ref().zip(found).and_then(|(f, found)| {
+        let mesh = f.scan.group_mesh(f.group_values, &found?)?;
+        let runs = problem::body_runs(f.case, &mesh.triangle_blocks)?;
+        Some((mesh, runs))
+    });
+    let ask = groups.as_ref().map(|(mesh, runs)| Ask {
+        tags: mesh.tags.clone(),
+        firsts: checked.part_first.clone(),
+        runs: runs.clone(),
+    });
+    let ask: Option<Ask> = mpi.broadcast(mpi.is_root().then_some(ask))?;
+    let Some(ask) = ask else {
+        return Ok(None);
+    };
+    let told = tell(mpi, &ask, lists, &checked.node_part);
+    let built = first
+        .zip(groups)
+        .zip(told)
+        .and_then(|((f, (mesh, runs)), told)| {
+            let whole = Whole {
+                nodes,
+                triangles,
+                bbox: checked.bbox,
+                boundary: edges.unwrap_or_default(),
+                part_first: &checked.part_first,
+            };
+            on_groups(f.case, mesh, runs, told, whole)
+        });
+    let ok = mpi.broadcast(mpi.is_root().then_some(built.is_some()))?;
+    Ok(ok.then_some(built))
+}
+
+/// What the first rank asks every rank about the groups' nodes.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+struct Ask {
+    /// The groups' nodes' tags, in the group mesh's order.
+    tags: Vec<u64>,
+    /// The separate parts' lowest nodes (file indices).
+    firsts: Vec<u64>,
+    /// The bodies' runs over the file's triangle records.
+    runs: Vec<(u64, u32)>,
+}
+
+/// What the ranks tell the first: per group node, its separate part and the bodies of
+/// the triangles around it; per separate part, its lowest node's point.
+struct Told {
+    part: Vec<u32>,
+    bodies: Vec<Vec<u32>>,
+    first_at: Vec<[f64; 2]>,
+}
+
+/// A node as the directory holds it: tag, index among the file's nodes, point.
+type Found = (u64, u64, [f64; 2]);
+
+/// The nodes of `tags` (increasing) as the directory holds them: tag, index among the
+/// file's nodes, point; `None` where one is missing. On the first rank (`None`
+/// elsewhere). Collective.
+fn look_up(mpi: &Mpi, tags: &[u64], directory: &Directory) -> Option<Option<Vec<Found>>> {
+    let p = mpi.size;
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
+    for &t in tags {
+        send[tag_rank(t, p)].push(t);
+    }
+    let asked = mpi.exchange(send);
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
+    for &t in asked.iter().flatten() {
+        let record = match directory.tags.binary_search(&t) {
+            Ok(k) => [
+                t,
+                directory.file[k],
+                directory.xy[k][0].to_bits(),
+                directory.xy[k][1].to_bits(),
+            ],
+            Err(_) => [t, u64::MAX, 0, 0],
+        };
+        send[0].extend_from_slice(&record);
+    }
+    let answered = mpi.exchange(send);
+    if !mpi.is_root() {
+        return None;
+    }
+    let mut nodes: Vec<Found> = (answered.iter())
+        .flat_map(|v| v.chunks_exact(4))
+        .map(|c| (c[0], c[1], [f64::from_bits(c[2]), f64::from_bits(c[3])]))
+        .collect();
+    nodes.sort_unstable_by_key(|n| n.0);
+    let complete = nodes.len() == tags.len() && nodes.iter().all(|n| n.1 != u64::MAX);
+    Some(complete.then_some(nodes))
+}
+
+/// Every rank's answer to `ask` from its parts, on the first rank (`None` elsewhere, and
+/// where a group node is in no part). Collective.
+fn tell(mpi: &Mpi, ask: &Ask, lists: &[PartLists], node_part: &[Vec<u32>]) -> Option<Told> {
+    let mut sorted: Vec<(u64, usize)> = ask.tags.iter().copied().zip(0..).collect();
+    sorted.sort_unstable();
+    let asked = |tag: u64| -> Option<usize> {
+        let i = sorted.binary_search_by_key(&tag, |s| s.0).ok()?;
+        Some(sorted[i].1)
+    };
+    let wanted: HashSet<u64> = ask.firsts.iter().copied().collect();
+    let (mut parts, mut touch, mut firsts) = (Vec::new(), Vec::new(), Vec::new());
+    for (l, labels) in lists.iter().zip(node_part) {
+        let ks: Vec<Option<usize>> = l.nodes.iter().map(|&t| asked(t)).collect();
+        for (k, &q) in ks.iter().zip(labels) {
+            if let Some(k) = k {
+                parts.extend_from_slice(&[*k as u64, u64::from(q)]);
+            }
+        }
+        for (v, (&f, xy)) in l.file_nodes.iter().zip(&l.xy).enumerate() {
+            if wanted.contains(&f) && l.owned[v] {
+                let j = ask.firsts.iter().position(|&g| g == f).unwrap_or_default();
+                firsts.extend_from_slice(&[j as u64, xy[0].to_bits(), xy[1].to_bits()]);
+            }
+        }
+        if ks.iter().all(Option::is_none) {
+            continue;
+        }
+        for (t, &e) in dist_check::corners(&l.nodes, &l.triangles)
+            .iter()
+            .zip(&l.elements)
+        {
+            for k in t.iter().filter_map(|&v| ks[v]) {
+                touch.extend_from_slice(&[k as u64, u64::from(run_value(&ask.runs, e))]);
+            }
+        }
+    }
+    let to_first = |values: Vec<u64>| {
+        let mut send: Vec<Vec<u64>> = vec![Vec::new(); mpi.size];
+        send[0] = values;
+        mpi.exchange(send).concat()
+    };
+    let (parts, touch, firsts) = (to_first(parts), to_first(touch), to_first(firsts));
+    if !mpi.is_root() {
+        return None;
+    }
+    let n = ask.tags.len();
+    let mut part = vec![u32::MAX; n];
+    for c in parts.chunks_exact(2) {
+        part[c[0] as usize] = c[1] as u32;
+    }
+    let mut bodies = vec![Vec::new(); n];
+    for c in touch.chunks_exact(2) {
+        bodies[c[0] as usize].push(c[1] as u32);
+    }
+    for b in &mut bodies {
+        b.sort_unstable();
+        b.dedup();
+    }
+    let mut first_at = vec![[f64::NAN; 2]; ask.firsts.len()];
+    for c in firsts.chunks_exact(3) {
+        first_at[c[0] as usize] = [f64::from_bits(c[1]), f64::from_bits(c[2])];
+    }
+    let complete = part.iter().all(|&q| q != u32::MAX) && first_at.iter().all(|p| !p[0].is_nan());
+    complete.then_some(Told {
+        part,
+        bodies,
+        first_at,
+    })
+}
+
+/// What the first rank knows of the whole mesh from the ranks.
+struct Whole<'a> {
+    nodes: usize,
+    triangles: usize,
+    bbox: ([f64; 2], [f64; 2]),
+    /// The boundary edges' ends (file indices), two values each.
+    boundary: Vec<u64>,
+    part_first: &'a [u64],
+}
+
+/// The conditions and figures on the groups' mesh; `None` on any fault of the input.
+fn on_groups(
+    case: &Case,
+    groups: GroupMesh,
+    runs: Vec<(u64, u32)>,
+    told: Told,
+    whole: Whole,
+) -> Option<OnGroups> {
+    let file: Vec<usize> = groups.file.iter().map(|&f| f as usize).collect();
+    let compact = |f: u64| file.binary_search(&(f as usize)).ok();
+    let boundary: HashSet<(usize, usize)> = (whole.boundary.chunks_exact(2))
+        .filter_map(|e| {
+            let (a, b) = (compact(e[0])?, compact(e[1])?);
+            Some((a.min(b), a.max(b)))
+        })
+        .collect();
+    let parts = Parts {
+        of_node: told.part.iter().map(|&q| q as usize).collect(),
+        first: (whole.part_first.iter().zip(&told.first_at))
+            .map(|(&f, &x)| (f as usize, x))
+            .collect(),
+        size: {
+            let (lo, hi) = whole.bbox;
+            (hi[0] - lo[0]).max(hi[1] - lo[1]).max(0.0)
+        },
+    };
+    let prob = problem::build_on_groups(case, groups.mesh, file, &boundary, &parts).ok()?;
+    let nodes = Conditions::records(case, &prob).ok()?;
+    let mut contact_bodies: Vec<u32> = (prob.contact_nodes.iter())
+        .flat_map(|&v| told.bodies[v].iter().copied())
+        .collect();
+    contact_bodies.sort_unstable();
+    contact_bodies.dedup();
+    let fixed = prob.fixed.iter().filter(|f| f.is_some()).count();
+    let facts = Facts {
+        lengths: Lengths::of(whole.bbox, prob.contact_h),
+        contact_bodies,
+        n_boundary: 0,
+        n_interface: 0,
+        nodes: whole.nodes,
+        elements: whole.triangles,
+        free_dofs: 2 * whole.nodes - fixed,
+        contact_nodes: prob.contact_nodes.len(),
+        partition: String::new(),
+        holding: prob.holding,
+    };
+    Some(OnGroups {
+        conditions: Conditions {
+            nodes,
+            bodies: runs,
+        },
+        facts,
+    })
+}
