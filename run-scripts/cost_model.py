@@ -231,6 +231,20 @@ class Start:
                 f" its peak {self.m_0:.0f} B per node")
 
 
+def checks_of(directory):
+    """Where every rank checks the mesh on its parts and finds the conditions (the ranks
+    build their own parts, no rank holding the whole mesh; start_study.py's `checks_s`):
+    their seconds per triangle and rank, a core each (the median over the runs where
+    the first rank has one core)."""
+    with open(os.path.join(directory, "start.csv")) as fh:
+        rows = [r for r in csv.DictReader(fh)
+                if r["bind"] == "core" and float(r.get("checks_s") or 0) > 0]
+    if not rows:
+        sys.exit(f"cost_model.py: {directory}/start.csv has no runs with the checks on the ranks")
+    return statistics.median(float(r["checks_s"]) * float(r["ranks"]) / float(r["triangles"])
+                             for r in rows)
+
+
 class Cut:
     """The partition by every rank, fitted on run-scripts/cut_study.py's cut.csv rows of
     one kind: `ptscotch` (PT-Scotch on the first rank's graph) or `shares` (the ranks'
@@ -323,6 +337,9 @@ def main():
                     "predict the start from one Gmsh file")
     ap.add_argument("--cut", help="cut_study.py's output directory (cut.csv): the start with the "
                     "partition by every rank (needs --start)")
+    ap.add_argument("--groups", help="start_study.py's output directory of runs where the ranks "
+                    "check the mesh and find the conditions (no rank holding the whole mesh): "
+                    "the --cut shares start with them")
     ap.add_argument("--file-numbering", type=float, default=0.55,
                     help="the first rank's problem in the file's numbering (where each rank "
                     "builds its own part) over the problem in the locality numbering: "
@@ -382,6 +399,7 @@ def main():
             f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
             print(f"{P:>5} " + " ".join(f"{secs[p]:>{w}.1f}" for p, w in zip(START_PIECES, (6, 9, 8, 10, 8)))
                   + f" {alone:>8.1f} {f + loop:>15.1f} {alone / (alone + f + loop):>12.1%}")
+        checks = checks_of(a.groups) if a.groups else None
         kinds = [("ptscotch", "the same start with the partition cut by every rank on the first"
                    " rank's graph (--partitioner ptscotch)"),
                  ("shares", "the same start with the partition found by every rank from its share"
@@ -396,7 +414,13 @@ def main():
             print()
             print(f"{title}; fitted on {a.cut}:")
             print(cut.describe())
-            if kind == "shares":
+            groups = kind == "shares" and checks is not None
+            if groups:
+                print(f"  no rank holds the whole mesh: the first rank neither puts it together nor"
+                      f" builds the problem; every rank checks the mesh on its parts and finds the"
+                      f" conditions, {checks * 1e6:.3f} us per triangle and rank (in 'on the"
+                      f" ranks'; fitted on {a.groups})")
+            elif kind == "shares":
                 print(f"  the first rank's problem in the file's numbering: {a.file_numbering:.2f} x"
                       " the start's (no locality renumbering)")
             print(f"{'P':>5} {'first rank: graph + split':>26} {'cut, all ranks':>15} "
@@ -406,6 +430,11 @@ def main():
                 if kind == "shares":
                     secs["problem"] *= a.file_numbering
                 first, on_ranks = cut.seconds(nodes, P)
+                if groups:
+                    secs["assembly"] = secs["problem"] = 0.0
+                    # The conditions the first rank sends are sized like the boundary.
+                    first = 0.0
+                    on_ranks += checks * cut.per_node * nodes / P
                 # From the shares each rank builds its own part: the first rank
                 # scatters nothing (its split is the conditions it sends, in `first`).
                 dropped = ("partition", "scatter") if kind == "shares" else ("partition",)

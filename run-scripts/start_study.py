@@ -17,7 +17,11 @@ mesh together and builds the problem: the cut's seconds, named on the partition 
 are not the first rank's alone, and of the assembly and the problem only the seconds
 they went on after the cut (`read_after_s`, also on the partition line) are; nor are
 those of the parts that each rank then builds for itself (`ranks_build_s`, "parts built
-on their ranks" on the partition line).
+on their ranks" on the partition line). Where the ranks build their own parts, the first
+rank no longer puts the mesh together nor builds the whole problem: every rank checks
+the mesh on its parts and finds the conditions of the groups' nodes (`checks_s`, "checked
+and its conditions found on the ranks" on the read line; not the first rank's alone),
+and its assembly and problem are zero.
 
 With --split-parts (e.g. 2,64,512), `contact-par split --parts P` also runs on one core
 (read, problem, partition into P parts, the part files written): its seconds and peak
@@ -41,6 +45,14 @@ READ = re.compile(
     r"mesh read on \d+ ranks in ([\d.]+) s \(the first rank alone ([\d.]+) s: "
     r"case, file and scan ([\d.]+) s, assembly ([\d.]+) s\), problem ([\d.]+) s"
 )
+# Where the ranks cut the file from their shares and the first rank builds only the
+# conditions, no rank holding the whole mesh: no assembly or problem on the first rank,
+# the checks and the conditions found by every rank.
+READ_GROUPS = re.compile(
+    r"^read\s+done in\s+([\d.]+) s: .*?: (\d+) nodes, (\d+) triangles.*?"
+    r"mesh read on \d+ ranks in ([\d.]+) s \(the first rank alone ([\d.]+) s: "
+    r"case, file and scan\), checked and its conditions found on the ranks in ([\d.]+) s"
+)
 PHASE = re.compile(r"^(\w+)\s+done in\s+([\d.]+) s")
 RANKS_CUT = re.compile(r"^partition done in .*?, cut ([\d.]+) s \(PT-Scotch on ")
 READ_AFTER = re.compile(r"which went on ([\d.]+) s longer")
@@ -50,7 +62,7 @@ TOTAL = re.compile(r"^total\s+([\d.]+)")
 FIELDS = [
     "case", "nodes", "triangles", "ranks", "bind", "cores", "runs",
     "scan_s", "shares_s", "assembly_s", "problem_s", "partition_s", "ranks_cut_s", "ranks_build_s",
-    "read_after_s", "scatter_s",
+    "read_after_s", "checks_s", "scatter_s",
     "alone_s", "total_s", "serial_share", "rank0_peak_bytes", "other_peak_bytes",
 ]
 
@@ -68,7 +80,7 @@ def one_run(binary, case, ranks, bind, out, partitioner):
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"start_study: {' '.join(cmd)} failed:\n{p.stderr}")
-    row = {"ranks_cut_s": 0.0, "ranks_build_s": 0.0, "read_after_s": None}
+    row = {"ranks_cut_s": 0.0, "ranks_build_s": 0.0, "read_after_s": None, "checks_s": 0.0}
     for line in p.stdout.splitlines():
         m = RANKS_CUT.match(line)
         if m:
@@ -86,6 +98,15 @@ def one_run(binary, case, ranks, bind, out, partitioner):
                 nodes=int(nodes), triangles=int(tris), scan_s=float(scan),
                 assembly_s=float(assembly), problem_s=float(problem),
                 # The shares: every rank parses its own; the gathers.
+                shares_s=float(together) - float(alone),
+            )
+            continue
+        m = READ_GROUPS.match(line)
+        if m:
+            _, nodes, tris, together, alone, checks = m.groups()
+            row.update(
+                nodes=int(nodes), triangles=int(tris), scan_s=float(alone),
+                assembly_s=0.0, problem_s=0.0, checks_s=float(checks),
                 shares_s=float(together) - float(alone),
             )
             continue
@@ -150,13 +171,15 @@ def main():
             w.writerow({k: r[k] for k in FIELDS})
     print("| case | nodes | cores of the first rank | scan | assembly | problem | partition "
           "| of it, the ranks' cut and build | assembly and problem after the cut | scatter | alone "
-          "| shares (all ranks) | total | serial share | peak rank 0 / others (MB) |")
-    print("| --- " * 15 + "|")
+          "| shares (all ranks) | checks and conditions (all ranks) | total | serial share "
+          "| peak rank 0 / others (MB) |")
+    print("| --- " * 16 + "|")
     for r in rows:
         print(f"| {r['case']} | {r['nodes']} | {r['cores']} | {r['scan_s']:.3f} | "
               f"{r['assembly_s']:.3f} | {r['problem_s']:.3f} | {r['partition_s']:.3f} | "
               f"{r['ranks_cut_s'] + r['ranks_build_s']:.3f} | {r['read_after_s']:.3f} | "
               f"{r['scatter_s']:.3f} | {r['alone_s']:.3f} | {r['shares_s']:.3f} | "
+              f"{r['checks_s']:.3f} | "
               f"{r['total_s']:.3f} | {100 * r['serial_share']:.1f}% | "
               f"{r['rank0_peak_bytes'] / 1e6:.0f} / {r['other_peak_bytes'] / 1e6:.0f} |")
     print(f"wrote {path}")

@@ -1612,8 +1612,8 @@ pub struct SplitOptions {
 
 /// `contact-par split`: reads the case and its mesh, partitions and splits them into
 /// `parts` subdomains, the same as a run on that many would, and writes one file per
-/// part (see `split_dir`). The first rank reads the whole mesh; the parts are made by
-/// it, or by their ranks (`split_on_ranks`).
+/// part (see `split_dir`). The first rank reads the whole mesh and makes the parts, or
+/// the ranks make their own (`split_on_ranks`), and then no rank holds the whole mesh.
 pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()> {
     if mpi.size > 1 && opts.parts % mpi.size == 0 && opts.partitioner.on_ranks(mpi, opts.parts) {
         return split_on_ranks(opts, mpi, print);

@@ -1,6 +1,8 @@
 //! From a validated case and a mesh to the discrete problem: oriented mesh, prescribed
 //! dofs, load vector, contact nodes with their lumped weights and gaps. Everything that
-//! needs the whole mesh happens here, once, on the reading rank.
+//! needs the whole mesh happens here, once, on the reading rank; where the ranks hold
+//! the triangles, the same conditions come from the groups' elements alone
+//! ([`build_on_groups`], with what the ranks find: `dd::dist_problem`).
 
 use crate::case::Case;
 use crate::contact::mortar::{mortar_rows, MortarRow, Segment};
