@@ -431,33 +431,12 @@ pub fn build_numbered(
     let boundary = validate::check(&mut mesh, mesh_name)?;
     let triangles = mesh.triangles.len();
     let parts = Parts::of(&mesh);
-    let Conditioned {
-        fixed,
-        contact_nodes,
-        contact,
-        contact_h,
-        contact_masters,
-        holding,
-    } = conditioned(case, &mesh, &boundary, &parts)?;
+    let conditioned = conditioned(case, &mesh, &boundary, &parts)?;
     // Checked here so that every fault of the input is reported before any work; the
     // bodies are found again in the new numbering below.
     bodies(case, &mesh)?;
-
     let n = mesh.num_nodes();
-    let prob = Problem {
-        mesh,
-        fixed,
-        load: Vec::new(),
-        contact_nodes,
-        contact,
-        contact_masters,
-        contact_h,
-        file_node: (0..n).collect(),
-        file_triangle: (0..triangles).collect(),
-        body: Vec::new(),
-        contact_bodies: Vec::new(),
-        holding,
-    };
+    let prob = conditioned.on(mesh, (0..n).collect(), (0..triangles).collect());
     let mut prob = match numbering {
         Numbering::Locality => in_locality_order(prob),
         Numbering::File => prob,
@@ -488,6 +467,27 @@ struct Conditioned {
     contact_h: f64,
     contact_masters: Vec<Vec<(usize, f64)>>,
     holding: Holding,
+}
+
+impl Conditioned {
+    /// The problem on `mesh` with these conditions, its nodes' and triangles' places in
+    /// the file; without loads and bodies.
+    fn on(self, mesh: Mesh, file_node: Vec<usize>, file_triangle: Vec<usize>) -> Problem {
+        Problem {
+            mesh,
+            fixed: self.fixed,
+            load: Vec::new(),
+            contact_nodes: self.contact_nodes,
+            contact: self.contact,
+            contact_masters: self.contact_masters,
+            contact_h: self.contact_h,
+            file_node,
+            file_triangle,
+            body: Vec::new(),
+            contact_bodies: Vec::new(),
+            holding: self.holding,
+        }
+    }
 }
 
 /// The prescribed dofs, the traction groups' check, the contact nodes and their
@@ -549,28 +549,7 @@ pub fn build_on_groups(
     boundary: &HashSet<(usize, usize)>,
     parts: &Parts,
 ) -> Result<Problem> {
-    let Conditioned {
-        fixed,
-        contact_nodes,
-        contact,
-        contact_h,
-        contact_masters,
-        holding,
-    } = conditioned(case, &mesh, boundary, parts)?;
-    Ok(Problem {
-        mesh,
-        fixed,
-        load: Vec::new(),
-        contact_nodes,
-        contact,
-        contact_masters,
-        contact_h,
-        file_node,
-        file_triangle: Vec::new(),
-        body: Vec::new(),
-        contact_bodies: Vec::new(),
-        holding,
-    })
+    Ok(conditioned(case, &mesh, boundary, parts)?.on(mesh, file_node, Vec::new()))
 }
 
 /// Each file triangle record's body (its `[[material]]` entry), in runs (first record,

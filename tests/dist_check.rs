@@ -12,6 +12,7 @@
 //! [`child`] only.
 
 mod common;
+use common::uneven_range;
 
 use contact_par::dd::comm::Mpi;
 use contact_par::dd::dist_check::{self, Checked};
@@ -128,14 +129,6 @@ fn meshes() -> Vec<(&'static str, Vec<[f64; 2]>, Vec<[usize; 3]>)> {
     out
 }
 
-/// Rank r's range of `n` items on `size` ranks: uneven, the last of 4 empty.
-fn range(r: usize, size: usize, n: usize) -> std::ops::Range<usize> {
-    let weight = |q: usize| if size == 4 && q == 3 { 0 } else { q + 1 };
-    let total: usize = (0..size).map(weight).sum();
-    let before: usize = (0..r).map(weight).sum();
-    n * before / total..n * (before + weight(r)) / total
-}
-
 fn child() {
     let universe = mpi::initialize().expect("MPI");
     let world = universe.world();
@@ -166,12 +159,12 @@ fn compare(
     };
     let serial = validate::check(&mut mesh, NAME);
 
-    let mine = range(rank, size, nodes.len());
+    let mine = uneven_range(rank, size, nodes.len());
     let tags: Vec<u64> = mine.clone().map(tag).collect();
     let coords: Vec<f64> = (mine.map(|v| nodes[v]))
         .flat_map(|p| [p[0], p[1], 0.0])
         .collect();
-    let share: Vec<[u64; 3]> = tris[range(rank, size, tris.len())]
+    let share: Vec<[u64; 3]> = tris[uneven_range(rank, size, tris.len())]
         .iter()
         .map(|t| t.map(tag))
         .collect();

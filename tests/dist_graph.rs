@@ -22,6 +22,7 @@
 //! [`child`] only.
 
 mod common;
+use common::uneven_range;
 
 use contact_par::dd::comm::Mpi;
 use contact_par::dd::{dist_graph, locality, ownership, share_cut};
@@ -63,14 +64,6 @@ fn tag(node: usize) -> u64 {
     3 * node as u64 + 7
 }
 
-/// Rank r's range of `n` triangles on `size` ranks: uneven, the last of 4 empty.
-fn range(r: usize, size: usize, n: usize) -> std::ops::Range<usize> {
-    let weight = |q: usize| if size == 4 && q == 3 { 0 } else { q + 1 };
-    let total: usize = (0..size).map(weight).sum();
-    let before: usize = (0..r).map(weight).sum();
-    n * before / total..n * (before + weight(r)) / total
-}
-
 fn child() {
     let universe = mpi::initialize().expect("MPI");
     let world = universe.world();
@@ -78,7 +71,7 @@ fn child() {
     let all = triangles();
     let nodes = (NX + 1) * (NY + 1);
     let serial = partition::dual_graph(nodes, &all).expect("a valid mesh");
-    let mine = range(rank, size, all.len());
+    let mine = uneven_range(rank, size, all.len());
     let tags: Vec<[u64; 3]> = all[mine.clone()].iter().map(|t| t.map(tag)).collect();
     let mpi = Mpi::new(world.duplicate());
     let d = dist_graph::dual_graph(&mpi, &tags);
@@ -112,7 +105,9 @@ fn child() {
     // The edge cut of parts given by the global ids, counted across the ranks.
     let part = |g: usize| ((g * 7) / all.len()) as i32;
     let parts: Vec<i32> = mine.clone().map(part).collect();
-    let counts: Vec<usize> = (0..size).map(|r| range(r, size, all.len()).len()).collect();
+    let counts: Vec<usize> = (0..size)
+        .map(|r| uneven_range(r, size, all.len()).len())
+        .collect();
     let cut = dist_graph::edge_cut(&mpi, &d, &parts, &counts);
     let serial_cut = (0..all.len())
         .map(|g| {
@@ -191,7 +186,7 @@ fn locality_child() {
     let coords: Vec<f64> = (coords_at.map(file_node))
         .flat_map(|n| [xy(n)[0], xy(n)[1], 0.0])
         .collect();
-    let mine = range(rank, size, all.len());
+    let mine = uneven_range(rank, size, all.len());
     let tris: Vec<[u64; 3]> = all[mine].iter().map(|t| t.map(tag)).collect();
 
     let sorted = locality::sort_triangles(&mpi, &tags, &coords, &tris).expect("a mesh");

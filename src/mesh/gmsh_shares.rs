@@ -115,39 +115,38 @@ impl Share {
     /// order; `stretches` are the share's ([`SharePlan::share`]).
     pub fn triangles(&self, stretches: &[Stretch]) -> Vec<[u64; 3]> {
         let mut out = Vec::new();
-        let mut at = 0;
-        for s in stretches {
-            let Record::Element { nodes } = s.record else {
-                continue;
-            };
-            let values = nodes as usize * s.records as usize;
-            let mine = &self.elements[at..at + values];
-            at += values;
+        self.each_element_block(stretches, |nodes, values| {
             if nodes == 3 {
-                out.extend(mine.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
+                out.extend(values.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
             }
-        }
+        });
         out
     }
-}
 
-impl Share {
     /// The node tags of this share's records of points and lines (the groups'
     /// elements), in file order: all but its triangles' values.
     pub fn group_values(&self, stretches: &[Stretch]) -> Vec<u64> {
         let mut out = Vec::new();
+        self.each_element_block(stretches, |nodes, values| {
+            if nodes != 3 {
+                out.extend_from_slice(values);
+            }
+        });
+        out
+    }
+
+    /// Each of the share's stretches of elements, in order: their node count and their
+    /// node tags.
+    fn each_element_block(&self, stretches: &[Stretch], mut f: impl FnMut(u8, &[u64])) {
         let mut at = 0;
         for s in stretches {
             let Record::Element { nodes } = s.record else {
                 continue;
             };
             let values = nodes as usize * s.records as usize;
-            if nodes != 3 {
-                out.extend_from_slice(&self.elements[at..at + values]);
-            }
+            f(nodes, &self.elements[at..at + values]);
             at += values;
         }
-        out
     }
 }
 

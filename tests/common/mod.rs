@@ -662,3 +662,11 @@ pub fn on_1_to_4_ranks(name: &str, child: fn()) {
         );
     }
 }
+
+/// Rank r's range of `n` items on `size` ranks: uneven, the last of 4 empty.
+pub fn uneven_range(r: usize, size: usize, n: usize) -> std::ops::Range<usize> {
+    let weight = |q: usize| if size == 4 && q == 3 { 0 } else { q + 1 };
+    let total: usize = (0..size).map(weight).sum();
+    let before: usize = (0..r).map(weight).sum();
+    n * before / total..n * (before + weight(r)) / total
+}
