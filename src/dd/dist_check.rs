@@ -237,7 +237,7 @@ impl Local {
 
 /// The corners of `triangles` (node tags) as indices into `nodes` (tags, increasing,
 /// every corner among them): one sort of the corners and a walk along the tags.
-pub fn corners(nodes: &[u64], triangles: &[[u64; 3]]) -> Vec<[usize; 3]> {
+fn corners(nodes: &[u64], triangles: &[[u64; 3]]) -> Vec<[usize; 3]> {
     let mut all: Vec<(u64, usize)> = (triangles.par_iter().enumerate())
         .flat_map_iter(|(i, t)| (0..3).map(move |c| (t[c], 3 * i + c)))
         .collect();
@@ -263,30 +263,76 @@ fn edges(
     local: &[Local],
     lists: &[PartLists],
 ) -> (Vec<[u64; 2]>, Option<(FoldKey, FoldKey)>) {
-    let p = mpi.size;
-    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); mpi.size];
     let mut boundary = Vec::new();
     let mut fold: Option<FoldKey> = None;
     for (loc, l) in local.iter().zip(lists) {
-        let mut here: Vec<[u64; 3]> = Vec::with_capacity(3 * loc.triangles.len());
-        for (tri, &e) in loc.triangles.iter().zip(&l.elements) {
-            for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
-                let (fa, fb) = (l.file_nodes[a], l.file_nodes[b]);
-                let record = [fa.min(fb), fa.max(fb), e << 1 | u64::from(fa < fb)];
-                if loc.on_interface[a] && loc.on_interface[b] {
-                    send[edge_rank(record[0], record[1], p)].extend_from_slice(&record);
-                } else {
-                    here.push(record);
-                }
-            }
-        }
-        match_runs(&mut here, &mut boundary, &mut fold);
+        match_inside(loc, l, &mut boundary, &mut fold, &mut send);
     }
     let mut there: Vec<[u64; 3]> = (mpi.exchange(send).iter())
         .flat_map(|v| v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]))
         .collect();
     match_runs(&mut there, &mut boundary, &mut fold);
     (boundary, fold.map(|f| (f, f)))
+}
+
+/// Matches the edges of a part with an end inside it, in rows of their lower end in the
+/// part's own numbering (as the serial check does: no sort of all the edges), and puts
+/// the others' records in `send`, by the rank that matches them.
+fn match_inside(
+    loc: &Local,
+    l: &PartLists,
+    boundary: &mut Vec<[u64; 2]>,
+    fold: &mut Option<FoldKey>,
+    send: &mut [Vec<u64>],
+) {
+    let n = l.nodes.len();
+    let sides = |t: &[usize; 3]| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])];
+    let inside = |a: usize, b: usize| !(loc.on_interface[a] && loc.on_interface[b]);
+    let mut start = vec![0usize; n + 1];
+    for t in &loc.triangles {
+        for (a, b) in sides(t).into_iter().filter(|&(a, b)| inside(a, b)) {
+            start[a.min(b) + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    // (higher end, triangle << 1 | 1 when the triangle runs the edge from the lower end)
+    let mut entries = vec![(0usize, 0u64); start[n]];
+    for (t, &e) in loc.triangles.iter().zip(&l.elements) {
+        for (a, b) in sides(t) {
+            let (fa, fb) = (l.file_nodes[a], l.file_nodes[b]);
+            if !inside(a, b) {
+                let record = [fa.min(fb), fa.max(fb), e << 1 | u64::from(fa < fb)];
+                send[edge_rank(record[0], record[1], send.len())].extend_from_slice(&record);
+                continue;
+            }
+            let low = a.min(b);
+            entries[fill[low]] = (a.max(b), e << 1 | u64::from(a == low));
+            fill[low] += 1;
+        }
+    }
+    for low in 0..n {
+        let row = &mut entries[start[low]..start[low + 1]];
+        row.sort_unstable();
+        for run in row.chunk_by(|x, y| x.0 == y.0) {
+            let (fl, fh) = (l.file_nodes[low], l.file_nodes[run[0].0]);
+            match run {
+                [one] if one.1 & 1 == 1 => boundary.push([fl, fh]),
+                [_] => boundary.push([fh, fl]),
+                [x, y] if (x.1 ^ y.1) & 1 == 1 => {}
+                _ => {
+                    let (x, y) = validate::same_way(run.iter().map(|r| r.1));
+                    let key = ([fl.min(fh), fl.max(fh)], [x, y]);
+                    if fold.is_none_or(|f| key < f) {
+                        *fold = Some(key);
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// The runs of edge `records` (low, high, triangle << 1 | 1 when it runs low to high):

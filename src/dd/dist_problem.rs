@@ -190,15 +190,19 @@ fn tell(mpi: &Mpi, ask: &Ask, lists: &[PartLists], node_part: &[Vec<u32>]) -> Op
                 firsts.extend_from_slice(&[j as u64, xy[0].to_bits(), xy[1].to_bits()]);
             }
         }
-        if ks.iter().all(Option::is_none) {
+        // The part's asked nodes, few: a search among them per corner.
+        let here: Vec<(u64, usize)> = (l.nodes.iter().zip(&ks))
+            .filter_map(|(&t, k)| Some((t, (*k)?)))
+            .collect();
+        if here.is_empty() {
             continue;
         }
-        for (t, &e) in dist_check::corners(&l.nodes, &l.triangles)
-            .iter()
-            .zip(&l.elements)
-        {
-            for k in t.iter().filter_map(|&v| ks[v]) {
-                touch.extend_from_slice(&[k as u64, u64::from(run_value(&ask.runs, e))]);
+        for (t, &e) in l.triangles.iter().zip(&l.elements) {
+            for tag in t {
+                if let Ok(i) = here.binary_search_by_key(tag, |h| h.0) {
+                    let body = u64::from(run_value(&ask.runs, e));
+                    touch.extend_from_slice(&[here[i].1 as u64, body]);
+                }
             }
         }
     }
