@@ -787,9 +787,10 @@ struct Layout {
 /// [`read_and_split`] where the ranks kept their shares of a Gmsh file: they cut it
 /// into their parts, check the mesh on them and find the conditions of the groups'
 /// nodes (`dd::dist_problem`), so that no rank holds the whole mesh; each then builds
-/// its own parts. Should the conditions fall back (a fault of the input, anything the
-/// ranks do not expect), the first rank reads the whole file and builds the problem as
-/// it does without the shares, and names any fault.
+/// its own parts. A fault of the input found there is named as the first rank's reading
+/// names it; should the conditions fall back (`dist_problem::Outcome::FallBack`), the
+/// first rank reads the whole file and builds the problem as it does without the
+/// shares, and names any fault.
 fn split_on_groups(
     opts: &Options,
     mpi: &Mpi,
@@ -801,7 +802,7 @@ fn split_on_groups(
     let z = shares.z;
     let mut cut = timer.time(Phase::Partition, || shares.cut(mpi));
     let start = Instant::now();
-    let built = match cut.as_mut() {
+    let outcome = match cut.as_mut() {
         Some(ShareCut {
             lists: Some(lists),
             directory: Some((directory, around)),
@@ -809,8 +810,10 @@ fn split_on_groups(
             ..
         }) => {
             let first = early.as_ref().and_then(|e| {
-                let (scan, group_values) = e.mesh.as_ref()?.groups.as_ref()?;
+                let together = e.mesh.as_ref()?;
+                let (scan, group_values) = together.groups.as_ref()?;
                 Some(dist_problem::First {
+                    name: &together.name,
                     case: e.case.as_ref().ok()?,
                     scan,
                     group_values,
@@ -820,7 +823,7 @@ fn split_on_groups(
                 dist_problem::build(mpi, first, lists, (directory, around), *triangles, z)
             })?
         }
-        _ => None,
+        _ => dist_problem::Outcome::FallBack,
     };
     let built_s = start.elapsed().as_secs_f64();
     if let Some(c) = cut.as_mut() {
@@ -833,16 +836,19 @@ fn split_on_groups(
             edge_cut: c.edge_cut,
         })
     });
-    let prepared = match built {
-        Some(on_groups) => early
-            .zip(on_groups)
-            .zip(cut.as_ref())
-            .map(|((early, og), cut)| {
-                let start = GroupsStart { og, cut, built_s };
-                done_on_groups(opts, layout, print, timer, early, start)
-                    .map(|d| Stage::Split(Box::new(d)))
-            }),
-        None => {
+    let prepared = match outcome {
+        dist_problem::Outcome::Fault(message) => message.map(|m| Err(Error::Input(m))),
+        dist_problem::Outcome::Built(on_groups) => {
+            early
+                .zip(on_groups)
+                .zip(cut.as_ref())
+                .map(|((early, og), cut)| {
+                    let start = GroupsStart { og, cut, built_s };
+                    done_on_groups(opts, layout, print, timer, early, start)
+                        .map(|d| Stage::Split(Box::new(d)))
+                })
+        }
+        dist_problem::Outcome::FallBack => {
             let start = Instant::now();
             let own = lists.is_some();
             let read = early.map(|e| prepare(opts, layout, timer, print, Some(e)));

@@ -80,6 +80,9 @@ pub enum Fault {
         edge: [[f64; 2]; 2],
         other: u64,
     },
+    /// A triangle listed twice (its first fold): the serial reading drops the repeat
+    /// before any check, so its faults (if any) are not these; no message of its own.
+    Repeat,
 }
 
 impl Fault {
@@ -119,6 +122,7 @@ impl Fault {
                 *edge,
                 us(*other),
             ),
+            Fault::Repeat => format!("{name}: a triangle is listed twice"),
         }
     }
 }
@@ -165,10 +169,14 @@ pub fn check(
         first_of(mpi, first_idle.map(|u| (u.0, u)))?.map(|first| Fault::Unused { count, first });
     let duplicate = duplicates(mpi, directory, around, lists, &node_part, bbox)?;
 
-    let fault = [duplicate, unused, degenerate, fold]
-        .into_iter()
-        .flatten()
-        .next();
+    // A repeat changes the serial reading's triangles, whatever else is wrong.
+    let fault = match fold {
+        Some(Fault::Repeat) => Some(Fault::Repeat),
+        _ => [duplicate, unused, degenerate, fold]
+            .into_iter()
+            .flatten()
+            .next(),
+    };
     Ok(match fault {
         Some(f) => Err(f),
         None => Ok(Checked {
@@ -181,8 +189,8 @@ pub fn check(
     })
 }
 
-/// The box around every rank's `xy`.
-fn bounding_box(mpi: &Mpi, xy: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
+/// The box around every rank's `xy`. Collective.
+pub fn bounding_box(mpi: &Mpi, xy: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
     let (lo, hi) = validate::bounding_box(xy);
     let mut v = [-lo[0], -lo[1], hi[0], hi[1]];
     mpi.max_in_place(&mut v);
@@ -403,6 +411,14 @@ fn fold_fault(mpi: &Mpi, local: &[Local], lists: &[PartLists], key: FoldKey) -> 
     let fault = sides.map(|sides| {
         let side = |t: u64| sides.iter().find(|s| s.triangle == t);
         let (sx, sy) = (side(x)?, side(y)?);
+        let set = |s: &FoldSide| {
+            let mut n = s.nodes;
+            n.sort_unstable();
+            n
+        };
+        if set(sx) == set(sy) {
+            return Some(Fault::Repeat);
+        }
         let bad = validate::inverted([x, y], |t| {
             let s = if t == x { sx } else { sy };
             s.listed_cw != cw_majority

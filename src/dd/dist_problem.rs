@@ -11,10 +11,13 @@
 //! where the ranks build their own parts (docs/cost-model.md, "The start from one Gmsh
 //! file"): 20 GiB and 20 s of a 10^8-dof start by the model.
 //!
-//! Any fault of the input (a mesh check, a group, a condition, a material, a mesh that
-//! is not planar) and anything these steps do not expect send every rank back to the
-//! first rank's reading of the whole file, which names the fault as it always has; the
-//! ranks keep their cut and their lists.
+//! A fault of the mesh found by the ranks' checks, or of the groups and conditions, is
+//! named as the whole problem names it (the same functions, the same messages: tested).
+//! What the serial reading treats otherwise (a mesh off the plane, a triangle listed
+//! twice, which it drops), a fault of the materials (whose message names a triangle's
+//! centroid), and anything these steps do not expect send every rank back to the first
+//! rank's reading of the whole file, which names the fault as it always has; the ranks
+//! keep their cut and their lists.
 
 use crate::case::Case;
 use crate::dd::comm::Mpi;
@@ -22,7 +25,7 @@ use crate::dd::dist_check;
 use crate::dd::dist_split::{run_value, Conditions};
 use crate::dd::locality::{tag_rank, Directory};
 use crate::dd::ownership::{NodeParts, PartLists};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::mesh::gmsh::shares::{GroupMesh, Scan};
 use crate::problem::{self, Lengths, Parts};
 use crate::split_dir::Facts;
@@ -31,6 +34,8 @@ use std::collections::HashSet;
 /// What the first rank brings: the case, the file's scan, and the groups' elements'
 /// values of every share, in file order (`gmsh::shares::Share::group_values`).
 pub struct First<'a> {
+    /// The mesh file's name, for messages.
+    pub name: &'a str,
     pub case: &'a Case,
     pub scan: &'a Scan,
     pub group_values: &'a [u64],
@@ -44,12 +49,22 @@ pub struct OnGroups {
     pub facts: Facts,
 }
 
+/// What [`build`] ends with, the same on every rank.
+#[derive(Debug)]
+pub enum Outcome {
+    /// The conditions, on the first rank.
+    Built(Option<OnGroups>),
+    /// A fault of the input, its message on the first rank: the one the first rank's
+    /// reading of the whole file gives.
+    Fault(Option<String>),
+    /// Back to the first rank's reading (see the module's notes).
+    FallBack,
+}
+
 /// The conditions of the mesh whose parts this rank holds (`lists`, with its shares of
 /// the directory), the first rank's `first`; `z`: this rank's share of the nodes' z
 /// (the largest, minus the smallest, and the first node's of the file where this rank
-/// holds it, else minus infinity). `None` on every rank where they fall back to the
-/// first rank's reading (see the module's notes); else the conditions on the first rank.
-/// Collective; one subdomain per rank.
+/// holds it, else minus infinity). Collective; one subdomain per rank.
 pub fn build(
     mpi: &Mpi,
     first: Option<First>,
@@ -57,27 +72,43 @@ pub fn build(
     (directory, around): (&Directory, &NodeParts),
     triangles: usize,
     mut z: [f64; 3],
-) -> Result<Option<Option<OnGroups>>> {
-    let Ok(checked) = dist_check::check(mpi, directory, around, lists)? else {
-        return Ok(None);
-    };
+) -> Result<Outcome> {
+    // The reading checks the plane before the mesh: a mesh off it falls back, whatever
+    // else is wrong.
+    let (lo, hi) = dist_check::bounding_box(mpi, &directory.xy);
     mpi.max_in_place(&mut z);
-    let (lo, hi) = checked.bbox;
     let tolerance = 1e-9 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
     if (z[0] - z[2]).max(z[2] + z[1]) > tolerance {
-        return Ok(None);
+        return Ok(Outcome::FallBack);
     }
-    let nodes: usize = mpi.all_gather_counts(directory.tags.len()).iter().sum();
-    let edges: Vec<u64> = checked.boundary.iter().flatten().copied().collect();
-    let edges = mpi.gather_varcount(&edges, &mpi.all_gather_counts(edges.len()));
-
+    let checked = dist_check::check(mpi, directory, around, lists)?;
     // The groups' nodes from the directory.
     let tags = first
         .as_ref()
         .and_then(|f| f.scan.group_tags(f.group_values));
     let found = look_up(mpi, tags.as_deref().unwrap_or_default(), directory);
-    let groups = first.as_ref().zip(found).and_then(|(f, found)| {
-        let mesh = f.scan.group_mesh(f.group_values, &found?)?;
+    let groups = first
+        .as_ref()
+        .zip(found)
+        .and_then(|(f, found)| f.scan.group_mesh(f.group_values, &found?));
+    let checked = match checked {
+        Ok(c) => c,
+        Err(dist_check::Fault::Repeat) => return Ok(Outcome::FallBack),
+        Err(fault) => {
+            let message = (first.as_ref().zip(groups.as_ref()))
+                .map(|(f, groups)| fault.message(f.name, |node| group_of(groups, node)));
+            // Without the groups' mesh the first rank's reading names it.
+            let named = mpi.broadcast(mpi.is_root().then_some(message.is_some()))?;
+            return Ok(match named {
+                true => Outcome::Fault(message),
+                false => Outcome::FallBack,
+            });
+        }
+    };
+    let nodes: usize = mpi.all_gather_counts(directory.tags.len()).iter().sum();
+    let edges: Vec<u64> = checked.boundary.iter().flatten().copied().collect();
+    let edges = mpi.gather_varcount(&edges, &mpi.all_gather_counts(edges.len()));
+    let groups = first.as_ref().zip(groups).and_then(|(f, mesh)| {
         let runs = problem::body_runs(f.case, &mesh.triangle_blocks)?;
         Some((mesh, runs))
     });
@@ -88,24 +119,41 @@ pub fn build(
     });
     let ask: Option<Ask> = mpi.broadcast(mpi.is_root().then_some(ask))?;
     let Some(ask) = ask else {
-        return Ok(None);
+        return Ok(Outcome::FallBack);
     };
     let told = tell(mpi, &ask, lists, &checked.node_part);
-    let built = first
-        .zip(groups)
-        .zip(told)
-        .and_then(|((f, (mesh, runs)), told)| {
-            let whole = Whole {
-                nodes,
-                triangles,
-                bbox: checked.bbox,
-                boundary: edges.unwrap_or_default(),
-                part_first: &checked.part_first,
-            };
-            on_groups(f.case, mesh, runs, told, whole)
-        });
-    let ok = mpi.broadcast(mpi.is_root().then_some(built.is_some()))?;
-    Ok(ok.then_some(built))
+    let built = first.zip(groups).and_then(|(f, (mesh, runs))| {
+        let whole = Whole {
+            nodes,
+            triangles,
+            bbox: checked.bbox,
+            boundary: edges.unwrap_or_default(),
+            part_first: &checked.part_first,
+        };
+        on_groups(f.case, mesh, runs, told, whole)
+    });
+    // A fault of the conditions is named here; anything else falls back.
+    let kind = mpi.is_root().then_some(match &built {
+        Some(Ok(_)) => 0u8,
+        Some(Err(Error::Input(_))) => 1,
+        _ => 2,
+    });
+    Ok(match mpi.broadcast(kind)? {
+        0 => Outcome::Built(built.and_then(Result::ok)),
+        1 => Outcome::Fault(built.and_then(|b| b.err()).map(|e| e.to_string())),
+        _ => Outcome::FallBack,
+    })
+}
+
+/// The first group that holds node `file` (an index among the file's nodes), lines
+/// before points, as the whole mesh's check names it.
+fn group_of(groups: &GroupMesh, file: u64) -> Option<String> {
+    let at = groups.file.binary_search(&file).ok()?;
+    let mesh = &groups.mesh;
+    let line = (mesh.line_groups.iter()).find(|(_, v)| v.iter().flatten().any(|&i| i == at));
+    let point = || (mesh.point_groups.iter()).find(|(_, v)| v.contains(&at));
+    line.map(|(g, _)| g.clone())
+        .or_else(|| point().map(|(g, _)| g.clone()))
 }
 
 /// What the first rank asks every rank about the groups' nodes.
@@ -250,14 +298,16 @@ struct Whole<'a> {
     part_first: &'a [u64],
 }
 
-/// The conditions and figures on the groups' mesh; `None` on any fault of the input.
+/// The conditions and figures on the groups' mesh, or the fault of the input that the
+/// whole problem names first; `None` where something else is off.
 fn on_groups(
     case: &Case,
     groups: GroupMesh,
     runs: Vec<(u64, u32)>,
-    told: Told,
+    told: Option<Told>,
     whole: Whole,
-) -> Option<OnGroups> {
+) -> Option<Result<OnGroups>> {
+    let told = told?;
     let file: Vec<usize> = groups.file.iter().map(|&f| f as usize).collect();
     let compact = |f: u64| file.binary_search(&(f as usize)).ok();
     let boundary: HashSet<(usize, usize)> = (whole.boundary.chunks_exact(2))
@@ -276,7 +326,10 @@ fn on_groups(
             (hi[0] - lo[0]).max(hi[1] - lo[1]).max(0.0)
         },
     };
-    let prob = problem::build_on_groups(case, groups.mesh, file, &boundary, &parts).ok()?;
+    let prob = match problem::build_on_groups(case, groups.mesh, file, &boundary, &parts) {
+        Ok(p) => p,
+        Err(e) => return Some(Err(e)),
+    };
     let nodes = Conditions::records(case, &prob).ok()?;
     let mut contact_bodies: Vec<u32> = (prob.contact_nodes.iter())
         .flat_map(|&v| told.bodies[v].iter().copied())
@@ -296,11 +349,38 @@ fn on_groups(
         partition: String::new(),
         holding: prob.holding,
     };
-    Some(OnGroups {
+    Some(Ok(OnGroups {
         conditions: Conditions {
             nodes,
             bodies: runs,
         },
         facts,
-    })
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Mesh;
+
+    #[test]
+    fn a_node_is_named_by_its_first_line_group_then_point_group() {
+        let mut mesh = Mesh {
+            nodes: vec![[0.0, 0.0]; 4],
+            ..Mesh::default()
+        };
+        mesh.line_groups.insert("top".into(), vec![[1, 2]]);
+        mesh.line_groups.insert("bottom".into(), vec![[0, 1]]);
+        mesh.point_groups.insert("corner".into(), vec![3]);
+        let groups = GroupMesh {
+            mesh,
+            file: vec![4, 9, 12, 30],
+            tags: vec![1, 2, 3, 4],
+            triangle_blocks: Vec::new(),
+        };
+        assert_eq!(group_of(&groups, 9).as_deref(), Some("bottom"));
+        assert_eq!(group_of(&groups, 12).as_deref(), Some("top"));
+        assert_eq!(group_of(&groups, 30).as_deref(), Some("corner"));
+        assert_eq!(group_of(&groups, 5), None);
+    }
 }
