@@ -192,10 +192,10 @@ pub fn run(opts: &Options, mpi: Mpi, print: &Printer) -> Result<RunReport> {
     }
 
     // 1-2. First rank: read, partition, split. The other ranks sleep meanwhile, so
-    // that the cores of those on its node are its to use; where they cut the mesh from
-    // their shares of the file, they do it while the first builds the problem (on
-    // another thread: this one makes the MPI calls). `threads`: the rank's own, not
-    // those of the pool the set-up borrows.
+    // that the cores of those on its node are its to use; where they keep their shares
+    // of the file, they cut the mesh and check it together, and the first rank builds
+    // only the conditions (`split_on_groups`). `threads`: the rank's own, not those of
+    // the pool the set-up borrows.
     let threads = rayon::current_num_threads();
     let layout = Layout {
         ranks: mpi.size,
@@ -236,35 +236,19 @@ fn read_and_split(
     if let Some(shares) = shares {
         return split_on_groups(opts, mpi, layout, timer, print, (early, shares));
     }
-    let node_ranks = mpi.node_ranks;
-    let (read, cut) = std::thread::scope(|scope| {
-        let reading = mpi.is_root().then(|| {
-            scope.spawn(|| {
-                host::on_idle_cores(node_ranks, || prepare(opts, layout, timer, print, early))
-            })
-        });
-        let mut cut = shares.and_then(|s| timer.time(Phase::Partition, || s.cut(mpi)));
-        let lists = cut.as_mut().and_then(|c| {
-            Some(OwnPart {
-                lists: c.lists.take()?,
-                figures: c.figures.take()?,
-                edge_cut: c.edge_cut,
-            })
-        });
-        let cut_end = Instant::now();
-        let read = reading.map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
-        // How long the first rank's reading went on once the ranks had cut.
-        let cut = cut.map(|c| (c, cut_end.elapsed().as_secs_f64()));
-        (read, (cut, lists))
-    });
-    let (cut, lists) = cut;
-    let own = lists.is_some();
-    let prepared = read.map(|r| {
-        r.and_then(|r| host::on_idle_cores(node_ranks, || with_graph(r, cut, own, timer)))
+    let prepared = mpi.is_root().then(|| {
+        host::on_idle_cores(mpi.node_ranks, || {
+            prepare(opts, layout, timer, print, early)
+                .and_then(|r| with_graph(r, None, false, timer))
+        })
     });
     mpi.barrier_sleeping();
     let prepared = mpi.agree(prepared.transpose())?;
-    cut_and_split(opts, mpi, layout, timer, print, Phase1 { prepared, lists })
+    let phase1 = Phase1 {
+        prepared,
+        lists: None,
+    };
+    cut_and_split(opts, mpi, layout, timer, print, phase1)
 }
 
 /// One subdomain's run, from its subproblem to its outputs (collective over all).
@@ -883,12 +867,12 @@ fn done_on_groups(
     print: &Printer,
     timer: &Timer,
     early: Early,
-    figure: GroupsStart,
+    start: GroupsStart,
 ) -> Result<SplitDone> {
-    let og = figure.og;
+    let og = start.og;
     let case = early.case?;
     check_linear(opts, &case)?;
-    let cut = figure.cut;
+    let cut = start.cut;
     let per_rank = cut.nparts / layout.ranks;
     let facts = og.facts;
     let size = Size {
@@ -912,7 +896,7 @@ fn done_on_groups(
                 t.ranks,
                 t.alone_s + t.together_s,
                 t.alone_s,
-                figure.built_s
+                start.built_s
             ),
         ),
         None => (String::new(), String::new()),

@@ -183,7 +183,9 @@ fn compare(
         &around,
         per_rank,
     );
-    let checked = dist_check::check(mpi, &sorted.nodes, &around, &lists).expect("no MPI fault");
+    let bbox = dist_check::bounding_box(mpi, &sorted.nodes.xy);
+    let checked = dist_check::check(mpi, (&sorted.nodes, &around), &lists, bbox);
+    let checked = checked.expect("no MPI fault");
     match (serial, checked) {
         (Err(e), Err(fault)) => {
             assert_eq!(fault.message(NAME, |_| None), e.to_string(), "{what}");

@@ -128,16 +128,15 @@ impl Fault {
 }
 
 /// The checks of the mesh whose nodes' directory is spread as `directory` (every node
-/// of the file) and `around` (the nodes of the triangles, with their parts), and whose
-/// parts this rank holds are `lists`. The same result on every rank. Collective; one
-/// subdomain per rank.
+/// of the file) and `around` (the nodes of the triangles, with their parts), whose
+/// parts this rank holds are `lists`, and whose box is `bbox` ([`bounding_box`] of the
+/// directory). The same result on every rank. Collective; one subdomain per rank.
 pub fn check(
     mpi: &Mpi,
-    directory: &Directory,
-    around: &NodeParts,
+    (directory, around): (&Directory, &NodeParts),
     lists: &[PartLists],
+    bbox: ([f64; 2], [f64; 2]),
 ) -> Result<std::result::Result<Checked, Fault>> {
-    let bbox = bounding_box(mpi, &directory.xy);
     let size = (bbox.1[0] - bbox.0[0]).max(bbox.1[1] - bbox.0[1]).max(0.0);
     let local: Vec<Local> = lists.par_iter().map(|l| Local::of(l, size)).collect();
 

@@ -75,13 +75,14 @@ pub fn build(
 ) -> Result<Outcome> {
     // The reading checks the plane before the mesh: a mesh off it falls back, whatever
     // else is wrong.
-    let (lo, hi) = dist_check::bounding_box(mpi, &directory.xy);
+    let bbox = dist_check::bounding_box(mpi, &directory.xy);
+    let (lo, hi) = bbox;
     mpi.max_in_place(&mut z);
     let tolerance = 1e-9 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
     if (z[0] - z[2]).max(z[2] + z[1]) > tolerance {
         return Ok(Outcome::FallBack);
     }
-    let checked = dist_check::check(mpi, directory, around, lists)?;
+    let checked = dist_check::check(mpi, (directory, around), lists, bbox)?;
     // The groups' nodes from the directory.
     let tags = first
         .as_ref()
