@@ -234,15 +234,19 @@ class Start:
 def checks_of(directory):
     """Where every rank checks the mesh on its parts and finds the conditions (the ranks
     build their own parts, no rank holding the whole mesh; start_study.py's `checks_s`):
-    their seconds per triangle and rank, a core each (the median over the runs where
-    the first rank has one core)."""
+    their seconds per triangle and rank, a core each, and the first rank's scan of the
+    file on those runs, seconds per node (its scan no longer holds the file: measured
+    there, not in --start's runs). Medians over the runs where the first rank has one
+    core."""
     with open(os.path.join(directory, "start.csv")) as fh:
         rows = [r for r in csv.DictReader(fh)
                 if r["bind"] == "core" and float(r.get("checks_s") or 0) > 0]
     if not rows:
         sys.exit(f"cost_model.py: {directory}/start.csv has no runs with the checks on the ranks")
-    return statistics.median(float(r["checks_s"]) * float(r["ranks"]) / float(r["triangles"])
-                             for r in rows)
+    checks = statistics.median(float(r["checks_s"]) * float(r["ranks"]) / float(r["triangles"])
+                               for r in rows)
+    scan = statistics.median(float(r["scan_s"]) / float(r["nodes"]) for r in rows)
+    return checks, scan
 
 
 class Cut:
@@ -399,7 +403,7 @@ def main():
             f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
             print(f"{P:>5} " + " ".join(f"{secs[p]:>{w}.1f}" for p, w in zip(START_PIECES, (6, 9, 8, 10, 8)))
                   + f" {alone:>8.1f} {f + loop:>15.1f} {alone / (alone + f + loop):>12.1%}")
-        checks = checks_of(a.groups) if a.groups else None
+        checks, scan = checks_of(a.groups) if a.groups else (None, None)
         kinds = [("ptscotch", "the same start with the partition cut by every rank on the first"
                    " rank's graph (--partitioner ptscotch)"),
                  ("shares", "the same start with the partition found by every rank from its share"
@@ -419,7 +423,7 @@ def main():
                 print(f"  no rank holds the whole mesh: the first rank neither puts it together nor"
                       f" builds the problem; every rank checks the mesh on its parts and finds the"
                       f" conditions, {checks * 1e6:.3f} us per triangle and rank (in 'on the"
-                      f" ranks'; fitted on {a.groups})")
+                      f" ranks'); its scan {scan * 1e6:.3f} us per node; fitted on {a.groups}")
             elif kind == "shares":
                 print(f"  the first rank's problem in the file's numbering: {a.file_numbering:.2f} x"
                       " the start's (no locality renumbering)")
@@ -432,6 +436,7 @@ def main():
                 first, on_ranks = cut.seconds(nodes, P)
                 if groups:
                     secs["assembly"] = secs["problem"] = 0.0
+                    secs["scan"] = scan * nodes
                     # The conditions the first rank sends are sized like the boundary.
                     first = 0.0
                     on_ranks += checks * cut.per_node * nodes / P

@@ -1870,13 +1870,13 @@ fn z_range(coords: &[f64], first: bool) -> [f64; 3] {
 /// A Gmsh file read by every rank: the file, and from the ranks its records' values.
 struct Together {
     name: String,
-    bytes: Vec<u8>,
+    path: std::path::PathBuf,
     /// `None` where the records were not shared or a share could not be parsed: the
-    /// first rank then parses `bytes` itself.
+    /// first rank then reads the file itself.
     shared: Option<(gmsh::shares::Scan, [Vec<u64>; 2], Vec<f64>)>,
     /// Where the ranks keep their shares: the scan and the groups' elements' values,
     /// which the conditions are built from without the whole mesh
-    /// (`dd::dist_problem`). Should that fall back, the first rank parses `bytes`.
+    /// (`dd::dist_problem`). Should that fall back, the first rank reads the file.
     groups: Option<(gmsh::shares::Scan, Vec<u64>)>,
     ranks: usize,
     /// Seconds of the first rank alone (the case, the file, the scan), then of all
@@ -1893,7 +1893,7 @@ impl Together {
         match assembled {
             Some(mesh) => Ok((mesh, format!("read on {} ranks", self.ranks))),
             None => Ok((
-                gmsh::parse_msh(&self.bytes, &self.name)?,
+                gmsh::read_msh(&self.path)?,
                 "read by the first rank alone".to_string(),
             )),
         }
@@ -1942,13 +1942,24 @@ fn read_together(
                 _ => None,
             };
             // A file that cannot be read gets its message from `load_mesh`.
-            let file = path.and_then(|p| Some((std::fs::read(&p).ok()?, p)));
-            let scanned = file.as_ref().and_then(|(bytes, path)| {
-                let scan = gmsh::shares::scan(bytes, &path.display().to_string())?;
-                let plan = scan.plan(bytes, path, ranks)?;
+            let file = path.and_then(|p| Some((std::fs::File::open(&p).ok()?, p)));
+            let scanned = file.as_ref().and_then(|(f, path)| {
+                // The scan parses the other sections and the blocks' heads where the
+                // mapping puts them, and counts the records' lines in windows read from
+                // the file: the first rank never holds the records, most of the file.
+                // SAFETY: the mapping is only read, and dropped before the ranks parse;
+                // a file changed meanwhile gives a plan whose shares fail to parse, and
+                // every rank falls back to the first rank's reading.
+                let map = unsafe { memmap2::Mmap::map(f) }.ok()?;
+                let text = gmsh::shares::Text {
+                    bytes: &map,
+                    file: Some(f),
+                };
+                let scan = gmsh::shares::scan(text, &path.display().to_string())?;
+                let plan = scan.plan(text, path, ranks)?;
                 Some((scan, plan))
             });
-            (case, file, scanned)
+            (case, file.map(|(_, path)| path), scanned)
         })
     });
     mpi.barrier_sleeping();
@@ -1970,7 +1981,7 @@ fn read_together(
         None => (None, None, None),
     };
     let gathered = plan.and_then(|plan| {
-        let share = gmsh::shares::read_share(&plan, mpi.rank, file.as_ref().map(|f| &f.0[..]));
+        let share = gmsh::shares::read_share(&plan, mpi.rank, None);
         if !mpi.all_ok(share.is_some()) {
             return None;
         }
@@ -2012,9 +2023,9 @@ fn read_together(
         (Some((scan, _)), Some(FromShares::Groups(Some(values)))) => (None, Some((scan, values))),
         _ => (None, None),
     };
-    let mesh = file.map(|(bytes, path)| Together {
+    let mesh = file.map(|path| Together {
         name: path.display().to_string(),
-        bytes,
+        path,
         shared,
         groups,
         ranks: mpi.size,

@@ -7,6 +7,11 @@
 //! Why: the numbers' text is most of a large mesh file and its parse most of the read,
 //! and a process has only its own node's cores to parse on.
 //!
+//! The scan and the plan can read the records' bytes from the file a window at a time
+//! ([`Text`]): then the scanning process never holds the records, which are nearly all
+//! of the file (6 GB at 10^8 unknowns in ASCII), only the other sections and the blocks'
+//! heads.
+//!
 //! Any fault (a layout this reading does not expect, a bad number, a duplicate or
 //! unknown tag) makes these functions return `None`: the caller then parses the whole
 //! file the careful way, which finds the fault and names its place exactly as it always
@@ -19,7 +24,47 @@ use super::{
 };
 use crate::mesh::Mesh;
 use serde::{Deserialize, Serialize};
+use std::fs::File;
 use std::path::{Path, PathBuf};
+
+/// Bytes read at a time where the records are read from the file.
+const WINDOW: usize = 1 << 20;
+/// Bytes between the line counts kept of an ASCII stretch ([`Scan::plan`] recounts at
+/// most this many at a cut).
+const MARK: usize = 1 << 16;
+
+/// A file's content for [`scan`] and [`Scan::plan`]: `bytes` are the whole file, whose
+/// other sections and block heads the scan parses; the records' lines are counted in
+/// windows read from `file` where given (so those pages of `bytes`, a mapping of the
+/// file, are never touched), else in `bytes`.
+#[derive(Clone, Copy)]
+pub struct Text<'a> {
+    pub bytes: &'a [u8],
+    pub file: Option<&'a File>,
+}
+
+impl<'a> Text<'a> {
+    /// Bytes in memory.
+    pub fn of(bytes: &'a [u8]) -> Self {
+        Text { bytes, file: None }
+    }
+
+    /// At most `len` bytes from `at` (fewer at the end of the file); `None` past it or
+    /// where the file cannot be read.
+    fn window<'b>(&'b self, at: usize, len: usize, buf: &'b mut Vec<u8>) -> Option<&'b [u8]> {
+        let end = at.checked_add(len)?.min(self.bytes.len());
+        let range = self.bytes.get(at..end).filter(|r| !r.is_empty())?;
+        match self.file {
+            None => Some(range),
+            Some(f) => {
+                use std::os::unix::fs::FileExt;
+                buf.resize(end - at, 0);
+                f.read_exact_at(buf, at as u64).ok()?;
+                Some(&buf[..])
+            }
+        }
+    }
+}
 
 /// What a stretch of a section holds, one record after another.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -184,6 +229,9 @@ pub struct Scan {
     builder: Builder,
     blocks: Vec<Block>,
     stretches: Vec<Stretch>,
+    /// For each ASCII stretch, every [`MARK`] bytes from its start: the byte and the
+    /// lines before it in the stretch.
+    marks: Vec<Vec<(u64, u64)>>,
     binary: Option<Binary>,
     name: String,
 }
@@ -191,8 +239,8 @@ pub struct Scan {
 /// Reads every section of an MSH 4.1 file but the records of `$Nodes` and `$Elements`,
 /// whose place it finds: in ASCII by counting lines (a record is a line, as Gmsh writes
 /// them), in binary from the block headers. `None` for MSH 2.2 and on any fault.
-pub fn scan(bytes: &[u8], name: &str) -> Option<Scan> {
-    let mut r = Reader::new(bytes, name);
+pub fn scan(text: Text, name: &str) -> Option<Scan> {
+    let mut r = Reader::new(text.bytes, name);
     if read_mesh_format(&mut r).ok()? != Version::V41 {
         return None;
     }
@@ -200,13 +248,14 @@ pub fn scan(bytes: &[u8], name: &str) -> Option<Scan> {
         builder: Builder::default(),
         blocks: Vec::new(),
         stretches: Vec::new(),
+        marks: Vec::new(),
         binary: r.binary,
         name: name.to_string(),
     };
     while r.next_section().ok()? {
         match r.section.as_str() {
-            "$Nodes" => scan.nodes(&mut r)?,
-            "$Elements" => scan.elements(&mut r)?,
+            "$Nodes" => scan.nodes(&mut r, text)?,
+            "$Elements" => scan.elements(&mut r, text)?,
             _ => read_section(&mut r, &mut scan.builder, Version::V41).ok()?,
         }
     }
@@ -224,7 +273,7 @@ fn section_header(r: &mut Reader) -> Option<(usize, usize)> {
 }
 
 impl Scan {
-    fn nodes(&mut self, r: &mut Reader) -> Option<()> {
+    fn nodes(&mut self, r: &mut Reader, text: Text) -> Option<()> {
         self.builder.start_nodes(r).ok()?;
         let (blocks, total) = section_header(r)?;
         let mut read = 0usize;
@@ -238,8 +287,8 @@ impl Scan {
                 (1, 1..=3) => dim as u8,
                 _ => return None,
             };
-            self.stretch(r, count, Record::Tag)?;
-            self.stretch(r, count, Record::Point { extra })?;
+            self.stretch(r, text, count, Record::Tag)?;
+            self.stretch(r, text, count, Record::Point { extra })?;
             self.blocks.push(Block::Nodes(count));
             read = read.checked_add(count)?;
         }
@@ -247,7 +296,7 @@ impl Scan {
         r.expect_end().ok()
     }
 
-    fn elements(&mut self, r: &mut Reader) -> Option<()> {
+    fn elements(&mut self, r: &mut Reader, text: Text) -> Option<()> {
         self.builder.start_elements(r).ok()?;
         let (blocks, total) = section_header(r)?;
         let mut read = 0usize;
@@ -259,7 +308,7 @@ impl Scan {
             let count = r.count("").ok()?;
             let physicals = self.builder.entity_physicals(r, at, dim, entity).ok()?;
             let nodes = kind.nodes() as u8;
-            self.stretch(r, count, Record::Element { nodes })?;
+            self.stretch(r, text, count, Record::Element { nodes })?;
             self.blocks.push(Block::Elements {
                 kind,
                 count,
@@ -272,7 +321,7 @@ impl Scan {
     }
 
     /// Notes `count` records from the reader's position and moves past them.
-    fn stretch(&mut self, r: &mut Reader, count: usize, record: Record) -> Option<()> {
+    fn stretch(&mut self, r: &mut Reader, text: Text, count: usize, record: Record) -> Option<()> {
         if count == 0 {
             return Some(());
         }
@@ -283,13 +332,15 @@ impl Scan {
                 r.pos
             }
         };
+        let mut marks = Vec::new();
         let end = match r.binary {
             Some(b) => start
                 .checked_add(count.checked_mul(record.bytes(b.size_t))?)
                 .filter(|&end| end <= r.bytes.len())?,
-            None => after_lines(r.bytes, start, count)?,
+            None => after_lines(text, start, count, &mut marks)?,
         };
         r.pos = end;
+        self.marks.push(marks);
         self.stretches.push(Stretch {
             start: start as u64,
             end: end as u64,
@@ -314,9 +365,10 @@ impl Scan {
     }
 
     /// Cuts the records into `parts` shares of about as many bytes, at record
-    /// boundaries. `None` where the counts of a share would not fit the i32 of an MPI
-    /// gather.
-    pub fn plan(&self, bytes: &[u8], path: &Path, parts: usize) -> Option<SharePlan> {
+    /// boundaries, reading at most a few windows of `text` per cut. `None` where the
+    /// counts of a share would not fit the i32 of an MPI gather, or the file cannot be
+    /// read.
+    pub fn plan(&self, text: Text, path: &Path, parts: usize) -> Option<SharePlan> {
         let parts = parts.max(1);
         let total: u64 = self.stretches.iter().map(|s| s.end - s.start).sum();
         // Where each share but the first starts: (stretch, byte), in file order.
@@ -331,7 +383,7 @@ impl Scan {
             let Some(s) = self.stretches.get(i) else {
                 break;
             };
-            cuts.push((i, self.record_start(bytes, s, s.start + (at - before))));
+            cuts.push((i, self.record_start(text, s, s.start + (at - before))?));
         }
         let mut shares = vec![Vec::new(); parts];
         let mut p = 0;
@@ -340,13 +392,13 @@ impl Scan {
             while p < cuts.len() && cuts[p].0 == i {
                 let to = cuts[p].1;
                 if to > from {
-                    shares[p].push(self.piece(bytes, s, from, to));
+                    shares[p].push(self.piece(text, i, from, to)?);
                     from = to;
                 }
                 p += 1;
             }
             if from < s.end {
-                shares[p].push(self.piece(bytes, s, from, s.end));
+                shares[p].push(self.piece(text, i, from, s.end)?);
             }
         }
         let plan = SharePlan {
@@ -363,31 +415,60 @@ impl Scan {
     }
 
     /// The first record boundary of `s` at or after `at`.
-    fn record_start(&self, bytes: &[u8], s: &Stretch, at: u64) -> u64 {
-        match self.binary {
-            Some(b) => {
-                let size = s.record.bytes(b.size_t) as u64;
-                (s.start + (at - s.start).div_ceil(size) * size).min(s.end)
-            }
-            None if at == s.start || bytes[at as usize - 1] == b'\n' => at,
-            None => {
-                let rest = &bytes[at as usize..s.end as usize];
-                memchr::memchr(b'\n', rest).map_or(s.end, |nl| at + nl as u64 + 1)
-            }
+    fn record_start(&self, text: Text, s: &Stretch, at: u64) -> Option<u64> {
+        if let Some(b) = self.binary {
+            let size = s.record.bytes(b.size_t) as u64;
+            return Some((s.start + (at - s.start).div_ceil(size) * size).min(s.end));
         }
+        if at == s.start {
+            return Some(at);
+        }
+        // The first newline from the byte before `at`: a record starts after it.
+        let (mut from, mut buf) = (usize::try_from(at - 1).ok()?, Vec::new());
+        let end = usize::try_from(s.end).ok()?;
+        while from < end {
+            let window = text.window(from, (end - from).min(WINDOW), &mut buf)?;
+            if let Some(nl) = memchr::memchr(b'\n', window) {
+                return Some((from + nl + 1) as u64);
+            }
+            from += window.len();
+        }
+        Some(s.end)
     }
 
-    fn piece(&self, bytes: &[u8], s: &Stretch, start: u64, end: u64) -> Stretch {
+    /// The records of stretch `i` at bytes `start..end`, both record boundaries.
+    fn piece(&self, text: Text, i: usize, start: u64, end: u64) -> Option<Stretch> {
+        let s = &self.stretches[i];
         let records = match self.binary {
             Some(b) => (end - start) / s.record.bytes(b.size_t) as u64,
-            None => memchr::memchr_iter(b'\n', &bytes[start as usize..end as usize]).count() as u64,
+            None => self.lines_before(text, i, end)? - self.lines_before(text, i, start)?,
         };
-        Stretch {
+        Some(Stretch {
             start,
             end,
             records,
             record: s.record,
+        })
+    }
+
+    /// The lines of ASCII stretch `i` before byte `at`: from its last mark at or before
+    /// `at`, counting at most [`MARK`] bytes.
+    fn lines_before(&self, text: Text, i: usize, at: u64) -> Option<u64> {
+        let s = &self.stretches[i];
+        if at == s.end {
+            return Some(s.records);
         }
+        let marks = &self.marks[i];
+        let k = marks.partition_point(|m| m.0 <= at).checked_sub(1)?;
+        let (mark, before) = marks[k];
+        let len = usize::try_from(at - mark).ok()?;
+        if len == 0 {
+            return Some(before);
+        }
+        let mut buf = Vec::new();
+        let window = text.window(usize::try_from(mark).ok()?, len, &mut buf)?;
+        (window.len() == len).then_some(())?;
+        Some(before + memchr::memchr_iter(b'\n', window).count() as u64)
     }
 
     /// The node tags of the groups' elements (points and lines), increasing, from their
@@ -566,21 +647,26 @@ impl Scan {
     }
 }
 
-/// Where the `n`-th line from `from` ends (past its newline): counted a block at a
-/// time, which a vector search does at many bytes per step.
-fn after_lines(bytes: &[u8], from: usize, n: usize) -> Option<usize> {
-    const BLOCK: usize = 1 << 16;
-    let (mut at, mut left) = (from, n);
+/// Where the `n`-th line from `from` ends (past its newline): counted a window at a
+/// time, which a vector search does at many bytes per step. Notes in `marks`, every
+/// [`MARK`] bytes from `from`, the byte and the lines before it.
+fn after_lines(text: Text, from: usize, n: usize, marks: &mut Vec<(u64, u64)>) -> Option<usize> {
+    let (mut at, mut left, mut counted) = (from, n, 0u64);
+    let mut buf = Vec::new();
     while left > 0 {
-        let end = at.saturating_add(BLOCK).min(bytes.len());
-        let block = bytes.get(at..end).filter(|b| !b.is_empty())?;
-        let lines = memchr::memchr_iter(b'\n', block).count();
-        if lines >= left {
-            let nl = memchr::memchr_iter(b'\n', block).nth(left - 1)?;
-            return Some(at + nl + 1);
+        let window = text.window(at, WINDOW, &mut buf)?;
+        for (k, block) in window.chunks(MARK).enumerate() {
+            let start = at + k * MARK;
+            marks.push((start as u64, counted));
+            let lines = memchr::memchr_iter(b'\n', block).count();
+            if lines >= left {
+                let nl = memchr::memchr_iter(b'\n', block).nth(left - 1)?;
+                return Some(start + nl + 1);
+            }
+            left -= lines;
+            counted += lines as u64;
         }
-        left -= lines;
-        at = end;
+        at += window.len();
     }
     Some(at)
 }
@@ -739,8 +825,8 @@ mod tests {
 
     /// The plan's shares, each parsed from the bytes, then put together.
     fn shared(bytes: &[u8], parts: usize) -> Option<Mesh> {
-        let scan = scan(bytes, "m.msh")?;
-        let plan = scan.plan(bytes, Path::new("m.msh"), parts)?;
+        let scan = scan(Text::of(bytes), "m.msh")?;
+        let plan = scan.plan(Text::of(bytes), Path::new("m.msh"), parts)?;
         let mut all = Share::default();
         for p in 0..parts {
             let s = read_share(&plan, p, Some(bytes))?;
@@ -754,7 +840,7 @@ mod tests {
     #[test]
     fn lines_are_counted_across_blocks() {
         let mut text = Vec::new();
-        for i in 0..100_000 {
+        for i in 0..400_000 {
             text.extend_from_slice(format!("{i}\n").as_bytes());
         }
         let line_end = |n: usize| {
@@ -764,19 +850,26 @@ mod tests {
                 k == n
             })
         };
-        for n in [1, 2, 9999, 70_000, 100_000] {
-            assert_eq!(after_lines(&text, 0, n), line_end(n).map(|p| p + 1), "{n}");
+        assert!(text.len() > 2 * WINDOW);
+        for n in [1, 2, 9999, 70_000, 100_000, 300_000, 400_000] {
+            let got = after_lines(Text::of(&text), 0, n, &mut Vec::new());
+            assert_eq!(got, line_end(n).map(|p| p + 1), "{n}");
         }
-        assert_eq!(after_lines(&text, 0, 100_001), None);
-        assert_eq!(after_lines(&text, 3, 0), Some(3));
+        assert_eq!(
+            after_lines(Text::of(&text), 0, 400_001, &mut Vec::new()),
+            None
+        );
+        assert_eq!(after_lines(Text::of(&text), 3, 0, &mut Vec::new()), Some(3));
     }
 
     #[test]
     fn shares_are_whole_records_and_cover_every_record_once() {
         let bytes = super::super::tests::big_ascii(60).into_bytes();
-        let scan = scan(&bytes, "m.msh").expect("an MSH 4.1 file");
+        let scan = scan(Text::of(&bytes), "m.msh").expect("an MSH 4.1 file");
         for parts in [1, 2, 3, 4, 7, 64] {
-            let plan = scan.plan(&bytes, Path::new("m.msh"), parts).unwrap();
+            let plan = scan
+                .plan(Text::of(&bytes), Path::new("m.msh"), parts)
+                .unwrap();
             let mut covered = Vec::new();
             for p in 0..parts {
                 for s in plan.share(p) {
@@ -801,6 +894,41 @@ mod tests {
             let nodes = 61 * 61;
             assert_eq!(total, 2 * nodes + 2 * 60 * 60 + 60, "{parts} parts");
         }
+    }
+
+    #[test]
+    fn with_the_file_the_plan_reads_no_record_from_the_bytes() {
+        use std::io::Write;
+        let bytes = super::super::tests::big_ascii(300).into_bytes();
+        let mut file = tempfile::NamedTempFile::new().unwrap();
+        file.write_all(&bytes).unwrap();
+        let found = scan(Text::of(&bytes), "m.msh").unwrap();
+        assert!(found
+            .stretches
+            .iter()
+            .any(|s| s.end - s.start > 4 * MARK as u64));
+        // The bytes the scan may parse keep everything but the records, which are
+        // overwritten (lines kept, so that any count from them would be wrong too).
+        let mut heads = bytes.clone();
+        for s in &found.stretches {
+            for c in &mut heads[s.start as usize..s.end as usize] {
+                *c = if *c == b'\n' { b'\n' } else { b'x' };
+            }
+            heads[s.start as usize + 1] = b'\n';
+        }
+        let text = Text {
+            bytes: &heads,
+            file: Some(file.as_file()),
+        };
+        let mapped = scan(text, "m.msh").unwrap();
+        assert_eq!(mapped.stretches, found.stretches);
+        for parts in [1, 2, 3, 7, 64] {
+            let path = Path::new("m.msh");
+            let plan = mapped.plan(text, path, parts).unwrap();
+            assert_eq!(plan, found.plan(Text::of(&bytes), path, parts).unwrap());
+        }
+        // Without the file, the same overwritten bytes give another count.
+        assert!(scan(Text::of(&heads), "m.msh").map(|s| s.stretches) != Some(found.stretches));
     }
 
     #[test]
@@ -832,7 +960,7 @@ mod tests {
     fn msh22_is_not_shared_and_faults_give_none() {
         let v22 = super::super::tests::all_variants(&super::super::tests::square());
         for (name, bytes) in v22.iter().filter(|(n, _)| n.contains("2.2")) {
-            assert!(scan(bytes, "m.msh").is_none(), "{name}");
+            assert!(scan(Text::of(bytes), "m.msh").is_none(), "{name}");
         }
         let good = super::super::tests::big_ascii(30);
         assert!(shared(good.as_bytes(), 3).is_some());
