@@ -781,9 +781,9 @@ fn split_on_groups(
     layout: Layout,
     timer: &Timer,
     print: &Printer,
-    (early, shares): (Option<Early>, Shares),
+    (early, mut shares): (Option<Early>, Shares),
 ) -> Result<(Option<Setup>, Option<Vec<SubProblem>>)> {
-    let z = shares.z;
+    let z = std::mem::take(&mut shares.z);
     let mut cut = timer.time(Phase::Partition, || shares.cut(mpi));
     let start = Instant::now();
     let outcome = match cut.as_mut() {
@@ -804,7 +804,7 @@ fn split_on_groups(
                 })
             });
             timer.time(Phase::Read, || {
-                dist_problem::build(mpi, first, lists, (directory, around), *triangles, z)
+                dist_problem::build(mpi, first, lists, (directory, around), *triangles, &z)
             })?
         }
         _ => dist_problem::Outcome::FallBack,
@@ -1828,8 +1828,8 @@ struct Shares {
     coords: Vec<f64>,
     triangles: Vec<[u64; 3]>,
     nparts: usize,
-    /// Its nodes' z ([`z_range`]).
-    z: [f64; 3],
+    /// Its nodes' z, for the check that the mesh is planar (`dd::dist_problem`).
+    z: Vec<f64>,
 }
 
 impl Shares {
@@ -1854,17 +1854,6 @@ enum FromShares {
     Whole(Option<Vec<u64>>, Option<Vec<f64>>, Option<Vec<u64>>),
     /// The groups' elements' values alone, where the ranks keep their shares.
     Groups(Option<Vec<u64>>),
-}
-
-/// The largest z of `coords` (x, y, z each), minus the smallest, and the first's where
-/// they start the file's nodes (`first`), else minus infinity: for the check that the
-/// mesh is planar (`dd::dist_problem`).
-fn z_range(coords: &[f64], first: bool) -> [f64; 3] {
-    let z = coords.chunks_exact(3).map(|c| c[2]);
-    let max = z.clone().fold(f64::NEG_INFINITY, f64::max);
-    let min = z.fold(f64::INFINITY, f64::min);
-    let z0 = coords.get(2).filter(|_| first).copied();
-    [max, -min, z0.unwrap_or(f64::NEG_INFINITY)]
 }
 
 /// A Gmsh file read by every rank: the file, and from the ranks its records' values.
@@ -1998,10 +1987,9 @@ fn read_together(
         };
         let groups = share.group_values(stretches);
         let groups = mpi.gather_varcount(&groups, &mpi.all_gather_counts(groups.len()));
-        let before: usize = coords[..mpi.rank].iter().sum();
         let kept = Shares {
             triangles: share.triangles(stretches),
-            z: z_range(&share.coords, before == 0),
+            z: share.coords.chunks_exact(3).map(|c| c[2]).collect(),
             tags: share.tags,
             coords: share.coords,
             nparts,

@@ -270,14 +270,6 @@ fn bodies(case: &Case, mesh: &Mesh) -> Result<Vec<u32>> {
         return Ok(vec![0; nt]);
     }
     let origin = &case.origin;
-    let surfaces = || -> String {
-        let names: Vec<&str> = mesh.surface_groups.keys().map(String::as_str).collect();
-        if names.is_empty() {
-            "the mesh has no physical surface groups; put each body's surface in a physical group in Gmsh".into()
-        } else {
-            format!("surface groups in the mesh: {}", names.join(", "))
-        }
-    };
     let centroid = |t: usize| {
         let p = mesh.triangles[t].map(|v| mesh.nodes[v]);
         [0, 1].map(|c| (p[0][c] + p[1][c] + p[2][c]) / 3.0)
@@ -286,51 +278,121 @@ fn bodies(case: &Case, mesh: &Mesh) -> Result<Vec<u32>> {
     for (i, b) in case.materials.iter().enumerate() {
         let g = b.group.as_deref().unwrap_or_default();
         let Some(tris) = mesh.surface_groups.get(g) else {
-            let what = if mesh.line_groups.contains_key(g) || mesh.point_groups.contains_key(g) {
-                "is a line or point group; a material needs a surface group".to_string()
-            } else {
-                "is not a surface group of the mesh".to_string()
-            };
-            return input(format!(
-                "{origin}: [[material]] group \"{g}\" {what}; {}",
-                surfaces()
-            ));
+            return input(not_a_surface_message(origin, g, mesh));
         };
         for &t in tris {
             if body[t] != NONE {
-                let x = centroid(t);
                 let other = case.materials[body[t] as usize]
                     .group
                     .as_deref()
                     .unwrap_or_default();
-                return input(format!(
-                    "{origin}: the triangle at ({}, {}) is in both [[material]] groups \"{other}\" and \"{g}\"; each triangle takes one material: give the bodies disjoint physical surfaces",
-                    x[0], x[1]
-                ));
+                return input(two_materials_message(origin, centroid(t), other, g));
             }
             body[t] = i as u32;
         }
     }
     if let Some(t) = body.iter().position(|&b| b == NONE) {
         let missing = body.iter().filter(|&&b| b == NONE).count();
-        let x = centroid(t);
-        let theirs: Vec<&str> = (mesh.surface_groups.iter())
-            .filter(|(_, tris)| tris.binary_search(&t).is_ok())
-            .map(|(k, _)| k.as_str())
-            .collect();
-        let fix = match theirs.first() {
-            Some(g) => format!("add a [[material]] with group = \"{g}\""),
-            None => {
-                "put it in a physical surface group of the mesh and give that group a [[material]]"
-                    .to_string()
-            }
-        };
-        return input(format!(
-            "{origin}: {missing} triangle(s), one at ({}, {}), are in no [[material]] group; every triangle needs a material: {fix}",
-            x[0], x[1]
-        ));
+        let theirs = (mesh.surface_groups.iter())
+            .find(|(_, tris)| tris.binary_search(&t).is_ok())
+            .map(|(k, _)| k.as_str());
+        return input(no_material_message(origin, missing, centroid(t), theirs));
     }
     Ok(body)
+}
+
+/// A `[[material]]` group `g` that is no surface group of `mesh` (whose groups alone
+/// matter).
+fn not_a_surface_message(origin: &str, g: &str, mesh: &Mesh) -> String {
+    let what = if mesh.line_groups.contains_key(g) || mesh.point_groups.contains_key(g) {
+        "is a line or point group; a material needs a surface group"
+    } else {
+        "is not a surface group of the mesh"
+    };
+    let names: Vec<&str> = mesh.surface_groups.keys().map(String::as_str).collect();
+    let surfaces = if names.is_empty() {
+        "the mesh has no physical surface groups; put each body's surface in a physical group in Gmsh".into()
+    } else {
+        format!("surface groups in the mesh: {}", names.join(", "))
+    };
+    format!("{origin}: [[material]] group \"{g}\" {what}; {surfaces}")
+}
+
+/// A triangle, centroid `x`, in the groups of two materials.
+fn two_materials_message(origin: &str, x: [f64; 2], other: &str, g: &str) -> String {
+    format!(
+        "{origin}: the triangle at ({}, {}) is in both [[material]] groups \"{other}\" and \"{g}\"; each triangle takes one material: give the bodies disjoint physical surfaces",
+        x[0], x[1]
+    )
+}
+
+/// `missing` triangles in no material's group, the first at `x`, in the surface group
+/// `theirs` (its first by name) if any.
+fn no_material_message(origin: &str, missing: usize, x: [f64; 2], theirs: Option<&str>) -> String {
+    let fix = match theirs {
+        Some(g) => format!("add a [[material]] with group = \"{g}\""),
+        None => "put it in a physical surface group of the mesh and give that group a [[material]]"
+            .to_string(),
+    };
+    format!(
+        "{origin}: {missing} triangle(s), one at ({}, {}), are in no [[material]] group; every triangle needs a material: {fix}",
+        x[0], x[1]
+    )
+}
+
+/// A fault of the materials as the whole problem names it ([`bodies`]), found from the
+/// file's triangle blocks alone (`blocks`: each one's count and the names of its
+/// physical surfaces, in file order) and the mesh's groups (`groups`: their names are
+/// all that is used): the triangle (its index among the file's triangle records) whose
+/// centroid the message names, where it names one, and the message given that
+/// centroid. `None` where every triangle has one material.
+#[allow(clippy::type_complexity)]
+pub fn materials_fault(
+    case: &Case,
+    blocks: &[(usize, Vec<String>)],
+    groups: &Mesh,
+) -> Option<(Option<u64>, Box<dyn Fn([f64; 2]) -> String>)> {
+    if case.materials.iter().all(|b| b.group.is_none()) {
+        return None;
+    }
+    let origin = case.origin.clone();
+    let starts: Vec<u64> = (blocks.iter())
+        .scan(0u64, |at, b| {
+            let start = *at;
+            *at += b.0 as u64;
+            Some(start)
+        })
+        .collect();
+    // Each block's material: its triangles share their surfaces, so the first triangle
+    // of a block claimed twice is the first the whole check meets.
+    let mut claimed: Vec<Option<usize>> = vec![None; blocks.len()];
+    for (i, b) in case.materials.iter().enumerate() {
+        let g = b.group.clone().unwrap_or_default();
+        if !groups.surface_groups.contains_key(&g) {
+            let message = not_a_surface_message(&origin, &g, groups);
+            return Some((None, Box::new(move |_| message.clone())));
+        }
+        for (k, (count, names)) in blocks.iter().enumerate() {
+            if *count == 0 || !names.contains(&g) {
+                continue;
+            }
+            if let Some(j) = claimed[k] {
+                let other = case.materials[j].group.clone().unwrap_or_default();
+                let message = move |x| two_materials_message(&origin, x, &other, &g);
+                return Some((Some(starts[k]), Box::new(message)));
+            }
+            claimed[k] = Some(i);
+        }
+    }
+    let open = |k: &usize| blocks[*k].0 > 0 && claimed[*k].is_none();
+    let first = (0..blocks.len()).find(open)?;
+    let missing: usize = (0..blocks.len()).filter(open).map(|k| blocks[k].0).sum();
+    let theirs = (blocks[first].1.iter())
+        .filter(|n| groups.surface_groups.contains_key(*n))
+        .min()
+        .cloned();
+    let message = move |x| no_material_message(&origin, missing, x, theirs.as_deref());
+    Some((Some(starts[first]), Box::new(message)))
 }
 
 /// The bodies of the triangles that touch `nodes`, increasing and without repeats.
@@ -1226,5 +1288,95 @@ mod tests {
         };
         assert!(free_at_answer(&holding, &[unknown]).is_empty());
         assert!(free_at_answer(&Holding::default(), &[node(0.0, true, false)]).is_empty());
+    }
+
+    /// The fault of the materials found from the file's triangle blocks is the whole
+    /// problem's, message for message, the centroid taken from the named triangle.
+    #[test]
+    fn the_materials_fault_from_the_blocks_is_the_whole_problems() {
+        // Seven triangles of a strip, in four blocks: [a] 0-1, [a, b] 2-3, [c] 4-5, [] 6.
+        let nodes: Vec<[f64; 2]> = (0..9)
+            .map(|i| [f64::from(i / 2) * 0.7, f64::from(i % 2) * 1.3])
+            .collect();
+        let triangles: Vec<[usize; 3]> = (0..7)
+            .map(|t| match t % 2 {
+                0 => [t, t + 2, t + 1],
+                _ => [t, t + 1, t + 2],
+            })
+            .collect();
+        let blocks: Vec<(usize, Vec<String>)> = [
+            (2, vec!["a"]),
+            (2, vec!["a", "b"]),
+            (0, vec!["b"]),
+            (2, vec!["c"]),
+            (1, vec![]),
+        ]
+        .into_iter()
+        .map(|(n, g)| (n, g.into_iter().map(String::from).collect()))
+        .collect();
+        let mut mesh = Mesh {
+            nodes,
+            triangles,
+            ..Mesh::default()
+        };
+        let mut first = 0;
+        for (count, names) in &blocks {
+            for g in names {
+                let tris = mesh.surface_groups.entry(g.clone()).or_default();
+                tris.extend(first..first + count);
+            }
+            first += count;
+        }
+        mesh.line_groups.insert("edge".into(), vec![[0, 1]]);
+        let groups = Mesh {
+            nodes: Vec::new(),
+            triangles: Vec::new(),
+            surface_groups: (mesh.surface_groups.keys())
+                .map(|k| (k.clone(), Vec::new()))
+                .collect(),
+            ..mesh.clone()
+        };
+        let case_of = |groups: &[Option<&str>]| {
+            let mut case = builtin_case("block", 0).unwrap();
+            let material = case.materials[0].material;
+            case.materials = (groups.iter())
+                .map(|g| BodyMaterial {
+                    group: g.map(String::from),
+                    material,
+                })
+                .collect();
+            case
+        };
+        let centroid = |t: u64| {
+            let p = mesh.triangles[t as usize].map(|v| mesh.nodes[v]);
+            [0, 1].map(|c| (p[0][c] + p[1][c] + p[2][c]) / 3.0)
+        };
+        let mut faults = 0;
+        for materials in [
+            vec![None],
+            vec![Some("a")],
+            vec![Some("a"), Some("b")],
+            vec![Some("b"), Some("a")],
+            vec![Some("c"), Some("edge")],
+            vec![Some("c"), Some("z")],
+            vec![Some("c")],
+            vec![Some("a"), Some("c")],
+        ] {
+            let case = case_of(&materials);
+            let whole = bodies(&case, &mesh).err().map(|e| e.to_string());
+            let found = materials_fault(&case, &blocks, &groups)
+                .map(|(t, message)| message(t.map_or([f64::NAN; 2], centroid)));
+            assert_eq!(found, whole, "{materials:?}");
+            faults += usize::from(whole.is_some());
+        }
+        assert_eq!(faults, 7);
+        let groups = Mesh::default();
+        let found = materials_fault(&case_of(&[Some("a")]), &[], &groups).map(|f| f.1([0.0; 2]));
+        assert_eq!(
+            found,
+            bodies(&case_of(&[Some("a")]), &Mesh::default())
+                .err()
+                .map(|e| e.to_string())
+        );
     }
 }

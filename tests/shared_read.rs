@@ -192,8 +192,8 @@ fn with_point(text: &str, tag: u64, xyz: [f64; 3]) -> String {
 }
 
 /// Where the ranks cut the mesh from their shares and the first rank builds only the
-/// conditions (`dd::dist_problem`), a fault of the mesh or of the case sends them back
-/// to the first rank's reading of the whole file: the one-rank line on 2 and 3 ranks.
+/// conditions (`dd::dist_problem`), a fault of the mesh or of the case is named as the
+/// first rank's reading of the whole file names it: the one-rank line on 2 and 3 ranks.
 #[test]
 fn a_faulty_mesh_or_case_gives_the_one_rank_line_where_the_ranks_cut() {
     let text = String::from_utf8(fixture("quarter_disc_v41_ascii.msh")).unwrap();
@@ -217,9 +217,34 @@ fn a_faulty_mesh_or_case_gives_the_one_rank_line_where_the_ranks_cut() {
             disc.clone(),
         ),
         (
+            "the first node off the plane of the others",
+            with_point(&text, 1, with_z(point(&text, 1))),
+            disc.clone(),
+        ),
+        (
             "a misspelled group",
             text.clone(),
             disc.replace("\"axis\"", "\"axes\""),
+        ),
+        (
+            "a material on a line group",
+            text.clone(),
+            with_materials(&disc, &["contact"]),
+        ),
+        (
+            "a material on no group of the mesh",
+            text.clone(),
+            with_materials(&disc, &["bodies"]),
+        ),
+        (
+            "two materials on one triangle",
+            with_second_surface(&text),
+            with_materials(&disc, &["body", "other"]),
+        ),
+        (
+            "two materials on one triangle and a misspelled group",
+            with_second_surface(&text),
+            with_materials(&disc, &["body", "other"]).replace("\"axis\"", "\"axes\""),
         ),
         (
             "no Dirichlet condition",
@@ -270,6 +295,30 @@ fn point(text: &str, tag: u64) -> [f64; 3] {
 
 fn with_z(p: [f64; 3]) -> [f64; 3] {
     [p[0], p[1], 0.25]
+}
+
+/// The disc's mesh with its surface in a second physical surface, "other", too.
+fn with_second_surface(text: &str) -> String {
+    let (names, entity) = ("2 4 \"body\"\n", " 1 4 3 1 2 3 \n");
+    assert!(text.contains(names) && text.contains(entity));
+    (text.replace("$PhysicalNames\n4\n", "$PhysicalNames\n5\n"))
+        .replace(names, "2 4 \"body\"\n2 5 \"other\"\n")
+        .replace(entity, " 2 4 5 3 1 2 3 \n")
+}
+
+/// The disc's case with one `[[material]]` per group of `groups` for its `[material]`.
+fn with_materials(case: &str, groups: &[&str]) -> String {
+    let lone = "[material]\nyoung = 1000.0\npoisson = 0.3\n";
+    assert!(case.contains(lone));
+    let entries: String = (groups.iter().enumerate())
+        .map(|(i, g)| {
+            format!(
+                "[[material]]\ngroup = \"{g}\"\nyoung = {}\npoisson = 0.3\n",
+                1000 * (i + 1)
+            )
+        })
+        .collect();
+    case.replace(lone, &entries)
 }
 
 /// The disc's case without its `[[dirichlet]]` entries.

@@ -196,6 +196,61 @@ pub fn bounding_box(mpi: &Mpi, xy: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
     ([-v[0], -v[1]], [v[2], v[3]])
 }
 
+/// A node off the plane of the file's first node, as the reading finds it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OffPlane {
+    pub tag: u64,
+    pub z: f64,
+    pub first_tag: u64,
+    pub first_z: f64,
+}
+
+/// The first node in file order farther in z from the file's first node than the
+/// reading's tolerance (`mesh::gmsh::plane_tolerance` of the box `bbox`): `Some` on
+/// every rank where there is one, its figures on the first rank (`None` there should
+/// the directory lack a tag). `z` is this rank's share of the file's nodes' z, in file
+/// order after the ranks before it; `directory` gives their tags. Collective: two
+/// gathers and a broadcast of a few numbers.
+pub fn off_plane(
+    mpi: &Mpi,
+    z: &[f64],
+    directory: &Directory,
+    (lo, hi): ([f64; 2], [f64; 2]),
+) -> Result<Option<Option<OffPlane>>> {
+    let before: usize = mpi.all_gather_counts(z.len())[..mpi.rank].iter().sum();
+    let mut first_z = [match (before, z.first()) {
+        (0, Some(&z)) => z,
+        _ => f64::NEG_INFINITY,
+    }];
+    mpi.max_in_place(&mut first_z);
+    let first_z = first_z[0];
+    let tolerance = crate::mesh::gmsh::plane_tolerance((hi[0] - lo[0]).max(hi[1] - lo[1]));
+    let mine = (z.iter().position(|&v| (v - first_z).abs() > tolerance))
+        .map(|k| ((before + k) as u64, z[k]));
+    let off = mpi.gather_parts(mine)?.map(|all| {
+        let mut all = all.into_iter().flatten();
+        all.next()
+    });
+    let Some((at, z_at)) = mpi.broadcast(off)? else {
+        return Ok(None);
+    };
+    let tags: Vec<(u64, u64)> = (directory.file.iter().zip(&directory.tags))
+        .filter(|(&f, _)| f == at || f == 0)
+        .map(|(&f, &t)| (f, t))
+        .collect();
+    let found = mpi.gather_parts(tags)?.map(|all| {
+        let all: Vec<(u64, u64)> = all.into_iter().flatten().collect();
+        let tag_of = |f: u64| all.iter().find(|x| x.0 == f).map(|x| x.1);
+        Some(OffPlane {
+            tag: tag_of(at)?,
+            z: z_at,
+            first_tag: tag_of(0)?,
+            first_z,
+        })
+    });
+    Ok(Some(found.flatten()))
+}
+
 /// A part's triangles on its own nodes.
 struct Local {
     /// The triangles' corners (indices into the part's nodes), turned counter-clockwise

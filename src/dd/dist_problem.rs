@@ -13,9 +13,11 @@
 //!
 //! A fault of the mesh found by the ranks' checks, or of the groups and conditions, is
 //! named as the whole problem names it (the same functions, the same messages: tested).
-//! What the serial reading treats otherwise (a mesh off the plane, a triangle listed
-//! twice, which it drops), a fault of the materials (whose message names a triangle's
-//! centroid), and anything these steps do not expect send every rank back to the first
+//! So are a mesh off the plane (`dist_check::off_plane`) and a fault of the materials
+//! (`problem::materials_fault` from the triangle blocks, after the conditions as the
+//! whole problem names them; the centroid it names from the part that holds the
+//! triangle). What the serial reading treats otherwise (a triangle listed twice, which
+//! it drops) and anything these steps do not expect send every rank back to the first
 //! rank's reading of the whole file, which names the fault as it always has; the ranks
 //! keep their cut and their lists.
 
@@ -26,7 +28,9 @@ use crate::dd::dist_split::{run_value, Conditions};
 use crate::dd::locality::{tag_rank, Directory};
 use crate::dd::ownership::{NodeParts, PartLists};
 use crate::error::{Error, Result};
+use crate::mesh::gmsh::off_plane_message;
 use crate::mesh::gmsh::shares::{GroupMesh, Scan};
+use crate::mesh::validate;
 use crate::problem::{self, Lengths, Parts};
 use crate::split_dir::Facts;
 use std::collections::HashSet;
@@ -71,16 +75,18 @@ pub fn build(
     lists: &[PartLists],
     (directory, around): (&Directory, &NodeParts),
     triangles: usize,
-    mut z: [f64; 3],
+    z: &[f64],
 ) -> Result<Outcome> {
-    // The reading checks the plane before the mesh: a mesh off it falls back, whatever
-    // else is wrong.
+    // The reading checks the plane before the mesh, whatever else is wrong.
     let bbox = dist_check::bounding_box(mpi, &directory.xy);
-    let (lo, hi) = bbox;
-    mpi.max_in_place(&mut z);
-    let tolerance = 1e-9 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
-    if (z[0] - z[2]).max(z[2] + z[1]) > tolerance {
-        return Ok(Outcome::FallBack);
+    if let Some(off) = dist_check::off_plane(mpi, z, directory, bbox)? {
+        let message = (first.as_ref().zip(off))
+            .map(|(f, o)| off_plane_message(f.name, o.tag, o.z, o.first_tag, o.first_z));
+        let named = mpi.broadcast(mpi.is_root().then_some(message.is_some()))?;
+        return Ok(match named {
+            true => Outcome::Fault(message),
+            false => Outcome::FallBack,
+        });
     }
     let checked = dist_check::check(mpi, (directory, around), lists, bbox)?;
     // The groups' nodes from the directory.
@@ -109,8 +115,14 @@ pub fn build(
     let nodes: usize = mpi.all_gather_counts(directory.tags.len()).iter().sum();
     let edges: Vec<u64> = checked.boundary.iter().flatten().copied().collect();
     let edges = mpi.gather_varcount(&edges, &mpi.all_gather_counts(edges.len()));
+    // A fault of the materials is named after those of the conditions, as the whole
+    // problem names them: the conditions are built first, on any bodies.
+    let mut materials = None;
     let groups = first.as_ref().zip(groups).and_then(|(f, mesh)| {
-        let runs = problem::body_runs(f.case, &mesh.triangle_blocks)?;
+        let runs = problem::body_runs(f.case, &mesh.triangle_blocks).or_else(|| {
+            materials = problem::materials_fault(f.case, &mesh.triangle_blocks, &mesh.mesh);
+            materials.is_some().then(|| vec![(0, 0)])
+        })?;
         Some((mesh, runs))
     });
     let ask = groups.as_ref().map(|(mesh, runs)| Ask {
@@ -133,17 +145,54 @@ pub fn build(
         };
         on_groups(f.case, mesh, runs, told, whole)
     });
-    // A fault of the conditions is named here; anything else falls back.
-    let kind = mpi.is_root().then_some(match &built {
-        Some(Ok(_)) => 0u8,
-        Some(Err(Error::Input(_))) => 1,
-        _ => 2,
+    // A fault of the conditions is named here, then one of the materials; anything else
+    // falls back.
+    let kind = mpi.is_root().then_some(match (&built, &materials) {
+        (Some(Ok(_)), None) => (0u8, None),
+        (Some(Err(Error::Input(_))), _) => (1, None),
+        (Some(Ok(_)), Some((triangle, _))) => (3, *triangle),
+        _ => (2, None),
     });
     Ok(match mpi.broadcast(kind)? {
-        0 => Outcome::Built(built.and_then(Result::ok)),
-        1 => Outcome::Fault(built.and_then(|b| b.err()).map(|e| e.to_string())),
+        (0, _) => Outcome::Built(built.and_then(Result::ok)),
+        (1, _) => Outcome::Fault(built.and_then(|b| b.err()).map(|e| e.to_string())),
+        (3, triangle) => {
+            let x = match triangle {
+                Some(t) => centroid(mpi, lists, t, checked.bbox)?,
+                None => Some([f64::NAN; 2]),
+            };
+            let message = materials.zip(x).map(|((_, message), x)| message(x));
+            match mpi.broadcast(mpi.is_root().then_some(message.is_some()))? {
+                true => Outcome::Fault(message),
+                false => Outcome::FallBack,
+            }
+        }
         _ => Outcome::FallBack,
     })
+}
+
+/// The centroid of the file's triangle `t` (its index among the file's triangle
+/// records) as the whole problem computes it, on its corners turned counter-clockwise;
+/// on the first rank, `None` there where no part holds it. Collective.
+fn centroid(
+    mpi: &Mpi,
+    lists: &[PartLists],
+    t: u64,
+    (lo, hi): ([f64; 2], [f64; 2]),
+) -> Result<Option<[f64; 2]>> {
+    let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let mine = lists.iter().find_map(|l| {
+        let k = l.elements.binary_search(&t).ok()?;
+        let at = |tag: u64| Some(l.xy[l.nodes.binary_search(&tag).ok()?]);
+        let [a, b, c] = l.triangles[k];
+        let mut p = [at(a)?, at(b)?, at(c)?];
+        if validate::clockwise(&p, [0, 1, 2], size)? {
+            p.swap(1, 2);
+        }
+        Some([0, 1].map(|i| (p[0][i] + p[1][i] + p[2][i]) / 3.0))
+    });
+    let all = mpi.gather_parts(mine)?;
+    Ok(all.and_then(|all| all.into_iter().flatten().next()))
 }
 
 /// The first group that holds node `file` (an index among the file's nodes), lines

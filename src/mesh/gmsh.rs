@@ -35,6 +35,21 @@ pub fn read_msh(path: &Path) -> Result<Mesh> {
     parse_msh(&bytes, &path.display().to_string())
 }
 
+/// The tolerance of the planarity check: relative to the mesh's size (`extent`, the
+/// larger side of its bounding box), so that CAD round-off in z does not count.
+pub fn plane_tolerance(extent: f64) -> f64 {
+    1e-9 * extent
+}
+
+/// The message of a mesh whose node `tag` lies at `z`, off the plane of its first node
+/// (`first_tag` at `first_z`).
+pub fn off_plane_message(name: &str, tag: u64, z: f64, first_tag: u64, first_z: f64) -> String {
+    format!(
+        "{name}: the mesh is not planar: node {tag} has z = {z} but node {first_tag} has z = \
+         {first_z}; contact-par is 2D: build the geometry in a plane z = constant"
+    )
+}
+
 /// Parses the content of a Gmsh mesh file; `name` is the file name used in messages.
 ///
 /// Nodes are renumbered 0.. in file order and z is dropped (the mesh must lie in a plane
@@ -1174,8 +1189,7 @@ impl Builder {
             let min = values.fold(f64::INFINITY, f64::min);
             max - min
         };
-        // Relative to the size of the mesh, so that CAD round-off in z does not count.
-        let tolerance = 1e-9 * extent(0).max(extent(1));
+        let tolerance = plane_tolerance(extent(0).max(extent(1)));
         let first_tag = self.node_tags.first().copied().unwrap_or_default();
         let off_plane = self
             .nodes
@@ -1183,11 +1197,7 @@ impl Builder {
             .zip(&self.node_tags)
             .find(|(p, _)| (p[2] - first[2]).abs() > tolerance);
         match off_plane {
-            Some((p, tag)) => input(format!(
-                "{name}: the mesh is not planar: node {tag} has z = {} but node {first_tag} \
-                 has z = {}; contact-par is 2D: build the geometry in a plane z = constant",
-                p[2], first[2]
-            )),
+            Some((p, tag)) => input(off_plane_message(name, *tag, p[2], first_tag, first[2])),
             None => Ok(()),
         }
     }
