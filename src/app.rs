@@ -781,9 +781,11 @@ fn split_on_groups(
     layout: Layout,
     timer: &Timer,
     print: &Printer,
-    (early, mut shares): (Option<Early>, Shares),
+    (early, shares): (Option<Early>, Shares),
 ) -> Result<(Option<Setup>, Option<Vec<SubProblem>>)> {
-    let z = std::mem::take(&mut shares.z);
+    // The nodes' z, for the check that the mesh is planar once the cut has taken the
+    // coordinates.
+    let z: Vec<f64> = shares.coords.chunks_exact(3).map(|c| c[2]).collect();
     let mut cut = timer.time(Phase::Partition, || shares.cut(mpi));
     let start = Instant::now();
     let outcome = match cut.as_mut() {
@@ -1828,8 +1830,6 @@ struct Shares {
     coords: Vec<f64>,
     triangles: Vec<[u64; 3]>,
     nparts: usize,
-    /// Its nodes' z, for the check that the mesh is planar (`dd::dist_problem`).
-    z: Vec<f64>,
 }
 
 impl Shares {
@@ -1989,7 +1989,6 @@ fn read_together(
         let groups = mpi.gather_varcount(&groups, &mpi.all_gather_counts(groups.len()));
         let kept = Shares {
             triangles: share.triangles(stretches),
-            z: share.coords.chunks_exact(3).map(|c| c[2]).collect(),
             tags: share.tags,
             coords: share.coords,
             nparts,

@@ -388,17 +388,19 @@ impl Scan {
         let mut shares = vec![Vec::new(); parts];
         let mut p = 0;
         for (i, s) in self.stretches.iter().enumerate() {
-            let mut from = s.start;
+            // Each cut's records before it counted once, for the pieces on both sides.
+            let (mut from, mut before) = (s.start, 0);
             while p < cuts.len() && cuts[p].0 == i {
                 let to = cuts[p].1;
                 if to > from {
-                    shares[p].push(self.piece(text, i, from, to)?);
-                    from = to;
+                    let at = self.records_before(text, i, to)?;
+                    shares[p].push(piece(s, from, to, at - before));
+                    (from, before) = (to, at);
                 }
                 p += 1;
             }
             if from < s.end {
-                shares[p].push(self.piece(text, i, from, s.end)?);
+                shares[p].push(piece(s, from, s.end, s.records - before));
             }
         }
         let plan = SharePlan {
@@ -427,7 +429,8 @@ impl Scan {
         let (mut from, mut buf) = (usize::try_from(at - 1).ok()?, Vec::new());
         let end = usize::try_from(s.end).ok()?;
         while from < end {
-            let window = text.window(from, (end - from).min(WINDOW), &mut buf)?;
+            // A record is a line of a few tens of bytes: a short read finds its end.
+            let window = text.window(from, (end - from).min(MARK), &mut buf)?;
             if let Some(nl) = memchr::memchr(b'\n', window) {
                 return Some((from + nl + 1) as u64);
             }
@@ -436,27 +439,12 @@ impl Scan {
         Some(s.end)
     }
 
-    /// The records of stretch `i` at bytes `start..end`, both record boundaries.
-    fn piece(&self, text: Text, i: usize, start: u64, end: u64) -> Option<Stretch> {
+    /// The records of stretch `i` before byte `at`, a record boundary: in ASCII its
+    /// lines, from its last mark at or before `at`, counting at most [`MARK`] bytes.
+    fn records_before(&self, text: Text, i: usize, at: u64) -> Option<u64> {
         let s = &self.stretches[i];
-        let records = match self.binary {
-            Some(b) => (end - start) / s.record.bytes(b.size_t) as u64,
-            None => self.lines_before(text, i, end)? - self.lines_before(text, i, start)?,
-        };
-        Some(Stretch {
-            start,
-            end,
-            records,
-            record: s.record,
-        })
-    }
-
-    /// The lines of ASCII stretch `i` before byte `at`: from its last mark at or before
-    /// `at`, counting at most [`MARK`] bytes.
-    fn lines_before(&self, text: Text, i: usize, at: u64) -> Option<u64> {
-        let s = &self.stretches[i];
-        if at == s.end {
-            return Some(s.records);
+        if let Some(b) = self.binary {
+            return Some((at - s.start) / s.record.bytes(b.size_t) as u64);
         }
         let marks = &self.marks[i];
         let k = marks.partition_point(|m| m.0 <= at).checked_sub(1)?;
@@ -644,6 +632,16 @@ impl Scan {
         }
         (e == elements.len()).then_some(())?;
         builder.finish(&name).ok()
+    }
+}
+
+/// The `records` records of stretch `s` at bytes `start..end`.
+fn piece(s: &Stretch, start: u64, end: u64, records: u64) -> Stretch {
+    Stretch {
+        start,
+        end,
+        records,
+        record: s.record,
     }
 }
 
