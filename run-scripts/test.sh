@@ -32,6 +32,14 @@ python3 run-scripts/cut_study.py tests/data/gmsh/quarter_disc.toml tests/data/bo
   --ranks 2,3 --runs 1 --out "$cut_dir" >/dev/null
 python3 run-scripts/cost_model.py docs/data/scale-summaries/*.json --start "$start_dir" \
   --cut "$cut_dir" >/dev/null
+# The bound of independent pieces (halves.sh): the built-in block at level 1 on 4 ranks
+# against 4 jobs at level 0, a quarter of its nodes (seconds).
+halves_dir="$(mktemp -d)/halves"
+mkdir -p "$halves_dir"
+target/release/contact-par --builtin block --level 1 --print-case > "$halves_dir/whole.toml"
+target/release/contact-par --builtin block --level 0 --print-case > "$halves_dir/part.toml"
+bash run-scripts/halves.sh --whole "$halves_dir/whole.toml" --part "$halves_dir/part.toml" \
+  --ranks 4 --runs 1 --out "$halves_dir" >/dev/null
 if cargo nextest --version >/dev/null 2>&1; then
   cargo nextest run --release --workspace --no-fail-fast
 else
