@@ -52,40 +52,35 @@ trap 'rm -rf "$TMP"' EXIT
 CSV="$OUT/halves.csv"
 echo "run,kind,wall_s,user_s,sys_s,peak_kb" > "$CSV"
 
-# One timed command: its wall, user and system seconds and peak (the largest process).
-timed() {
-  local kind="$1" run="$2"
-  shift 2
-  /usr/bin/time -f "%e %U %S %M" -o "$TMP/time" "$@" > /dev/null
-  read -r wall user sys peak < "$TMP/time"
-  echo "$run,$kind,$wall,$user,$sys,$peak" >> "$CSV"
+# contact-par on N ranks, one thread each, its wall, user and system seconds and peak
+# (the largest process) written to FILE.
+timed() { # FILE N CASE OUT
+  /usr/bin/time -f "%e %U %S %M" -o "$1" \
+    mpirun -n "$2" --bind-to none "$BIN" "$3" --threads 1 --quiet --out "$4" > /dev/null
 }
-side_by_side() { # P small jobs at once; their summed user and system time, the largest peak
-  local pids=()
-  for k in $(seq 1 "$RANKS"); do
-    /usr/bin/time -f "%e %U %S %M" -o "$TMP/time.$k" \
-      mpirun -n 1 --bind-to none "$BIN" "$PART" --threads 1 --quiet --out "$TMP/p$k" > /dev/null &
-    pids+=($!)
-  done
-  for p in "${pids[@]}"; do wait "$p"; done
+record() { # RUN KIND FILE
+  read -r wall user sys peak < "$3"
+  echo "$1,$2,$wall,$user,$sys,$peak" >> "$CSV"
 }
 
 for run in $(seq 1 "$RUNS"); do
-  timed whole_1 "$run" mpirun -n 1 --bind-to none "$BIN" "$WHOLE" --threads 1 --quiet --out "$TMP/w1"
-  timed whole_p "$run" mpirun -n "$RANKS" --bind-to none "$BIN" "$WHOLE" --threads 1 --quiet --out "$TMP/wp"
+  timed "$TMP/time" 1 "$WHOLE" "$TMP/w1"; record "$run" whole_1 "$TMP/time"
+  timed "$TMP/time" "$RANKS" "$WHOLE" "$TMP/wp"; record "$run" whole_p "$TMP/time"
+  # The small jobs at once: the wall from start to the last one's end, their user and
+  # system seconds summed, the largest peak.
   start=$(date +%s.%N)
-  side_by_side
+  pids=()
+  for k in $(seq 1 "$RANKS"); do
+    timed "$TMP/time.$k" 1 "$PART" "$TMP/p$k" &
+    pids+=($!)
+  done
+  for p in "${pids[@]}"; do wait "$p"; done
   end=$(date +%s.%N)
-  python3 - "$TMP" "$RANKS" "$run" "$start" "$end" >> "$CSV" <<'EOF'
-import sys
-tmp, p, run, start, end = sys.argv[1], int(sys.argv[2]), sys.argv[3], float(sys.argv[4]), float(sys.argv[5])
-rows = [open(f"{tmp}/time.{k}").read().split() for k in range(1, p + 1)]
-user = sum(float(r[1]) for r in rows)
-sys_ = sum(float(r[2]) for r in rows)
-peak = max(int(r[3]) for r in rows)
-print(f"{run},parts_side_by_side,{end - start:.3f},{user:.2f},{sys_:.2f},{peak}")
-EOF
-  timed part_alone "$run" mpirun -n 1 --bind-to none "$BIN" "$PART" --threads 1 --quiet --out "$TMP/pa"
+  awk -v run="$run" -v start="$start" -v end="$end" \
+    '{ u += $2; s += $3; if ($4 > m) m = $4 }
+     END { printf "%s,parts_side_by_side,%.3f,%.2f,%.2f,%d\n", run, end - start, u, s, m }' \
+    "$TMP"/time.* >> "$CSV"
+  timed "$TMP/time" 1 "$PART" "$TMP/pa"; record "$run" part_alone "$TMP/time"
 done
 
 python3 - "$CSV" "$RANKS" <<'EOF'
@@ -94,12 +89,12 @@ path, p = sys.argv[1], int(sys.argv[2])
 rows = list(csv.DictReader(open(path)))
 def med(kind, col="wall_s"):
     return statistics.median(float(r[col]) for r in rows if r["kind"] == kind)
+runs = sorted({r["run"] for r in rows})
+wall = {(r["run"], r["kind"]): float(r["wall_s"]) for r in rows}
 def paired(a, b):
-    runs = sorted({r["run"] for r in rows})
-    w = {(r["run"], r["kind"]): float(r["wall_s"]) for r in rows}
-    ratios = [w[(k, a)] / w[(k, b)] for k in runs]
+    ratios = [wall[(k, a)] / wall[(k, b)] for k in runs]
     return statistics.median(ratios), min(ratios), max(ratios)
-print(f"{'kind':20s} {'wall s':>8s} {'user s':>8s} {'sys s':>8s}   (medians of {len(rows) // 4} runs)")
+print(f"{'kind':20s} {'wall s':>8s} {'user s':>8s} {'sys s':>8s}   (medians of {len(runs)} runs)")
 for kind in ["whole_1", "whole_p", "parts_side_by_side", "part_alone"]:
     print(f"{kind:20s} {med(kind):8.2f} {med(kind, 'user_s'):8.2f} {med(kind, 'sys_s'):8.2f}")
 s = paired("whole_1", "whole_p")
