@@ -490,9 +490,8 @@ pub fn build_numbered(
     mesh_name: &str,
     numbering: Numbering,
 ) -> Result<Problem> {
-    let boundary = validate::check(&mut mesh, mesh_name)?;
+    let (boundary, parts) = validate::check_with(&mut mesh, mesh_name, Parts::of)?;
     let triangles = mesh.triangles.len();
-    let parts = Parts::of(&mesh);
     let conditioned = conditioned(case, &mesh, &boundary, &parts)?;
     // Checked here so that every fault of the input is reported before any work; the
     // bodies are found again in the new numbering below.

@@ -18,6 +18,7 @@ use crate::contact::ContactNodes;
 use crate::error::{Error, Result};
 use crate::problem::Problem;
 use partition::Partition;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Everything one rank needs, and nothing of the others' parts.
@@ -212,9 +213,10 @@ pub fn split(
         contact_by_rank[owner(c)].push(k);
     }
 
-    let mut local_of = vec![usize::MAX; n];
-    let mut subs = Vec::with_capacity(nparts);
-    for (r, p) in part.parts.iter().enumerate() {
+    // Each part on a thread of the pool, with a scratch map from global to local node
+    // numbers per thread: a part of a large mesh takes tens of milliseconds, and the
+    // other ranks wait for the first rank's split.
+    let one = |local_of: &mut Vec<usize>, (r, p): (usize, &partition::Part)| {
         let all_nodes: Vec<usize> = p.nodes.iter().chain(&ghosts[r]).copied().collect();
         for (l, &g) in all_nodes.iter().enumerate() {
             local_of[g] = l;
@@ -275,16 +277,21 @@ pub fn split(
                 .collect(),
             ghosts: ghosts[r].len(),
         };
-        if sub.contact_nodes.contains(&usize::MAX) {
+        // Reset before any return: the scratch serves the thread's next part.
+        let unheld = sub.contact_nodes.contains(&usize::MAX);
+        for &g in &all_nodes {
+            local_of[g] = usize::MAX;
+        }
+        if unheld {
             return Err(Error::Numerical(format!(
                 "internal: rank {r} owns a contact node it does not hold"
             )));
         }
-        subs.push(sub);
-        for &g in &all_nodes {
-            local_of[g] = usize::MAX;
-        }
-    }
+        Ok(sub)
+    };
+    let subs = (part.parts.par_iter().enumerate())
+        .map_init(|| vec![usize::MAX; n], one)
+        .collect::<Result<Vec<SubProblem>>>()?;
     Ok((
         subs,
         GlobalMap {

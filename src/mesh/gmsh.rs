@@ -26,13 +26,35 @@ const FIRST_ORDER: &str = "re-mesh with first-order elements: Mesh.ElementOrder 
 
 /// Reads a Gmsh mesh file (MSH 4.1 or 2.2, ASCII or binary).
 pub fn read_msh(path: &Path) -> Result<Mesh> {
-    let bytes = std::fs::read(path).map_err(|e| {
+    let bytes = read_file(path).map_err(|e| {
         Error::Input(format!(
             "{}: cannot read the mesh file ({e}); check the path",
             path.display()
         ))
     })?;
     parse_msh(&bytes, &path.display().to_string())
+}
+
+/// The whole file, read in pieces on the threads of the pool where it is large: the
+/// copy from the page cache into fresh pages (a page fault each) took a tenth of a
+/// large mesh's read on one thread while the others waited.
+fn read_file(path: &Path) -> std::io::Result<Vec<u8>> {
+    use rayon::prelude::*;
+    use std::os::unix::fs::FileExt;
+    const PIECE: usize = 8 << 20;
+    let file = std::fs::File::open(path)?;
+    let len = usize::try_from(file.metadata()?.len()).unwrap_or(usize::MAX);
+    let threads = rayon::current_num_threads();
+    if threads < 2 || len < 2 * PIECE || !file.metadata()?.is_file() {
+        return std::fs::read(path);
+    }
+    let mut bytes = vec![0u8; len];
+    let piece = len.div_ceil(threads).max(PIECE);
+    (bytes.par_chunks_mut(piece).enumerate())
+        .try_for_each(|(k, chunk)| file.read_exact_at(chunk, (k * piece) as u64))?;
+    // A file that grew meanwhile is read as it was when measured; one that shrank fails
+    // above (an early end of file).
+    Ok(bytes)
 }
 
 /// The tolerance of the planarity check: relative to the mesh's size (`extent`, the
@@ -1295,7 +1317,9 @@ impl TagIndex {
 /// surfaces appears twice; a mesh never holds the same triangle twice on purpose.
 ///
 /// Repeats share their smallest node, so triangles are bucketed by it (a counting sort:
-/// a couple of triangles per node) and each bucket is sorted on its own.
+/// a couple of triangles per node) and each bucket is sorted on its own. The nodes are
+/// cut into ranges, one per piece of work on the pool's threads, each of which buckets
+/// only the triangles whose smallest node is in its range.
 ///
 /// Returns, when any was dropped, the new index of each triangle as read (a repeat's is
 /// that of the triangle kept in its place).
@@ -1303,48 +1327,22 @@ fn drop_repeated_triangles(
     num_nodes: usize,
     triangles: &mut Vec<[usize; 3]>,
 ) -> Option<Vec<usize>> {
-    let key = |t: &[usize; 3]| {
-        let mut k = *t;
-        k.sort_unstable();
-        k
-    };
-    let mut start = vec![0usize; num_nodes + 1];
-    for t in triangles.iter() {
-        start[key(t)[0] + 1] += 1;
+    use rayon::prelude::*;
+    let all: &[[usize; 3]] = triangles;
+    let smallest = |t: &[usize; 3]| t[0].min(t[1]).min(t[2]);
+    let ranges =
+        crate::mesh::validate::balanced_ranges(num_nodes, all.len(), |t| smallest(&all[t]));
+    // Every (repeat, the triangle it repeats) pair, in file order within a range.
+    let repeats: Vec<(usize, usize)> = (ranges.into_par_iter())
+        .flat_map_iter(|nodes| repeats_from(all, nodes.start, nodes.end))
+        .collect();
+    if repeats.is_empty() {
+        return None;
     }
-    for i in 0..num_nodes {
-        start[i + 1] += start[i];
-    }
-    let mut next = start.clone();
-    let mut bucketed = vec![([0usize; 3], 0usize); triangles.len()];
-    for (i, t) in triangles.iter().enumerate() {
-        let k = key(t);
-        bucketed[next[k[0]]] = (k, i);
-        next[k[0]] += 1;
-    }
-    drop(next);
     // The triangle as read that each one repeats (itself when it is kept).
     let mut first_of: Vec<usize> = (0..triangles.len()).collect();
-    let mut any = false;
-    for w in start.windows(2) {
-        let bucket = &mut bucketed[w[0]..w[1]];
-        if bucket.len() < 2 {
-            continue;
-        }
-        // By key, then by position in the file: the first of equal keys is the one kept.
-        bucket.sort_unstable();
-        let mut kept = bucket[0];
-        for &t in &bucket[1..] {
-            if t.0 == kept.0 {
-                first_of[t.1] = kept.1;
-                any = true;
-            } else {
-                kept = t;
-            }
-        }
-    }
-    if !any {
-        return None;
+    for (t, kept) in repeats {
+        first_of[t] = kept;
     }
     let mut new_index = vec![usize::MAX; triangles.len()];
     let mut next = 0;
@@ -1362,6 +1360,55 @@ fn drop_repeated_triangles(
         first_of[k - 1] == k - 1
     });
     Some(new_index)
+}
+
+/// The repeats among the triangles whose smallest node is in `lo..hi`: each with the
+/// first triangle of the same three nodes in the file.
+fn repeats_from(triangles: &[[usize; 3]], lo: usize, hi: usize) -> Vec<(usize, usize)> {
+    let key = |t: &[usize; 3]| {
+        let mut k = *t;
+        k.sort_unstable();
+        k
+    };
+    let smallest = |t: &[usize; 3]| t[0].min(t[1]).min(t[2]);
+    let mut start = vec![0usize; hi - lo + 1];
+    for t in triangles {
+        let m = smallest(t);
+        if (lo..hi).contains(&m) {
+            start[m - lo + 1] += 1;
+        }
+    }
+    for i in 0..hi - lo {
+        start[i + 1] += start[i];
+    }
+    let mut next = start.clone();
+    let mut bucketed = vec![([0usize; 3], 0usize); start[hi - lo]];
+    for (i, t) in triangles.iter().enumerate() {
+        let m = smallest(t);
+        if (lo..hi).contains(&m) {
+            bucketed[next[m - lo]] = (key(t), i);
+            next[m - lo] += 1;
+        }
+    }
+    drop(next);
+    let mut repeats = Vec::new();
+    for w in start.windows(2) {
+        let bucket = &mut bucketed[w[0]..w[1]];
+        if bucket.len() < 2 {
+            continue;
+        }
+        // By key, then by position in the file: the first of equal keys is the one kept.
+        bucket.sort_unstable();
+        let mut kept = bucket[0];
+        for &t in &bucket[1..] {
+            if t.0 == kept.0 {
+                repeats.push((t.1, kept.1));
+            } else {
+                kept = t;
+            }
+        }
+    }
+    repeats
 }
 
 /// Keys groups by their physical name, or by their tag when they have none.
@@ -2022,10 +2069,21 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             ((seed >> 33) % n) as usize
         };
-        for (nodes, count) in [(4, 10), (6, 200), (30, 2000)] {
-            let triangles: Vec<[usize; 3]> = (0..count)
-                .map(|_| [next(nodes), next(nodes), next(nodes)])
-                .collect();
+        // The last on several threads, each with a range of the nodes: many nodes, and a
+        // third of the triangles earlier ones again, turned or reflected.
+        for (nodes, count, threads) in
+            [(4, 10, 1), (6, 200, 1), (30, 2000, 1), (90_000, 400_000, 3)]
+        {
+            let mut triangles: Vec<[usize; 3]> = Vec::with_capacity(count);
+            for i in 0..count {
+                let t = if i > 0 && next(3) == 0 {
+                    let [a, b, c] = triangles[next(i as u64)];
+                    [[a, b, c], [b, c, a], [c, b, a]][next(3)]
+                } else {
+                    [next(nodes), next(nodes), next(nodes)]
+                };
+                triangles.push(t);
+            }
             let mut seen = std::collections::HashSet::new();
             let expected: Vec<[usize; 3]> = triangles
                 .iter()
@@ -2037,7 +2095,9 @@ mod tests {
                 .copied()
                 .collect();
             let mut kept = triangles.clone();
-            let new_index = drop_repeated_triangles(nodes as usize, &mut kept)
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let new_index = (pool.unwrap())
+                .install(|| drop_repeated_triangles(nodes as usize, &mut kept))
                 .unwrap_or_else(|| (0..count).collect());
             assert_eq!(kept, expected, "{nodes} nodes, {count} triangles");
             let sorted = |mut t: [usize; 3]| {

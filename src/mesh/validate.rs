@@ -44,12 +44,25 @@ pub fn size(mesh: &Mesh) -> f64 {
 /// the triangles counter-clockwise, and returns the boundary edges (node pairs
 /// `(min, max)` that belong to exactly one triangle).
 pub fn check(mesh: &mut Mesh, name: &str) -> Result<HashSet<(usize, usize)>> {
+    check_with(mesh, name, |_| ()).map(|(boundary, ())| boundary)
+}
+
+/// [`check`], and `with` the oriented mesh at the same time as the last check (the
+/// edges), on another thread of the pool: e.g. the mesh's separate parts, which need
+/// sound indices, not the edges' verdict.
+pub fn check_with<T: Send>(
+    mesh: &mut Mesh,
+    name: &str,
+    with: impl FnOnce(&Mesh) -> T + Send,
+) -> Result<(HashSet<(usize, usize)>, T)> {
     references(mesh, name)?;
     let used = used_nodes(mesh);
     duplicate_nodes(mesh, &used, name)?;
     unused_nodes(mesh, &used, name)?;
     let listed_cw = orient(mesh, name)?;
-    edges(mesh, &listed_cw, name)
+    let mesh = &*mesh;
+    let (boundary, also) = rayon::join(|| edges(mesh, &listed_cw, name), || with(mesh));
+    Ok((boundary?, also))
 }
 
 /// Triangles exist, indices are in range and coordinates are finite. The Gmsh reader
@@ -359,46 +372,23 @@ fn edges(mesh: &Mesh, listed_cw: &[bool], name: &str) -> Result<HashSet<(usize, 
             "{name}: {nt} triangles and {n} nodes are more than contact-par handles (2^30 edges)"
         ));
     }
-    // The edges of each node to higher-numbered ones, in compressed rows.
-    let mut start = vec![0u32; n + 1];
-    for t in &mesh.triangles {
-        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            start[a.min(b) + 1] += 1;
-        }
-    }
-    for i in 0..n {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    // (other node, triangle << 1 | 1 when the triangle runs the edge from low to high)
-    let mut entries = vec![(0u32, 0u32); 3 * nt];
-    for (t, tri) in mesh.triangles.iter().enumerate() {
-        for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
-            let low = a.min(b);
-            entries[fill[low] as usize] = (a.max(b) as u32, (t as u32) << 1 | u32::from(a < b));
-            fill[low] += 1;
-        }
-    }
     let cw_majority = 2 * listed_cw.iter().filter(|&&c| c).count() > nt;
-    // The rows in runs of consecutive nodes, each run sorted and scanned on its own
-    // thread; the runs are taken in node order again, so the first fold reported is the
-    // one a scan in order would meet first.
-    let run_nodes = n.div_ceil(8 * rayon::current_num_threads()).max(1 << 14);
-    let mut runs = Vec::new();
-    let mut rest = &mut entries[..];
-    for first in (0..n).step_by(run_nodes) {
-        let last = (first + run_nodes).min(n);
-        let (rows, tail) = rest.split_at_mut((start[last] - start[first]) as usize);
-        runs.push((first..last, rows));
-        rest = tail;
-    }
-    let scanned: Vec<std::result::Result<Vec<(usize, usize)>, Fold>> = runs
+    // The nodes in ranges, each range's rows built, sorted and scanned on a thread of
+    // its own (each reads every triangle for the edges whose lower node is in its
+    // range, so a few ranges only); the ranges are taken in node order again, so the
+    // first fold reported is the one a scan in order would meet first.
+    let pieces = balanced_ranges(n, 3 * nt, |e| {
+        let t = &mesh.triangles[e / 3];
+        t[e % 3].min(t[(e + 1) % 3])
+    });
+    let scanned: Vec<std::result::Result<Vec<(usize, usize)>, Fold>> = pieces
         .into_par_iter()
-        .map(|(nodes, rows)| {
-            let base = start[nodes.start] as usize;
+        .map(|nodes| {
+            let (start, mut entries) = edge_rows(&mesh.triangles, nodes.clone());
             let mut found = Vec::new();
-            for low in nodes {
-                let row = &mut rows[start[low] as usize - base..start[low + 1] as usize - base];
+            for low in nodes.clone() {
+                let row = &mut entries
+                    [start[low - nodes.start] as usize..start[low - nodes.start + 1] as usize];
                 row.sort_unstable();
                 for run in row.chunk_by(|x, y| x.0 == y.0) {
                     let high = run[0].0 as usize;
@@ -438,6 +428,62 @@ fn edges(mesh: &Mesh, listed_cw: &[bool], name: &str) -> Result<HashSet<(usize, 
         }
     }
     Ok(boundary)
+}
+
+/// `0..n` in at most four ranges, for the pool's threads, of about as many of the
+/// `keys` (nodes, with repeats) each, found from every 64th of them: a triangle's lowest
+/// node is more often a low-numbered one, so equal ranges of nodes would not do.
+pub fn balanced_ranges(
+    n: usize,
+    count: usize,
+    keys: impl Fn(usize) -> usize,
+) -> Vec<std::ops::Range<usize>> {
+    let pieces = (rayon::current_num_threads().min(4))
+        .min(count.div_ceil(1 << 16))
+        .max(1);
+    let mut sample: Vec<usize> = (0..count).step_by(64).map(keys).collect();
+    sample.sort_unstable();
+    let mut cuts = vec![0];
+    for k in 1..pieces {
+        let at = sample[k * sample.len() / pieces].min(n);
+        cuts.push(at.max(cuts[k - 1]));
+    }
+    cuts.push(n);
+    cuts.windows(2).map(|w| w[0]..w[1]).collect()
+}
+
+/// The edges from each node of `nodes` to higher-numbered ones, in compressed rows
+/// (`start` from the range's first node): (other node, triangle << 1 | 1 when the
+/// triangle runs the edge from low to high).
+fn edge_rows(
+    triangles: &[[usize; 3]],
+    nodes: std::ops::Range<usize>,
+) -> (Vec<u32>, Vec<(u32, u32)>) {
+    let lo = nodes.start;
+    let mut start = vec![0u32; nodes.len() + 1];
+    for t in triangles {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            if nodes.contains(&a.min(b)) {
+                start[a.min(b) - lo + 1] += 1;
+            }
+        }
+    }
+    for i in 0..nodes.len() {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut entries = vec![(0u32, 0u32); start[nodes.len()] as usize];
+    for (t, tri) in triangles.iter().enumerate() {
+        for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
+            let low = a.min(b);
+            if nodes.contains(&low) {
+                entries[fill[low - lo] as usize] =
+                    (a.max(b) as u32, (t as u32) << 1 | u32::from(a < b));
+                fill[low - lo] += 1;
+            }
+        }
+    }
+    (start, entries)
 }
 
 /// Two triangles that run one edge the same way, from its `run` of (triangle << 1 | 1
@@ -836,12 +882,11 @@ mod tests {
         for threads in [1, 4] {
             let mut mesh = block.clone();
             let boundary = on_threads(threads, || check(&mut mesh, "m.msh")).unwrap();
-            assert_eq!(mesh.triangles, {
-                let mut serial = block.clone();
-                check(&mut serial, "m.msh").unwrap();
-                serial.triangles
-            });
-            assert!(!boundary.is_empty());
+            let mut serial = block.clone();
+            let serial_boundary = on_threads(1, || check(&mut serial, "m.msh")).unwrap();
+            assert_eq!(mesh.triangles, serial.triangles);
+            assert_eq!(boundary, serial_boundary);
+            assert_eq!(boundary.len(), 2 * (640 + 160));
 
             // Degenerate (a corner repeated): triangles 7 and nt - 3 (1-based).
             let mut mesh = block.clone();
