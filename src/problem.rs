@@ -13,6 +13,7 @@ use crate::fem::assembly::{add_body_force, add_edge_traction, edge_length};
 use crate::fem::{Hypothesis, Material};
 use crate::mesh::validate::{self, ContactHold, Free, Holds};
 use crate::mesh::{renumber, Mesh};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::{HashMap, HashSet};
 
@@ -926,11 +927,11 @@ fn mortar_contacts(
 }
 
 /// `v` (two values per node) in the node order `old_of` (new -> old).
-fn per_dof<T: Copy>(old_of: &[usize], v: &[T]) -> Vec<T> {
-    old_of
-        .iter()
-        .flat_map(|&o| [v[2 * o], v[2 * o + 1]])
-        .collect()
+fn per_dof<T: Copy + Send + Sync>(old_of: &[usize], v: &[T]) -> Vec<T> {
+    (old_of.par_iter())
+        .map(|&o| [v[2 * o], v[2 * o + 1]])
+        .collect::<Vec<[T; 2]>>()
+        .into_flattened()
 }
 
 /// `prob` with its nodes and triangles numbered along a Hilbert curve
@@ -961,8 +962,10 @@ fn in_locality_order(prob: Problem) -> Problem {
         contact: prob.contact.select(&keep),
         contact_masters,
         contact_nodes: by_new.iter().map(|&(v, _)| v).collect(),
-        file_node: old_of.iter().map(|&o| prob.file_node[o]).collect(),
-        file_triangle: tri_old_of.iter().map(|&o| prob.file_triangle[o]).collect(),
+        file_node: old_of.par_iter().map(|&o| prob.file_node[o]).collect(),
+        file_triangle: (tri_old_of.par_iter())
+            .map(|&o| prob.file_triangle[o])
+            .collect(),
         mesh,
         fixed,
         ..prob

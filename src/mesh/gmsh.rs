@@ -699,15 +699,16 @@ fn read_node_block_v41(r: &mut Reader, b: &mut Builder) -> Result<usize> {
     };
     if r.binary.is_none() && count >= r.parallel_from {
         let start = r.pos;
-        if let Some(nodes) = ascii_nodes(r, count, extra) {
-            for (i, (tag, xyz)) in nodes.into_iter().enumerate() {
-                if !b.node_index.insert(tag, b.nodes.len()) {
+        if let Some((tags, points)) = ascii_nodes(r, count, extra) {
+            let first = b.nodes.len();
+            for (i, &tag) in tags.iter().enumerate() {
+                if !b.node_index.insert(tag, first + i) {
                     let at = token_start(r.bytes, start, i);
                     return r.fail(at, format!("node {tag} is defined twice; {REEXPORT}"));
                 }
-                b.nodes.push(xyz);
-                b.node_tags.push(tag);
             }
+            b.nodes.extend_from_slice(&points);
+            b.node_tags.extend_from_slice(&tags);
             return Ok(count);
         }
         // Something is off: the record-by-record reading below finds it and says where.
@@ -744,7 +745,7 @@ const PARALLEL_RECORDS: usize = 1 << 14;
 /// A search for the newlines (memchr, many bytes per step) finds where every thread's
 /// share of whole records starts; a scan over the blanks, byte by byte, cost more than
 /// a second thread saved.
-fn ascii_records<T: Send>(
+fn ascii_records<T: Send + Default + Clone>(
     r: &mut Reader,
     n: usize,
     per: usize,
@@ -771,34 +772,34 @@ fn ascii_records<T: Send>(
         }
     }
     starts.push(end?);
-    let chunks: Vec<Option<Vec<T>>> = starts
-        .par_windows(2)
-        .map(|w| {
-            let mut out = Vec::with_capacity(per_piece);
-            let mut record: Vec<&[u8]> = Vec::with_capacity(per + 1);
-            // A piece but the last ends with its last line's newline.
-            let piece = &bytes[w[0]..w[1]];
-            let piece = piece.strip_suffix(b"\n").unwrap_or(piece);
-            for line in piece.split(|&c| c == b'\n') {
-                record.clear();
-                record.extend(
-                    line.split(|&c| is_space(c))
-                        .filter(|t| !t.is_empty())
-                        .take(per + 1),
-                );
-                if record.len() != per {
-                    return None;
-                }
-                out.push(parse(&record)?);
+    // Each piece parses its lines into its own slice of the records: no piece's vector
+    // to allocate, fill and copy again (page faults, not the parse, were most of the
+    // time left on one thread).
+    let mut all = vec![T::default(); n];
+    let parsed = (all.par_chunks_mut(per_piece).zip(starts.par_windows(2))).all(|(out, w)| {
+        let mut record: Vec<&[u8]> = Vec::with_capacity(per + 1);
+        // A piece but the last ends with its last line's newline.
+        let piece = &bytes[w[0]..w[1]];
+        let piece = piece.strip_suffix(b"\n").unwrap_or(piece);
+        let mut slots = out.iter_mut();
+        for line in piece.split(|&c| c == b'\n') {
+            record.clear();
+            record.extend(
+                line.split(|&c| is_space(c))
+                    .filter(|t| !t.is_empty())
+                    .take(per + 1),
+            );
+            if record.len() != per {
+                return false;
             }
-            Some(out)
-        })
-        .collect();
-    let mut all = Vec::with_capacity(n);
-    for chunk in chunks {
-        all.extend(chunk?);
-    }
-    (all.len() == n).then_some(())?;
+            match (slots.next(), parse(&record)) {
+                (Some(slot), Some(value)) => *slot = value,
+                _ => return false,
+            }
+        }
+        slots.next().is_none()
+    });
+    parsed.then_some(())?;
     r.pos = starts[starts.len() - 1];
     Some(all)
 }
@@ -839,7 +840,7 @@ fn token_start(bytes: &[u8], from: usize, i: usize) -> usize {
 
 /// An ASCII MSH 4.1 node block's tags, then coordinates (plus `extra` parametric ones),
 /// on all threads ([`ascii_records`]); `None` for the record-by-record reading to judge.
-fn ascii_nodes(r: &mut Reader, count: usize, extra: usize) -> Option<Vec<(u64, [f64; 3])>> {
+fn ascii_nodes(r: &mut Reader, count: usize, extra: usize) -> Option<(Vec<u64>, Vec<[f64; 3]>)> {
     let tags = ascii_records(r, count, 1, |t| ascii_u64(t[0]))?;
     let points = ascii_records(r, count, 3 + extra, |t| {
         let xyz = [0, 1, 2].map(|c| ascii_number::<f64>(t[c]));
@@ -850,7 +851,7 @@ fn ascii_nodes(r: &mut Reader, count: usize, extra: usize) -> Option<Vec<(u64, [
         }
         xyz.iter().all(|v| v.is_finite()).then_some(xyz)
     })?;
-    Some(tags.into_iter().zip(points).collect())
+    Some((tags, points))
 }
 
 /// An ASCII MSH 4.1 block of triangles (tag and three node tags per record), as node
@@ -933,7 +934,11 @@ fn read_element_block_v41(r: &mut Reader, b: &mut Builder) -> Result<usize> {
         let start = r.pos;
         if let Some(triangles) = ascii_triangles(r, b, count) {
             let first = b.triangles.len();
-            b.triangles.extend(triangles);
+            if first == 0 {
+                b.triangles = triangles;
+            } else {
+                b.triangles.extend_from_slice(&triangles);
+            }
             for &p in &physicals {
                 (b.surfaces.entry(p).or_default()).extend(first..b.triangles.len());
             }

@@ -65,11 +65,22 @@ pub fn sorted_order(keys: &[u64]) -> Vec<usize> {
 
 /// The inverse of the permutation `order` (position -> index): index -> position.
 pub fn inverse(order: &[usize]) -> Vec<usize> {
-    let mut inv = vec![0; order.len()];
-    for (pos, &i) in order.iter().enumerate() {
-        inv[i] = pos;
+    use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+    if order.len() < 1 << 16 {
+        let mut inv = vec![0; order.len()];
+        for (pos, &i) in order.iter().enumerate() {
+            inv[i] = pos;
+        }
+        return inv;
     }
-    inv
+    // On the pool's threads: a scatter of millions of entries, random writes each. Each
+    // slot is written once (`order` is a permutation), so relaxed stores do.
+    let inv: Vec<AtomicUsize> = (0..order.len())
+        .into_par_iter()
+        .map(|_| AtomicUsize::new(0))
+        .collect();
+    (order.par_iter().enumerate()).for_each(|(pos, &i)| inv[i].store(pos, Relaxed));
+    inv.into_iter().map(AtomicUsize::into_inner).collect()
 }
 
 /// The order of `triangles` by their sorted node triples: by their smallest node, then
@@ -179,6 +190,18 @@ mod tests {
         assert_eq!(sorted_order(&k), [0, 2, 1]);
         let outside = hilbert_keys(&[[-1e-300, 1.0 + 1e-15]], [[0.0, 0.0], [1.0, 1.0]]);
         assert_eq!(outside.len(), 1);
+    }
+
+    #[test]
+    fn a_large_inverse_on_several_threads_undoes_the_order() {
+        let n = 300_007;
+        let order: Vec<usize> = (0..n).map(|i| (i * 7919 + 11) % n).collect();
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build();
+        let inv = pool.unwrap().install(|| inverse(&order));
+        assert_eq!(inv.len(), n);
+        for (pos, &i) in order.iter().enumerate() {
+            assert_eq!(inv[i], pos);
+        }
     }
 
     #[test]
