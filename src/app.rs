@@ -318,6 +318,7 @@ fn solve_condensed(ctx: &Subdomain, sub: &SubProblem) -> Result<Solved> {
         format!("the displacement of {} nodes", ctx.setup.facts.nodes),
     );
     let factors = FactorFigures::condensed(&step);
+    host::drop_in_background(step.into_local());
     Ok(Solved::new(sub, outcome, u, factors))
 }
 

@@ -140,6 +140,15 @@ pub fn peak_memory_bytes() -> u64 {
         .map_or(0, |kb| kb * 1024)
 }
 
+/// Drops `value` on a thread of its own, so that the caller goes on at once: the factor
+/// of a million-node subdomain took 0.07 s to hand back to the system, on the way from
+/// the recovery to the output. Should the thread not start, `value` is dropped here.
+pub fn drop_in_background<T: Send + 'static>(value: T) {
+    let _ = std::thread::Builder::new()
+        .name("free".into())
+        .spawn(move || drop(value));
+}
+
 #[cfg(test)]
 mod tests {
     use super::{
