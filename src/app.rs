@@ -1355,6 +1355,8 @@ fn split_cut(
             None => Err(Error::Numerical("internal: no graph to split".into())),
         };
         split_s = start.elapsed().as_secs_f64();
+        // The whole problem is not needed past here; the other ranks wait for their parts.
+        host::drop_in_background(prob);
         split
     })?;
     let who = match (by_ranks, shares_s) {

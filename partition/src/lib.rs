@@ -1062,6 +1062,34 @@ mod tests {
     }
 
     #[test]
+    fn stars_list_each_nodes_triangles_in_order_on_any_number_of_threads() {
+        // 200 000 nodes, some in no triangle, some triangles repeated.
+        let n = 200_000;
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 33) % (n as u64 - 1)) as usize
+        };
+        let tris: Vec<[usize; 3]> = (0..150_000).map(|_| [next(), next(), next()]).collect();
+        let mut expect: Vec<Vec<Idx>> = vec![Vec::new(); n];
+        for (e, t) in tris.iter().enumerate() {
+            for &v in t {
+                expect[v].push(e as Idx);
+            }
+        }
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let stars = pool.unwrap().install(|| Stars::new(n, &tris).unwrap());
+            assert_eq!(stars.num_nodes(), n);
+            for (v, e) in expect.iter().enumerate() {
+                assert_eq!(stars.of(v), &e[..], "node {v}, {threads} threads");
+            }
+        }
+    }
+
+    #[test]
     fn fan_around_a_node_is_a_cycle() {
         // Six triangles around node 0: each shares an edge with the two next to it.
         let tris: Vec<[usize; 3]> = (0..6).map(|i| [0, 1 + i, 1 + (i + 1) % 6]).collect();

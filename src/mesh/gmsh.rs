@@ -1336,7 +1336,7 @@ fn drop_repeated_triangles(
     let all: &[[usize; 3]] = triangles;
     let smallest = |t: &[usize; 3]| t[0].min(t[1]).min(t[2]);
     let ranges =
-        crate::mesh::validate::balanced_ranges(num_nodes, all.len(), |t| smallest(&all[t]));
+        crate::mesh::validate::balanced_ranges(num_nodes, all.len(), 1, |t| smallest(&all[t]));
     // Every (repeat, the triangle it repeats) pair, in file order within a range.
     let repeats: Vec<(usize, usize)> = (ranges.into_par_iter())
         .flat_map_iter(|nodes| repeats_from(all, nodes.start, nodes.end))

@@ -377,7 +377,9 @@ fn edges(mesh: &Mesh, listed_cw: &[bool], name: &str) -> Result<HashSet<(usize, 
     // its own (each reads every triangle for the edges whose lower node is in its
     // range, so a few ranges only); the ranges are taken in node order again, so the
     // first fold reported is the one a scan in order would meet first.
-    let pieces = balanced_ranges(n, 3 * nt, |e| {
+    // Two ranges a thread: the mesh's parts are found beside them (`check_with`), and
+    // the thread that finishes those takes a range still waiting.
+    let pieces = balanced_ranges(n, 3 * nt, 2, |e| {
         let t = &mesh.triangles[e / 3];
         t[e % 3].min(t[(e + 1) % 3])
     });
@@ -430,15 +432,18 @@ fn edges(mesh: &Mesh, listed_cw: &[bool], name: &str) -> Result<HashSet<(usize, 
     Ok(boundary)
 }
 
-/// `0..n` in at most four ranges, for the pool's threads, of about as many of the
-/// `keys` (nodes, with repeats) each, found from every 64th of them: a triangle's lowest
-/// node is more often a low-numbered one, so equal ranges of nodes would not do.
+/// `0..n` in at most `per_thread` ranges per thread of the pool, and at most eight, of
+/// about as many of the `keys` (nodes, with repeats) each, found from every 64th of them:
+/// a triangle's lowest node is more often a low-numbered one, so equal ranges of nodes
+/// would not do. Each range's work reads every triangle, hence few ranges.
 pub fn balanced_ranges(
     n: usize,
     count: usize,
+    per_thread: usize,
     keys: impl Fn(usize) -> usize,
 ) -> Vec<std::ops::Range<usize>> {
-    let pieces = (rayon::current_num_threads().min(4))
+    let pieces = (per_thread * rayon::current_num_threads())
+        .min(8)
         .min(count.div_ceil(1 << 16))
         .max(1);
     let mut sample: Vec<usize> = (0..count).step_by(64).map(keys).collect();
