@@ -752,6 +752,9 @@ fn ascii_records<T: Send + Default + Clone>(
     parse: impl Fn(&[&[u8]]) -> Option<T> + Sync,
 ) -> Option<Vec<T>> {
     use rayon::prelude::*;
+    if n == 0 {
+        return Some(Vec::new());
+    }
     let bytes = r.bytes;
     r.skip_space();
     let first = r.pos;
