@@ -939,8 +939,12 @@ fn per_dof<T: Copy + Send + Sync>(old_of: &[usize], v: &[T]) -> Vec<T> {
 /// problem, its set-up walking memory in order. Done after every check, so that
 /// messages name nodes and triangles in the file's numbering.
 fn in_locality_order(prob: Problem) -> Problem {
-    let (mesh, old_of, tri_old_of) = renumber::by_hilbert_curve(prob.mesh);
-    let new_of = renumber::inverse(&old_of);
+    let (mesh, numbering) = renumber::by_hilbert_curve(prob.mesh);
+    let renumber::Renumbering {
+        old_of,
+        new_of,
+        tri_old_of,
+    } = numbering;
     let fixed = per_dof(&old_of, &prob.fixed);
     // Contact nodes stay in increasing order, now the new one.
     let mut by_new: Vec<(usize, usize)> = (prob.contact_nodes.iter())

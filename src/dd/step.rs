@@ -295,15 +295,15 @@ impl<'a> CondensedStep<'a> {
         self.mpi.broadcast(ok)
     }
 
-    /// The displacement of every node of the subdomain, from the boundary values of the
-    /// last sweep, which every rank holds: the backward half of a sparse solve for the
-    /// interior (timed as the rest of [`Phase::OneSolve`]). `iterations`: the loop's.
     /// The factored subdomain, for its owner to free when it chooses: at millions of
     /// dofs, handing a gigabyte back to the system takes tens of milliseconds.
     pub fn into_local(self) -> LocalSystem {
         self.local
     }
 
+    /// The displacement of every node of the subdomain, from the boundary values of the
+    /// last sweep, which every rank holds: the backward half of a sparse solve for the
+    /// interior (timed as the rest of [`Phase::OneSolve`]). `iterations`: the loop's.
     pub fn recover(&mut self, iterations: usize, timer: &Timer) -> Result<Vec<[f64; 2]>> {
         if iterations == 0 {
             // A loop that never solved: the boundary values of zero forces.

@@ -124,11 +124,20 @@ fn sorted_by_key<K: Ord + Send>(
     keyed.into_par_iter().map(|(_, i)| i).collect()
 }
 
+/// The numbering [`by_hilbert_curve`] gives a mesh.
+pub struct Renumbering {
+    /// Each new node's index before (new -> old).
+    pub old_of: Vec<usize>,
+    /// Each old node's new index (old -> new).
+    pub new_of: Vec<usize>,
+    /// Each new triangle's index before (new -> old).
+    pub tri_old_of: Vec<usize>,
+}
+
 /// `mesh` with its nodes in Hilbert order of their coordinates and its triangles in
 /// the order of their nodes ([`order_by_nodes`]) (each keeps its vertices' cyclic order, so its
-/// orientation), its groups renumbered with it. Returns the mesh and, for each new
-/// node and each new triangle, its index before (new -> old).
-pub fn by_hilbert_curve(mesh: Mesh) -> (Mesh, Vec<usize>, Vec<usize>) {
+/// orientation), its groups renumbered with it. Returns the mesh and the renumbering.
+pub fn by_hilbert_curve(mesh: Mesh) -> (Mesh, Renumbering) {
     let bbox = bounding_box(&mesh.nodes);
     let old_of = sorted_order(&hilbert_keys(&mesh.nodes, bbox));
     let new_of = inverse(&old_of);
@@ -167,7 +176,12 @@ pub fn by_hilbert_curve(mesh: Mesh) -> (Mesh, Vec<usize>, Vec<usize>) {
         point_groups,
         surface_groups,
     };
-    (mesh, old_of, tri_order)
+    let numbering = Renumbering {
+        old_of,
+        new_of,
+        tri_old_of: tri_order,
+    };
+    (mesh, numbering)
 }
 
 #[cfg(test)]
@@ -266,7 +280,7 @@ mod tests {
             .collect();
         assert!(!body.is_empty() && body.len() < scrambled.triangles.len());
         scrambled.surface_groups.insert("left".into(), body.clone());
-        let (re, old_of, _) = by_hilbert_curve(scrambled.clone());
+        let (re, Renumbering { old_of, .. }) = by_hilbert_curve(scrambled.clone());
         let carried = &re.surface_groups["left"];
         assert_eq!(carried.len(), body.len());
         assert!(carried.windows(2).all(|w| w[0] < w[1]));
