@@ -2362,6 +2362,7 @@ fn run_facts(ctx: &Subdomain) -> RunFacts {
         acceleration: format!("{:?}", case.solver.acceleration),
         ranks: ctx.mpi.mpi_size,
         threads: rayon::current_num_threads(),
+        idle_core_threads: host::idle_core_threads_used(),
         linear: format!("{:?}", ctx.opts.linear).to_lowercase(),
         nodes: setup.facts.nodes,
         elements: setup.facts.elements,

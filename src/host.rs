@@ -2,6 +2,9 @@
 //! first rank borrows, how the allocator keeps freed memory, and what the process reads
 //! of its own memory. Nothing here changes a result, only where and how fast it is made.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::OnceLock;
+
 /// Triangles per subdomain from which [`subdomains_per_rank`] gives a thread a
 /// subdomain of its own (see there).
 pub const MIN_TRIANGLES_PER_SUBDOMAIN: usize = 5_000;
@@ -40,38 +43,142 @@ pub fn subdomains_per_rank(threads: usize, ranks: usize, triangles: usize) -> us
 }
 
 /// Runs `work` with the threads of every rank of this node, `node_ranks` of them each
-/// with this rank's thread count, while the others wait asleep: as many as the cores
-/// this rank may run on allow (its CPU set, all of the node's cores under
-/// `--bind-to none`, one under `--bind-to core`). Only where that is more than its own
+/// with this rank's thread count, while the others wait asleep: as many as the node's
+/// ranks may run on together ([`node_cores`]). Only where that is more than its own
 /// threads; otherwise, or should the pool not start, on its own threads.
 pub fn on_idle_cores<T: Send>(node_ranks: usize, work: impl FnOnce() -> T + Send) -> T {
     let own = rayon::current_num_threads();
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let threads = idle_core_threads(own, node_ranks, cores);
+    let threads = idle_core_threads(own, node_ranks, node_cores());
+    BORROWED_THREADS.fetch_max(threads, Ordering::Relaxed);
     if threads <= own {
         return work();
     }
-    match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
-        Ok(pool) => pool.install(work),
-        Err(_) => work(),
+    match node_pool(threads) {
+        Some(pool) => pool.install(work),
+        None => work(),
     }
 }
 
+/// The most threads [`on_idle_cores`] asked for in this process.
+static BORROWED_THREADS: AtomicUsize = AtomicUsize::new(0);
+
+/// The most threads this process's work on its node's idle cores ran on (its own where
+/// it borrowed none; 0 before any such work): summary.json's `idle_core_threads`.
+pub fn idle_core_threads_used() -> usize {
+    BORROWED_THREADS.load(Ordering::Relaxed)
+}
+
 /// Threads for the first rank's work alone: its own `own` times the `node_ranks` ranks
-/// of its node, within the `cores` it may run on, and never fewer than its own.
+/// of its node, within the `cores` they may run on, and never fewer than its own.
 fn idle_core_threads(own: usize, node_ranks: usize, cores: usize) -> usize {
     own.saturating_mul(node_ranks).min(cores).max(own)
 }
 
-/// Threads the interface system's factorization may use: every core this rank can run
-/// on once it is worth a thread pool (n^3 / 3 flops: 0.36 Gflop, tens of milliseconds,
-/// at n = 1024), else one. The other subdomains sleep meanwhile (`dd::step`).
+/// Threads the interface system's factorization may use: every core of this node's
+/// ranks once it is worth a thread pool (n^3 / 3 flops: 0.36 Gflop, tens of
+/// milliseconds, at n = 1024), else one. The other subdomains sleep meanwhile
+/// (`dd::step`).
 pub fn interface_threads(n_interface: usize) -> usize {
     if n_interface >= 1024 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
+        node_cores()
     } else {
         1
     }
+}
+
+/// A set of CPUs: CPU k is bit k % 64 of word k / 64.
+pub type CpuWords = Vec<u64>;
+
+/// The CPUs of all the ranks of this node together, gathered once at start-up
+/// ([`set_node_cpus`]).
+static NODE_CPUS: OnceLock<CpuWords> = OnceLock::new();
+
+/// Words of a [`CpuWords`] set: as many CPUs as the kernel's fixed-size CPU mask.
+#[cfg(target_os = "linux")]
+pub const CPU_WORDS: usize = libc::CPU_SETSIZE as usize / 64;
+#[cfg(not(target_os = "linux"))]
+pub const CPU_WORDS: usize = 16;
+
+/// The CPUs this thread may run on ([`CPU_WORDS`] words); none where the system does
+/// not tell.
+pub fn own_cpus() -> CpuWords {
+    let mut words = vec![0; CPU_WORDS];
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: cpu_set_t is a plain bit array, zeroed is the empty set; the call
+        // writes at most the size it is given.
+        let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+        let size = std::mem::size_of::<libc::cpu_set_t>();
+        if unsafe { libc::sched_getaffinity(0, size, &mut set) } == 0 {
+            for cpu in 0..CPU_WORDS * 64 {
+                // SAFETY: cpu is below CPU_SETSIZE.
+                if unsafe { libc::CPU_ISSET(cpu, &set) } {
+                    words[cpu / 64] |= 1 << (cpu % 64);
+                }
+            }
+        }
+    }
+    words
+}
+
+/// Binds the calling thread to `cpus`; false where the system refuses (e.g. a CPU
+/// outside the process's cgroup) or cannot.
+fn bind_to(cpus: &[u64]) -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: as in own_cpus; every cpu set is below CPU_SETSIZE.
+        let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+        for cpu in
+            (0..cpus.len().min(CPU_WORDS) * 64).filter(|&c| cpus[c / 64] >> (c % 64) & 1 == 1)
+        {
+            unsafe { libc::CPU_SET(cpu, &mut set) };
+        }
+        let size = std::mem::size_of::<libc::cpu_set_t>();
+        unsafe { libc::sched_setaffinity(0, size, &set) == 0 }
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = cpus;
+        false
+    }
+}
+
+/// The union of the node's ranks' CPU sets, each gathered with [`own_cpus`]: where one
+/// rank's threads may run while the node's other ranks sleep. Set once; later calls
+/// are ignored.
+pub fn set_node_cpus(union: CpuWords) {
+    let _ = NODE_CPUS.set(union);
+}
+
+fn count(cpus: &[u64]) -> usize {
+    cpus.iter().map(|w| w.count_ones() as usize).sum()
+}
+
+/// Cores the ranks of this node may run on together: all of the node's under
+/// `--bind-to none`, one a rank under `--bind-to core` (Open MPI's default for two
+/// ranks); this process's own where the node's are not known.
+pub fn node_cores() -> usize {
+    match NODE_CPUS.get().map(|c| count(c)) {
+        Some(n) if n > 0 => n,
+        _ => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    }
+}
+
+/// A pool of `threads` threads that may run on every CPU of this node's ranks, for
+/// work during which the node's other ranks sleep (their cores are idle): a rank bound
+/// to its own core (`--bind-to core`) would otherwise crowd them all onto it. The pool's
+/// threads take the CPU set of the thread that starts them, so this thread takes the
+/// node's for the start and its own back after. None should the pool not start.
+pub fn node_pool(threads: usize) -> Option<rayon::ThreadPool> {
+    let own = own_cpus();
+    let wider = NODE_CPUS
+        .get()
+        .filter(|node| count(&own) > 0 && count(node) > count(&own) && bind_to(node));
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+    if wider.is_some() {
+        bind_to(&own);
+    }
+    pool.ok()
 }
 
 /// Shares the rank's `threads` among its `per_rank` subdomains: each factorization
@@ -152,8 +259,29 @@ pub fn drop_in_background<T: Send + 'static>(value: T) {
 #[cfg(test)]
 mod tests {
     use super::{
-        idle_core_threads, subdomains_per_rank, MAX_DEFAULT_SUBDOMAINS, MIN_TRIANGLES_PER_SUBDOMAIN,
+        bind_to, idle_core_threads, node_pool, own_cpus, set_node_cpus, subdomains_per_rank,
+        CPU_WORDS, MAX_DEFAULT_SUBDOMAINS, MIN_TRIANGLES_PER_SUBDOMAIN,
     };
+
+    /// A rank bound to one CPU starts a pool whose threads run on every CPU of its node
+    /// (here: all of this test's), and keeps its own binding.
+    #[test]
+    fn a_node_pool_runs_on_the_nodes_cpus_and_its_starter_stays_on_its_own() {
+        let all = own_cpus();
+        let first = (0..CPU_WORDS * 64)
+            .find(|&c| all[c / 64] >> (c % 64) & 1 == 1)
+            .expect("a CPU to run on");
+        set_node_cpus(all.clone());
+        let mut one = vec![0; CPU_WORDS];
+        one[first / 64] |= 1 << (first % 64);
+        assert!(bind_to(&one));
+        let pool = node_pool(2).expect("a pool of two threads");
+        let inside = pool.install(own_cpus);
+        let after = own_cpus();
+        bind_to(&all);
+        assert_eq!(inside, all);
+        assert_eq!(after, one);
+    }
 
     #[test]
     fn a_rank_splits_into_one_subdomain_per_thread_while_they_stay_large_and_few() {
@@ -183,11 +311,11 @@ mod tests {
 
     #[test]
     fn the_first_rank_borrows_only_the_cores_of_its_node_it_may_run_on() {
-        // Two ranks of one thread, unbound on two cores: both cores.
+        // Two ranks of one thread on two cores, bound to one each or not: both cores.
         assert_eq!(idle_core_threads(1, 2, 2), 2);
         // One rank told to use one thread: no other rank's cores to borrow.
         assert_eq!(idle_core_threads(1, 1, 2), 1);
-        // Bound to one core (Open MPI's default for two ranks): that core.
+        // Two ranks on one core: that core.
         assert_eq!(idle_core_threads(1, 2, 1), 1);
         // More threads than cores asked for: never fewer than its own.
         assert_eq!(idle_core_threads(4, 2, 2), 4);

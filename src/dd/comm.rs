@@ -10,6 +10,7 @@
 
 use crate::contact::Reduce;
 use crate::error::{Error, Result};
+use crate::host;
 use mpi::collective::SystemOperation;
 use mpi::datatype::{Partition, PartitionMut};
 use mpi::point_to_point::{Destination, Source};
@@ -332,12 +333,23 @@ impl Mpi {
     }
 
     /// The number of ranks that share this rank's node (MPI_Comm_split_type, shared
-    /// memory), itself included. Collective.
+    /// memory), itself included; and the CPUs they may run on together, for
+    /// [`host::set_node_cpus`]. Collective.
     fn ranks_on_node(world: &SimpleCommunicator) -> usize {
+        let own = host::own_cpus();
         if world.size() == 1 {
+            host::set_node_cpus(own);
             return 1;
         }
-        world.split_shared(0).size().max(1) as usize
+        let node = world.split_shared(0);
+        let mut all = vec![0u64; own.len() * node.size().max(1) as usize];
+        node.all_gather_into(&own[..], &mut all[..]);
+        let mut union = own;
+        for cpus in all.chunks_exact(union.len()) {
+            union.iter_mut().zip(cpus).for_each(|(u, c)| *u |= c);
+        }
+        host::set_node_cpus(union);
+        node.size().max(1) as usize
     }
 
     pub fn is_root(&self) -> bool {

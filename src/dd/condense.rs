@@ -23,6 +23,7 @@ use crate::contact::operators::{row_nodes, ContactRowsGeometry};
 use crate::contact::tangent_of;
 use crate::dd::local_factor::LocalFactor;
 use crate::error::{Error, Result};
+use crate::host;
 use crate::linear::SparseCholesky;
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
 use faer::{Mat, Side};
@@ -222,12 +223,13 @@ const SPARSE_INTERFACE_WORK: f64 = 0.5;
 const DENSE_COVER: f64 = 0.6;
 
 /// `f` with faer's process-wide parallelism set to `threads` threads of a pool of its
-/// own, whatever the threads of this rank, and put back afterwards.
+/// own on the node's cores ([`host::node_pool`]), whatever the threads of this rank,
+/// and put back afterwards.
 fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
     if threads <= 1 {
         return f();
     }
-    let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(threads).build() else {
+    let Some(pool) = host::node_pool(threads) else {
         return f();
     };
     let previous = faer::get_global_parallelism();

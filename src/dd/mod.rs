@@ -49,7 +49,7 @@
 //! | factor (each rank) | sparse Cholesky, O(n_s^1.5) in 2D with a good ordering, + b_s^3 / 3 for the dense trailing block | nnz(L_s) + b_s^2 | - |
 //! | condensed loads (each rank) | the forward half of a sparse solve, 2 nnz(L_s), + b_s^2 | n_s | - |
 //! | interface part L_gg L_gg' (each rank) | g_s^3 / 3 | g_s^2 | one message of g_s^2 doubles to rank 0 |
-//! | interface factor (rank 0, on every core of its CPU set while the others sleep) | n_G^3 / 3 dense, or the sparse factor's (`interface_gflop` in summary.json) when at most half that | n_G^2, or nnz(L_G) | - |
+//! | interface factor (rank 0, on every core of its node's ranks while they sleep) | n_G^3 / 3 dense, or the sparse factor's (`interface_gflop` in summary.json) when at most half that | n_G^2, or nnz(L_G) | - |
 //! | one sweep | each rank: 2 c_s^2 + 4 c_s g_s + O(own contact nodes); rank 0: 2 n_G^2, or 4 nnz(L_G) | - | MPI_Gatherv + MPI_Scatterv of the interface values (sum g_s values), one MPI_Allreduce of 21 + m(m+1)/2 + m doubles (the loop's 17 named sums, the squared fixed-point residual and the secant's three norms, then the Anderson Gram matrix and right-hand side; see `contact::uzawa`); with one rank, no interface and only the allreduce |
 //! | recovery | each rank: the backward half of a sparse solve, 2 nnz(L_s), + b_s^2 (the forward half is kept from the condensed loads) | - | - |
 //!

@@ -66,6 +66,9 @@ pub struct RunFacts {
     pub acceleration: String,
     pub ranks: usize,
     pub threads: usize,
+    /// Threads the first rank's start (read, partition) ran on: its own and those of
+    /// the node's sleeping ranks, whose cores it borrows (`host::on_idle_cores`).
+    pub idle_core_threads: usize,
     pub linear: String,
     pub nodes: usize,
     pub elements: usize,

@@ -17,8 +17,15 @@ pub const BIN: &str = env!("CARGO_BIN_EXE_contact-par");
 /// another mpirun creates it in between, which tests running in parallel do now and
 /// then. A directory of its own per run cannot race.
 pub fn mpirun(np: usize, dir: &Path) -> Command {
+    mpirun_with(np, &[], dir)
+}
+
+/// [`mpirun`] with mpirun's own `options` (e.g. `--bind-to core`).
+pub fn mpirun_with(np: usize, options: &[&str], dir: &Path) -> Command {
     let mut c = Command::new("mpirun");
-    c.args(["-n", &np.to_string(), "--oversubscribe", BIN])
+    c.args(["-n", &np.to_string(), "--oversubscribe"])
+        .args(options)
+        .arg(BIN)
         .current_dir(dir)
         .env("TMPDIR", dir)
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
