@@ -65,7 +65,72 @@ pub struct SubProblem {
     pub ghosts: usize,
 }
 
+/// The large arrays of a [`SubProblem`], which [`Mpi::scatter_parts`] sends as they lie
+/// in memory, the rest encoded.
+///
+/// [`Mpi::scatter_parts`]: crate::dd::comm::Mpi::scatter_parts
+#[derive(Debug, Default, PartialEq)]
+pub struct PartArrays {
+    pub global_nodes: Vec<usize>,
+    pub nodes: Vec<[f64; 2]>,
+    pub triangles: Vec<[usize; 3]>,
+    pub body: Vec<u32>,
+    pub owned: Vec<bool>,
+    pub load: Vec<f64>,
+}
+
+impl PartArrays {
+    /// The arrays' lengths, in the order of the fields.
+    pub fn lengths(&self) -> [u64; 6] {
+        [
+            self.global_nodes.len(),
+            self.nodes.len(),
+            self.triangles.len(),
+            self.body.len(),
+            self.owned.len(),
+            self.load.len(),
+        ]
+        .map(|n| n as u64)
+    }
+
+    /// Arrays of the given [`PartArrays::lengths`], to receive into.
+    pub fn of_lengths(n: [u64; 6]) -> Self {
+        let n = n.map(|n| n as usize);
+        PartArrays {
+            global_nodes: vec![0; n[0]],
+            nodes: vec![[0.0; 2]; n[1]],
+            triangles: vec![[0; 3]; n[2]],
+            body: vec![0; n[3]],
+            owned: vec![false; n[4]],
+            load: vec![0.0; n[5]],
+        }
+    }
+}
+
 impl SubProblem {
+    /// Moves its large arrays out, leaving them empty.
+    pub fn take_arrays(&mut self) -> PartArrays {
+        use std::mem::take;
+        PartArrays {
+            global_nodes: take(&mut self.global_nodes),
+            nodes: take(&mut self.nodes),
+            triangles: take(&mut self.triangles),
+            body: take(&mut self.body),
+            owned: take(&mut self.owned),
+            load: take(&mut self.load),
+        }
+    }
+
+    /// Puts back the arrays [`SubProblem::take_arrays`] took.
+    pub fn put_arrays(&mut self, a: PartArrays) {
+        self.global_nodes = a.global_nodes;
+        self.nodes = a.nodes;
+        self.triangles = a.triangles;
+        self.body = a.body;
+        self.owned = a.owned;
+        self.load = a.load;
+    }
+
     /// Each local node's frame, `None` for x, y (see `fem::assemble_in_frames`).
     pub fn node_frames(&self) -> Vec<Option<[f64; 2]>> {
         let mut f = vec![None; self.nodes.len()];

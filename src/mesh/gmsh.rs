@@ -701,11 +701,9 @@ fn read_node_block_v41(r: &mut Reader, b: &mut Builder) -> Result<usize> {
         let start = r.pos;
         if let Some((tags, points)) = ascii_nodes(r, count, extra) {
             let first = b.nodes.len();
-            for (i, &tag) in tags.iter().enumerate() {
-                if !b.node_index.insert(tag, first + i) {
-                    let at = token_start(r.bytes, start, i);
-                    return r.fail(at, format!("node {tag} is defined twice; {REEXPORT}"));
-                }
+            if let Err(i) = b.node_index.insert_all(&tags, first) {
+                let (at, tag) = (token_start(r.bytes, start, i), tags[i]);
+                return r.fail(at, format!("node {tag} is defined twice; {REEXPORT}"));
             }
             b.nodes.extend_from_slice(&points);
             b.node_tags.extend_from_slice(&tags);
@@ -758,7 +756,10 @@ fn ascii_records<T: Send + Default + Clone>(
     let bytes = r.bytes;
     r.skip_space();
     let first = r.pos;
-    let pieces = (4 * rayon::current_num_threads()).min(n).max(1);
+    // Many pieces, each a job of its own (`with_max_len(1)`), so that a thread that
+    // starts late or parses faster takes the pieces of another: with a few large pieces
+    // per thread, one thread parsed its last two alone.
+    let pieces = (16 * rayon::current_num_threads()).min(n).max(1);
     let per_piece = n.div_ceil(pieces);
     // Where each piece's first line starts, and where the last line ends.
     let mut starts = vec![first];
@@ -779,7 +780,8 @@ fn ascii_records<T: Send + Default + Clone>(
     // to allocate, fill and copy again (page faults, not the parse, were most of the
     // time left on one thread).
     let mut all = vec![T::default(); n];
-    let parsed = (all.par_chunks_mut(per_piece).zip(starts.par_windows(2))).all(|(out, w)| {
+    let pieces = all.par_chunks_mut(per_piece).zip(starts.par_windows(2));
+    let parsed = pieces.with_max_len(1).all(|(out, w)| {
         let mut record: Vec<&[u8]> = Vec::with_capacity(per + 1);
         // A piece but the last ends with its last line's newline.
         let piece = &bytes[w[0]..w[1]];
@@ -1307,6 +1309,41 @@ impl TagIndex {
             *slot = index;
         }
         new
+    }
+
+    /// Records `tags[i]` at `first + i` for every i; `Err(i)` for the first tag that was
+    /// already there (in the table or earlier in `tags`), the tags before it recorded.
+    ///
+    /// Why: Gmsh numbers a block's nodes consecutively, so a block of a large mesh fills
+    /// one stretch of the table: checked and filled on all the threads, where one thread
+    /// recording a million tags one by one was a serial step of the read.
+    fn insert_all(&mut self, tags: &[u64], first: usize) -> std::result::Result<(), usize> {
+        use rayon::prelude::*;
+        let consecutive = |t0: u64| {
+            let end = t0.checked_add(tags.len() as u64)?;
+            let runs = tags
+                .par_iter()
+                .enumerate()
+                .all(|(i, &t)| t == t0 + i as u64);
+            (end <= self.table_limit && runs).then_some((t0 as usize, end as usize))
+        };
+        if let Some((lo, hi)) = tags.first().and_then(|&t0| consecutive(t0)) {
+            if self.table.len() < hi {
+                self.table.resize(hi, Self::NONE);
+            }
+            let stretch = &mut self.table[lo..hi];
+            if stretch.par_iter().all(|&slot| slot == Self::NONE) {
+                let fill = |(i, slot): (usize, &mut usize)| *slot = first + i;
+                stretch.par_iter_mut().enumerate().for_each(fill);
+                return Ok(());
+            }
+        }
+        for (i, &tag) in tags.iter().enumerate() {
+            if !self.insert(tag, first + i) {
+                return Err(i);
+            }
+        }
+        Ok(())
     }
 
     fn get(&self, tag: u64) -> Option<usize> {
@@ -2017,6 +2054,37 @@ mod tests {
         // The surface is in two physical groups: MSH 2.2 lists each triangle twice.
         assert_eq!(v41.triangles.len(), 14);
         assert_eq!(text(OVERLAP_22).matches(" 2 2 9 1 ").count(), 14);
+    }
+
+    #[test]
+    fn a_block_of_tags_is_recorded_whole_or_up_to_its_first_repeat() {
+        let mut index = TagIndex::default();
+        index.expect(1000);
+        // Consecutive tags fill a stretch of the table.
+        let block: Vec<u64> = (10..610).collect();
+        assert_eq!(index.insert_all(&block, 4), Ok(()));
+        assert_eq!(
+            (index.get(10), index.get(609), index.get(610)),
+            (Some(4), Some(603), None)
+        );
+        // A second block that repeats a tag: the first repeat is named, those before it kept.
+        assert_eq!(index.insert_all(&[700, 701, 609, 702], 604), Err(2));
+        assert_eq!(
+            (index.get(701), index.get(609), index.get(702)),
+            (Some(605), Some(603), None)
+        );
+        // Consecutive tags over a recorded one, and tags that repeat within the block.
+        assert_eq!(index.insert_all(&[2004], 699), Ok(()));
+        assert_eq!(
+            index.insert_all(&(2000..2010).collect::<Vec<_>>(), 700),
+            Err(4)
+        );
+        assert_eq!((index.get(2003), index.get(2004)), (Some(703), Some(699)));
+        assert_eq!(index.insert_all(&[800, 801, 800], 710), Err(2));
+        // Beyond the table, in the map; and an empty block.
+        assert_eq!(index.insert_all(&[u64::MAX - 1, u64::MAX], 720), Ok(()));
+        assert_eq!(index.get(u64::MAX), Some(721));
+        assert_eq!(index.insert_all(&[], 730), Ok(()));
     }
 
     #[test]
