@@ -1215,19 +1215,17 @@ impl Builder {
         let Some(first) = self.nodes.first() else {
             return Ok(());
         };
+        use rayon::prelude::*;
         let extent = |axis: usize| {
-            let values = self.nodes.iter().map(|p| p[axis]);
-            let max = values.clone().fold(f64::NEG_INFINITY, f64::max);
-            let min = values.fold(f64::INFINITY, f64::min);
+            let values = self.nodes.par_iter().map(|p| p[axis]);
+            let max = values.clone().reduce(|| f64::NEG_INFINITY, f64::max);
+            let min = values.reduce(|| f64::INFINITY, f64::min);
             max - min
         };
         let tolerance = plane_tolerance(extent(0).max(extent(1)));
         let first_tag = self.node_tags.first().copied().unwrap_or_default();
-        let off_plane = self
-            .nodes
-            .iter()
-            .zip(&self.node_tags)
-            .find(|(p, _)| (p[2] - first[2]).abs() > tolerance);
+        let off_plane = (self.nodes.par_iter().zip(&self.node_tags))
+            .find_first(|(p, _)| (p[2] - first[2]).abs() > tolerance);
         match off_plane {
             Some((p, tag)) => input(off_plane_message(name, *tag, p[2], first_tag, first[2])),
             None => Ok(()),
@@ -1235,6 +1233,7 @@ impl Builder {
     }
 
     fn finish(mut self, name: &str) -> Result<Mesh> {
+        use rayon::prelude::*;
         let kept = drop_repeated_triangles(self.nodes.len(), &mut self.triangles);
         // A repeat's groups go to the triangle kept in its place (MSH 2.2 writes a
         // triangle of two physical surfaces twice, once with each tag).
@@ -1258,7 +1257,7 @@ impl Builder {
         }
         self.check_planar(name)?;
         Ok(Mesh {
-            nodes: self.nodes.iter().map(|p| [p[0], p[1]]).collect(),
+            nodes: (self.nodes.par_iter()).map(|p| [p[0], p[1]]).collect(),
             triangles: self.triangles,
             line_groups: named(self.lines, 1, &self.names),
             point_groups: named(self.points, 0, &self.names),
@@ -1468,7 +1467,13 @@ fn named<T>(
             .get(&(dim, tag))
             .cloned()
             .unwrap_or_else(|| tag.to_string());
-        out.entry(name).or_default().extend(items);
+        // Moved, not copied, where the name is new: a surface's list holds every triangle.
+        match out.entry(name) {
+            std::collections::btree_map::Entry::Vacant(v) => {
+                v.insert(items);
+            }
+            std::collections::btree_map::Entry::Occupied(mut o) => o.get_mut().extend(items),
+        }
     }
     out
 }
