@@ -58,27 +58,49 @@ pub(crate) fn coarsen(graph: &Graph) -> (Graph, Vec<Idx>, Vec<[Idx; 2]>) {
         .par_iter()
         .map(|pairs| contract(graph, &cmap, pairs))
         .collect();
-    let members: Vec<[Idx; 2]> = matched.concat();
-    let nc = members.len();
-    let mut xadj = Vec::with_capacity(nc + 1);
-    xadj.push(0 as Idx);
-    let entries: usize = rows.iter().map(|r| r.adjncy.len()).sum();
-    let (mut adjncy, mut adjwgt) = (Vec::with_capacity(entries), Vec::with_capacity(entries));
-    let mut vwgt = Vec::with_capacity(nc);
-    for r in rows {
-        let base = adjncy.len() as Idx;
-        xadj.extend(r.ends.iter().map(|&e| base + e));
-        adjncy.extend(r.adjncy);
-        adjwgt.extend(r.adjwgt);
-        vwgt.extend(r.vwgt);
+    let members = concat(&matched, |_, m| m);
+    // Each block's rows start where the blocks before it end.
+    let mut base = Vec::with_capacity(rows.len());
+    let mut entries = 0 as Idx;
+    for r in &rows {
+        base.push(entries);
+        entries += r.adjncy.len() as Idx;
     }
+    let ends: Vec<&[Idx]> = rows.iter().map(|r| &r.ends[..]).collect();
+    let mut xadj = vec![0 as Idx];
+    xadj.append(&mut concat(&ends, |b, e| base[b] + e));
+    let of = |field: fn(&Rows) -> &[Idx]| concat(&rows.iter().map(field).collect::<Vec<_>>(), |_, x| x);
     let coarse = Graph {
         xadj,
-        adjncy,
-        vwgt: Some(vwgt),
-        adjwgt: Some(adjwgt),
+        adjncy: of(|r| &r.adjncy),
+        vwgt: Some(of(|r| &r.vwgt)),
+        adjwgt: Some(of(|r| &r.adjwgt)),
     };
     (coarse, cmap, members)
+}
+
+/// The blocks' `parts` one after the other, each element through `f(block, element)`,
+/// copied on all threads: one thread copying a level's tens of megabytes (and faulting
+/// their pages in) was most of what the coarsening left on one thread.
+fn concat<T, U, P>(parts: &[P], f: impl Fn(usize, T) -> U + Sync) -> Vec<U>
+where
+    T: Copy + Sync,
+    U: Copy + Default + Send,
+    P: AsRef<[T]> + Sync,
+{
+    let total = parts.iter().map(|p| p.as_ref().len()).sum();
+    let mut out = vec![U::default(); total];
+    let mut slots = Vec::with_capacity(parts.len());
+    let mut rest = &mut out[..];
+    for p in parts {
+        let (head, tail) = rest.split_at_mut(p.as_ref().len());
+        slots.push(head);
+        rest = tail;
+    }
+    (slots.into_par_iter().zip(parts.par_iter().enumerate())).for_each(|(slot, (b, p))| {
+        (slot.iter_mut().zip(p.as_ref())).for_each(|(s, &x)| *s = f(b, x));
+    });
+    out
 }
 
 /// The pairs of the vertices `r` (see [`coarsen`]), matched within `r`.
