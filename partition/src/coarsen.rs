@@ -69,7 +69,8 @@ pub(crate) fn coarsen(graph: &Graph) -> (Graph, Vec<Idx>, Vec<[Idx; 2]>) {
     let ends: Vec<&[Idx]> = rows.iter().map(|r| &r.ends[..]).collect();
     let mut xadj = vec![0 as Idx];
     xadj.append(&mut concat(&ends, |b, e| base[b] + e));
-    let of = |field: fn(&Rows) -> &[Idx]| concat(&rows.iter().map(field).collect::<Vec<_>>(), |_, x| x);
+    let of =
+        |field: fn(&Rows) -> &[Idx]| concat(&rows.iter().map(field).collect::<Vec<_>>(), |_, x| x);
     let coarse = Graph {
         xadj,
         adjncy: of(|r| &r.adjncy),

@@ -1201,6 +1201,57 @@ mod tests {
         dual_from_stars(&tris, &Stars::new(n, &tris).unwrap()).unwrap()
     }
 
+    /// Pieces per colour and edge cut by a breadth-first search, for reference.
+    fn pieces_and_cut_by_search(g: &Graph, ncolours: usize, colour: &[u32]) -> (Vec<usize>, usize) {
+        let n = g.num_vertices();
+        let (mut seen, mut pieces, mut cut) = (vec![false; n], vec![0; ncolours], 0);
+        for s in 0..n {
+            for k in g.range(s) {
+                let u = g.adjncy[k] as usize;
+                if u < s && colour[u] != colour[s] {
+                    cut += g.edge_weight(k) as usize;
+                }
+            }
+            if seen[s] {
+                continue;
+            }
+            pieces[colour[s] as usize] += 1;
+            seen[s] = true;
+            let mut queue = vec![s];
+            while let Some(v) = queue.pop() {
+                for &u in g.neighbours(v) {
+                    let u = u as usize;
+                    if !seen[u] && colour[u] == colour[s] {
+                        seen[u] = true;
+                        queue.push(u);
+                    }
+                }
+            }
+        }
+        (pieces, cut)
+    }
+
+    #[test]
+    fn pieces_across_blocks_of_vertices_are_counted_once_on_any_number_of_threads() {
+        // 120 000 triangles, rows of 600: several blocks of the union-find.
+        let g = grid_graph(300, 200);
+        let n = g.num_vertices();
+        let rows: Vec<u32> = (0..n).map(|e| ((e / 600) % 3) as u32).collect();
+        let columns: Vec<u32> = (0..n).map(|e| ((e % 600) / 100 % 2) as u32).collect();
+        for (colour, ncolours) in [(&rows, 3), (&columns, 2)] {
+            let expected = pieces_and_cut_by_search(&g, ncolours, colour);
+            assert!(expected.0.iter().all(|&p| p > 1));
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let got = pool.install(|| pieces_and_cut(&g, ncolours, |v| colour[v]));
+                assert_eq!(got, expected, "{threads} threads");
+            }
+        }
+    }
+
     fn total_edge_weight(g: &Graph) -> i64 {
         (0..g.adjncy.len())
             .map(|k| i64::from(g.edge_weight(k)))
