@@ -393,8 +393,8 @@ impl Mpi {
     /// MPI's blocking calls poll a core at full speed. Where the first subdomain works
     /// alone (it factors the interface system), the others wait here instead, so that
     /// the cores they would burn are the first one's to use (on a node shared by several
-    /// ranks, or with more ranks than cores). Polling every 100 us costs nothing next to
-    /// that work; the members of a team wait on a futex.
+    /// ranks, or with more ranks than cores). Polling every 100 us to 1 ms costs nothing
+    /// next to that work; the members of a team wait on a futex.
     pub fn barrier_sleeping(&self) {
         if self.size == 1 {
             return;
@@ -404,12 +404,18 @@ impl Mpi {
                 return;
             }
             let mut request = s.world().immediate_barrier();
+            // The poll backs off from 100 us to 1 ms: a long wait (the first rank's
+            // start, a second or more) then wakes this rank a thousand times a second
+            // on the core the first rank's threads borrow, not ten thousand, and ends
+            // at most a millisecond late.
+            let mut pause = std::time::Duration::from_micros(100);
             loop {
                 match request.test() {
                     Ok(_) => return,
                     Err(pending) => {
                         request = pending;
-                        std::thread::sleep(std::time::Duration::from_micros(100));
+                        std::thread::sleep(pause);
+                        pause = (pause * 2).min(std::time::Duration::from_millis(1));
                     }
                 }
             }
