@@ -8,8 +8,9 @@ the partition and split, the scatter), on one core and on all of its node's core
         [--binary target/release/contact-par]
 
 Each case runs on --ranks ranks with `--mesh-read shared` (every rank parses a share of
-the file), alternately `--bind-to core` (the first rank has one core for its work
-alone) and `--bind-to none` (it borrows the cores of the ranks of its node), --runs
+the file), alternately `--bind-to core --borrow-idle-cores false` (the first rank has
+one core for its work alone) and `--bind-to none` (it borrows the cores of the ranks of
+its node), --runs
 times each; the medians go to DIR/start.csv and a table on stdout. `serial share` is the
 first rank's seconds alone over the whole run's. With `--partitioner ptscotch` the
 cut is made by every rank (from their shares of the file) while the first rank puts the
@@ -76,6 +77,8 @@ def one_run(binary, case, ranks, bind, out, partitioner):
         "mpirun", "-n", str(ranks), "--oversubscribe", "--bind-to", bind,
         binary, case, "--mesh-read", "shared", "--threads", "1", "--no-plots",
         "--out", out, "--partitioner", partitioner,
+        # Ranks bound to their cores lend them too unless told not to.
+        "--borrow-idle-cores", "false" if bind == "core" else "true",
     ]
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:

@@ -2,7 +2,7 @@
 //! first rank borrows, how the allocator keeps freed memory, and what the process reads
 //! of its own memory. Nothing here changes a result, only where and how fast it is made.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
 /// Triangles per subdomain from which [`subdomains_per_rank`] gives a thread a
@@ -48,7 +48,10 @@ pub fn subdomains_per_rank(threads: usize, ranks: usize, triangles: usize) -> us
 /// threads; otherwise, or should the pool not start, on its own threads.
 pub fn on_idle_cores<T: Send>(node_ranks: usize, work: impl FnOnce() -> T + Send) -> T {
     let own = rayon::current_num_threads();
-    let threads = idle_core_threads(own, node_ranks, node_cores());
+    let threads = match borrowing() {
+        true => idle_core_threads(own, node_ranks, node_cores()),
+        false => own,
+    };
     BORROWED_THREADS.fetch_max(threads, Ordering::Relaxed);
     if threads <= own {
         return work();
@@ -79,11 +82,25 @@ fn idle_core_threads(own: usize, node_ranks: usize, cores: usize) -> usize {
 /// milliseconds, at n = 1024), else one. The other subdomains sleep meanwhile
 /// (`dd::step`).
 pub fn interface_threads(n_interface: usize) -> usize {
-    if n_interface >= 1024 {
-        node_cores()
-    } else {
-        1
+    match (n_interface >= 1024, borrowing()) {
+        (true, true) => node_cores(),
+        (true, false) => rayon::current_num_threads(),
+        (false, _) => 1,
     }
+}
+
+/// Set by `--borrow-idle-cores false`: every rank keeps to its own threads and CPUs.
+static OWN_CORES_ONLY: AtomicBool = AtomicBool::new(false);
+
+/// From here on, the first rank's work alone runs on its own threads only, not on the
+/// cores of its node's sleeping ranks: for studies of that work on one core (e.g.
+/// `run-scripts/start_study.py`).
+pub fn keep_to_own_cores() {
+    OWN_CORES_ONLY.store(true, Ordering::Relaxed);
+}
+
+fn borrowing() -> bool {
+    !OWN_CORES_ONLY.load(Ordering::Relaxed)
 }
 
 /// A set of CPUs: CPU k is bit k % 64 of word k / 64.
@@ -171,8 +188,7 @@ pub fn node_cores() -> usize {
 /// node's for the start and its own back after. None should the pool not start.
 pub fn node_pool(threads: usize) -> Option<rayon::ThreadPool> {
     let own = own_cpus();
-    let wider = NODE_CPUS
-        .get()
+    let wider = (NODE_CPUS.get().filter(|_| borrowing()))
         .filter(|node| count(&own) > 0 && count(node) > count(&own) && bind_to(node));
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
     if wider.is_some() {

@@ -14,6 +14,7 @@ use contact_par::case;
 use contact_par::contact::{Acceleration, CoulombMode, DEFAULT_ANDERSON_MEMORY};
 use contact_par::dd::comm::Mpi;
 use contact_par::error::Error;
+use contact_par::host;
 use contact_par::linear::Ordering;
 use mpi::Threading;
 use std::path::PathBuf;
@@ -135,6 +136,12 @@ struct Cli {
     /// may run on / the ranks on its node.
     #[arg(long)]
     threads: Option<usize>,
+    /// Whether the first rank runs its work alone (the read and partition of a mesh
+    /// file, the interface system's factorization) on the cores of its node's ranks
+    /// while they sleep, also where each rank is bound to a core of its own; false keeps
+    /// every rank to its own threads (to measure that work on one core).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    borrow_idle_cores: bool,
     /// Subdomains per rank, each factored and swept on a thread of its own; default:
     /// one per thread of the rank while each keeps 5000 triangles and the job has at
     /// most 8 subdomains, else fewer (1 for --linear full). 1 gives a rank one
@@ -312,6 +319,9 @@ fn run() -> i32 {
             }
         }
         return 0;
+    }
+    if !cli.borrow_idle_cores {
+        host::keep_to_own_cores();
     }
     let mpi = Mpi::new(world);
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
