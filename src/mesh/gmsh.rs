@@ -15,6 +15,7 @@ use std::str::FromStr;
 
 use crate::error::{input, Error, Result};
 use crate::mesh::Mesh;
+use rayon::prelude::*;
 
 #[path = "gmsh_shares.rs"]
 pub mod shares;
@@ -39,7 +40,6 @@ pub fn read_msh(path: &Path) -> Result<Mesh> {
 /// copy from the page cache into fresh pages (a page fault each) took a tenth of a
 /// large mesh's read on one thread while the others waited.
 fn read_file(path: &Path) -> std::io::Result<Vec<u8>> {
-    use rayon::prelude::*;
     use std::os::unix::fs::FileExt;
     const PIECE: usize = 8 << 20;
     let file = std::fs::File::open(path)?;
@@ -705,11 +705,8 @@ fn read_node_block_v41(r: &mut Reader, b: &mut Builder) -> Result<usize> {
                 let (at, tag) = (token_start(r.bytes, start, i), tags[i]);
                 return r.fail(at, format!("node {tag} is defined twice; {REEXPORT}"));
             }
-            // Copied on the pool: a million nodes' points and tags, and their fresh
-            // pages, were the serial tail of the block.
-            use rayon::prelude::*;
-            b.nodes.par_extend(points.par_iter().copied());
-            b.node_tags.par_extend(tags.par_iter().copied());
+            append(&mut b.nodes, points);
+            append(&mut b.node_tags, tags);
             return Ok(count);
         }
         // Something is off: the record-by-record reading below finds it and says where.
@@ -729,6 +726,17 @@ fn read_node_block_v41(r: &mut Reader, b: &mut Builder) -> Result<usize> {
         b.add_node(r, at, tag, xyz)?;
     }
     Ok(count)
+}
+
+/// `block` after the records of `to`: moved where `to` is empty (a mesh's one large
+/// block), else copied on the pool (a million records and their fresh pages were the
+/// serial tail of a block).
+fn append<T: Copy + Send + Sync>(to: &mut Vec<T>, block: Vec<T>) {
+    if to.is_empty() {
+        *to = block;
+    } else {
+        to.par_extend(block.par_iter().copied());
+    }
 }
 
 /// Blocks of at least this many records (ASCII) are parsed on all the threads of the
@@ -752,7 +760,6 @@ fn ascii_records<T: Send + Default + Clone>(
     per: usize,
     parse: impl Fn(&[&[u8]]) -> Option<T> + Sync,
 ) -> Option<Vec<T>> {
-    use rayon::prelude::*;
     if n == 0 {
         return Some(Vec::new());
     }
@@ -942,11 +949,7 @@ fn read_element_block_v41(r: &mut Reader, b: &mut Builder) -> Result<usize> {
         let start = r.pos;
         if let Some(triangles) = ascii_triangles(r, b, count) {
             let first = b.triangles.len();
-            if first == 0 {
-                b.triangles = triangles;
-            } else {
-                b.triangles.extend_from_slice(&triangles);
-            }
+            append(&mut b.triangles, triangles);
             for &p in &physicals {
                 (b.surfaces.entry(p).or_default()).extend(first..b.triangles.len());
             }
@@ -1218,7 +1221,6 @@ impl Builder {
         let Some(first) = self.nodes.first() else {
             return Ok(());
         };
-        use rayon::prelude::*;
         let extent = |axis: usize| {
             let values = self.nodes.par_iter().map(|p| p[axis]);
             let max = values.clone().reduce(|| f64::NEG_INFINITY, f64::max);
@@ -1236,7 +1238,6 @@ impl Builder {
     }
 
     fn finish(mut self, name: &str) -> Result<Mesh> {
-        use rayon::prelude::*;
         let kept = drop_repeated_triangles(self.nodes.len(), &mut self.triangles);
         // A repeat's groups go to the triangle kept in its place (MSH 2.2 writes a
         // triangle of two physical surfaces twice, once with each tag).
@@ -1320,7 +1321,6 @@ impl TagIndex {
     /// one stretch of the table: checked and filled on all the threads, where one thread
     /// recording a million tags one by one was a serial step of the read.
     fn insert_all(&mut self, tags: &[u64], first: usize) -> std::result::Result<(), usize> {
-        use rayon::prelude::*;
         let consecutive = |t0: u64| {
             let end = t0.checked_add(tags.len() as u64)?;
             let runs = tags
@@ -1374,7 +1374,6 @@ fn drop_repeated_triangles(
     num_nodes: usize,
     triangles: &mut Vec<[usize; 3]>,
 ) -> Option<Vec<usize>> {
-    use rayon::prelude::*;
     let all: &[[usize; 3]] = triangles;
     let smallest = |t: &[usize; 3]| t[0].min(t[1]).min(t[2]);
     let ranges =
