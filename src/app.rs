@@ -787,7 +787,19 @@ fn split_on_groups(
     // The nodes' z, for the check that the mesh is planar once the cut has taken the
     // coordinates.
     let z: Vec<f64> = shares.coords.chunks_exact(3).map(|c| c[2]).collect();
-    let mut cut = timer.time(Phase::Partition, || shares.cut(mpi));
+    let first = || {
+        early.as_ref().and_then(|e| {
+            let together = e.mesh.as_ref()?;
+            let (scan, group_values) = together.groups.as_ref()?;
+            Some(dist_problem::First {
+                name: &together.name,
+                case: e.case.as_ref().ok()?,
+                scan,
+                group_values,
+            })
+        })
+    };
+    let mut cut = timer.time(Phase::Partition, || shares.cut(mpi, first()));
     let start = Instant::now();
     let outcome = match cut.as_mut() {
         Some(ShareCut {
@@ -796,16 +808,7 @@ fn split_on_groups(
             triangles,
             ..
         }) => {
-            let first = early.as_ref().and_then(|e| {
-                let together = e.mesh.as_ref()?;
-                let (scan, group_values) = together.groups.as_ref()?;
-                Some(dist_problem::First {
-                    name: &together.name,
-                    case: e.case.as_ref().ok()?,
-                    scan,
-                    group_values,
-                })
-            });
+            let first = first();
             timer.time(Phase::Read, || {
                 dist_problem::build(mpi, first, lists, (directory, around), *triangles, &z)
             })?
@@ -1095,7 +1098,7 @@ struct ShareParts {
 
 impl ShareParts {
     /// `None` where the problem does not match the cut: another number of parts, a
-    /// triangle the reading dropped as a repeat, ties between bodies. The first rank
+    /// triangle the reading dropped as a repeat. The first rank
     /// then cuts the problem as it does without the shares.
     /// `lists`: whether the ranks made their part lists.
     fn of(
@@ -1105,9 +1108,8 @@ impl ShareParts {
         nparts: usize,
         lists: bool,
     ) -> Option<Self> {
-        let tied = prob.contact_masters.iter().any(|m| !m.is_empty());
         let made = cut.parts.is_some() || lists;
-        if !made || cut.nparts != nparts || cut.triangles != prob.file_triangle.len() || tied {
+        if !made || cut.nparts != nparts || cut.triangles != prob.file_triangle.len() {
             return None;
         }
         Some(ShareParts {
@@ -1678,8 +1680,7 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
 /// rank: the start of a run on them (`read_and_split`, the file read in shares), after
 /// which, where the ranks built their own parts (`dd::dist_split`), each writes its
 /// parts' files and the first the manifest, so that no rank holds the others' parts;
-/// otherwise (a contact between two bodies, a built-in mesh) the first rank writes the
-/// split it made.
+/// otherwise (a built-in mesh) the first rank writes the split it made.
 fn split_on_ranks(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()> {
     let k = opts.parts / mpi.size;
     let run = Options {
@@ -1838,16 +1839,15 @@ struct Shares {
 impl Shares {
     /// The file's triangles cut into `nparts` parts by every rank from its share
     /// (`dd::share_cut`). Collective.
-    fn cut(self, mpi: &Mpi) -> Option<ShareCut> {
-        let (tags, coords) = (&self.tags, &self.coords);
-        cut_shares(
-            mpi,
-            tags,
-            coords,
-            &self.triangles,
-            self.nparts,
-            PART_IMBALANCE,
-        )
+    /// `first`: the first rank's case and groups, which tie a contact's two bodies
+    /// together (`dist_problem::ties`).
+    fn cut(self, mpi: &Mpi, first: Option<dist_problem::First>) -> Option<ShareCut> {
+        let shares = (&self.tags[..], &self.coords[..]);
+        let ties = |triangles: &[[u64; 3]], directory: &crate::dd::locality::Directory| {
+            dist_problem::ties(mpi, first, triangles, directory)
+        };
+        let parts = (self.nparts, PART_IMBALANCE);
+        cut_shares(mpi, shares, &self.triangles, parts, ties)
     }
 }
 
@@ -1899,9 +1899,11 @@ impl Together {
 /// `None` on the other ranks, and where the first reads alone (one rank, a split
 /// directory, [`MeshRead`]): [`prepare`] then reads everything.
 ///
-/// Where the ranks will cut the mesh (PT-Scotch, [`Partitioner`]) and no contact ties
-/// two bodies (whose ties come from the problem), every rank also keeps its share
-/// ([`Shares`]), to cut the mesh from it before the first rank builds the problem.
+/// Where the ranks will cut the mesh (PT-Scotch, [`Partitioner`]), every rank also keeps
+/// its share ([`Shares`]), to cut the mesh from it before the first rank builds the
+/// problem. That cut does not tie a contact's slave nodes to their masters, as the
+/// first rank's graph does (`mesh_graph`), which it does not have: a cut through a
+/// contact zone leaves master nodes as ghosts of their slaves' parts.
 ///
 /// Why: on a cluster the first rank has only its node's cores; here the cores of every
 /// node parse the numbers' text, most of the read. Any fault (a share that cannot be parsed, a file
@@ -1958,10 +1960,10 @@ fn read_together(
     let alone_s = start.elapsed().as_secs_f64();
     let plan = first.as_ref().map(|(case, _, s)| {
         s.as_ref().map(|(scan, plan)| {
-            let nparts = case
-                .as_ref()
-                .ok()
-                .and_then(|c| parts_from_shares(opts, mpi, layout, c, scan.triangles()));
+            // A case that cannot be read gets its message from the first rank's reading.
+            let nparts = (case.is_ok())
+                .then(|| parts_from_shares(opts, mpi, layout, scan.triangles()))
+                .flatten();
             (plan.clone(), nparts)
         })
     });
@@ -2036,15 +2038,9 @@ fn read_together(
 
 /// The number of subdomains the ranks cut a file of `triangles` triangle records into
 /// from their shares ([`Shares`]), as [`prepare`] will count them; `None` where the
-/// ranks do not cut ([`Partitioner`], one part), or a contact ties two bodies.
-fn parts_from_shares(
-    opts: &Options,
-    mpi: &Mpi,
-    layout: Layout,
-    case: &Case,
-    triangles: usize,
-) -> Option<usize> {
-    if case.contacts.iter().any(|c| c.master.is_some()) || opts.linear == LinearMode::Full {
+/// ranks do not cut ([`Partitioner`], one part).
+fn parts_from_shares(opts: &Options, mpi: &Mpi, layout: Layout, triangles: usize) -> Option<usize> {
+    if opts.linear == LinearMode::Full {
         return None;
     }
     let per_rank = match opts.subdomains_per_rank {

@@ -493,7 +493,7 @@ pub fn build_numbered(
 ) -> Result<Problem> {
     let (boundary, parts) = validate::check_with(&mut mesh, mesh_name, Parts::of)?;
     let triangles = mesh.triangles.len();
-    let conditioned = conditioned(case, &mesh, &boundary, &parts)?;
+    let conditioned = conditioned(case, &mesh, (&boundary, Thirds::InMesh), &parts)?;
     // Checked here so that every fault of the input is reported before any work; the
     // bodies are found again in the new numbering below.
     bodies(case, &mesh)?;
@@ -558,7 +558,7 @@ impl Conditioned {
 fn conditioned(
     case: &Case,
     mesh: &Mesh,
-    boundary: &HashSet<(usize, usize)>,
+    (boundary, thirds): (&HashSet<(usize, usize)>, Thirds),
     parts: &Parts,
 ) -> Result<Conditioned> {
     let mut fixed: Vec<Option<f64>> = vec![None; 2 * mesh.num_nodes()];
@@ -579,7 +579,7 @@ fn conditioned(
         mut contact,
         h: contact_h,
         masters: contact_masters,
-    } = contact_geometry(case, mesh, boundary)?;
+    } = contact_geometry(case, mesh, (boundary, thirds))?;
     let (holding, held) = check_held(
         case,
         (mesh, parts),
@@ -602,16 +602,19 @@ fn conditioned(
 /// The problem's conditions alone, where the ranks hold the triangles
 /// (`dd::dist_problem`): on `mesh`, the mesh of the groups' elements (their nodes by
 /// increasing index among the file's, `file_node`; no triangles), with the boundary
-/// edges among its nodes and their separate parts, which the ranks found. Its load,
-/// bodies and triangles are left empty: each rank finds its own.
+/// edges among its nodes, the third corners of their triangles and their separate parts,
+/// which the ranks found. Its load, bodies and triangles are left empty: each rank finds
+/// its own.
 pub fn build_on_groups(
     case: &Case,
     mesh: Mesh,
     file_node: Vec<usize>,
-    boundary: &HashSet<(usize, usize)>,
+    boundary: (&HashSet<(usize, usize)>, &EdgeThirds),
     parts: &Parts,
 ) -> Result<Problem> {
-    Ok(conditioned(case, &mesh, boundary, parts)?.on(mesh, file_node, Vec::new()))
+    let (edges, thirds) = boundary;
+    let conditioned = conditioned(case, &mesh, (edges, Thirds::Found(thirds)), parts)?;
+    Ok(conditioned.on(mesh, file_node, Vec::new()))
 }
 
 /// Each file triangle record's body (its `[[material]]` entry), in runs (first record,
@@ -668,7 +671,7 @@ pub fn traction_load(case: &Case, mesh: &Mesh) -> Result<Vec<f64>> {
 fn contact_geometry(
     case: &Case,
     mesh: &Mesh,
-    boundary: &std::collections::HashSet<(usize, usize)>,
+    (boundary, thirds): (&HashSet<(usize, usize)>, Thirds),
 ) -> Result<ContactGeometry> {
     // Per node: its weight in each obstacle contact whose group holds it.
     let mut weight: HashMap<usize, Vec<(usize, f64)>> = HashMap::new();
@@ -723,7 +726,7 @@ fn contact_geometry(
             (v, best)
         })
         .collect();
-    let rows = mortar_contacts(case, mesh, &owner)?;
+    let rows = mortar_contacts(case, mesh, &owner, thirds)?;
     // Summed in a fixed order, so that r does not depend on the order of the file's
     // edges by a rounding (the loop's retunes can turn that into a sweep more or less).
     lengths.sort_unstable_by(f64::total_cmp);
@@ -831,34 +834,85 @@ struct ContactGeometry {
 }
 
 /// Each segment of a line group with the unit normal out of the triangle it bounds.
-fn outward_segments(mesh: &Mesh, lines: &[[usize; 2]]) -> Vec<Segment> {
-    let wanted: std::collections::HashSet<(usize, usize)> =
-        lines.iter().map(|&[a, b]| (a.min(b), a.max(b))).collect();
-    let mut third: HashMap<(usize, usize), usize> = HashMap::with_capacity(lines.len());
-    for t in &mesh.triangles {
-        for e in 0..3 {
-            let (a, b, c) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
-            let key = (a.min(b), a.max(b));
-            if wanted.contains(&key) {
-                third.insert(key, c);
+fn outward_segments(mesh: &Mesh, lines: &[[usize; 2]], thirds: Thirds) -> Result<Vec<Segment>> {
+    let key = |a: usize, b: usize| (a.min(b), a.max(b));
+    let in_mesh: EdgeThirds;
+    let thirds = match thirds {
+        Thirds::Found(found) => found,
+        Thirds::InMesh => {
+            let wanted: HashSet<(usize, usize)> = lines.iter().map(|&[a, b]| key(a, b)).collect();
+            let mut third = HashMap::with_capacity(lines.len());
+            for t in &mesh.triangles {
+                for e in 0..3 {
+                    let (a, b, c) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
+                    if wanted.contains(&key(a, b)) {
+                        third.insert(key(a, b), mesh.nodes[c]);
+                    }
+                }
             }
+            in_mesh = third;
+            &in_mesh
         }
-    }
+    };
     (lines.iter())
         .map(|&[a, b]| {
             let (xa, xb) = (mesh.nodes[a], mesh.nodes[b]);
-            let xc = mesh.nodes[third[&(a.min(b), a.max(b))]];
+            let xc = *thirds.get(&key(a, b)).ok_or_else(|| {
+                Error::Numerical("internal: a contact line's edge has no triangle".into())
+            })?;
             let len = edge_length(&mesh.nodes, a, b);
             let mut n = [(xb[1] - xa[1]) / len, -(xb[0] - xa[0]) / len];
             if n[0] * (xc[0] - xa[0]) + n[1] * (xc[1] - xa[1]) > 0.0 {
                 n = [-n[0], -n[1]];
             }
-            Segment {
+            Ok(Segment {
                 nodes: [a, b],
                 outward: n,
-            }
+            })
         })
         .collect()
+}
+
+/// Where the triangle on each contact line's edge has its third corner, which turns the
+/// edge's normal outward: among the mesh's triangles, or, on the groups' mesh, which has
+/// none (`build_on_groups`), as the ranks that hold the triangles found it, by the
+/// edge's ends (lower first).
+#[derive(Debug, Clone, Copy)]
+pub enum Thirds<'a> {
+    InMesh,
+    Found(&'a EdgeThirds),
+}
+
+/// Each edge's third corner ([`Thirds`]), by the edge's ends, lower first.
+pub type EdgeThirds = HashMap<(usize, usize), [f64; 2]>;
+
+/// The edges (node pairs, lower first) of the slave and master lines of every contact
+/// between two bodies: those whose triangles' third corners [`mortar_ties`] needs.
+pub fn tied_lines(case: &Case, mesh: &Mesh) -> Vec<(usize, usize)> {
+    let groups = (case.contacts.iter())
+        .filter(|c| c.master.is_some())
+        .flat_map(|c| [Some(&c.group), c.master.as_ref()])
+        .flatten();
+    let mut edges: Vec<(usize, usize)> = (groups.filter_map(|g| mesh.line_groups.get(g)))
+        .flatten()
+        .map(|&[a, b]| (a.min(b), a.max(b)))
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    edges
+}
+
+/// Each slave node of a contact between two bodies paired with each master node of its
+/// mortar row, on a mesh of the contacts' lines whose triangles are elsewhere (`thirds`):
+/// the ties the partition keeps together (`partition::partition_mesh_with_ties`).
+/// `None` where the rows cannot be found: the problem's build names the fault.
+pub fn mortar_ties(case: &Case, mesh: &Mesh, thirds: &EdgeThirds) -> Option<Vec<[usize; 2]>> {
+    let rows = mortar_contacts(case, mesh, &HashMap::new(), Thirds::Found(thirds)).ok()?;
+    let mut ties: Vec<[usize; 2]> = (rows.iter())
+        .flat_map(|(&s, (_, row, _))| row.masters.iter().map(move |&(m, _)| [s, m]))
+        .collect();
+    ties.sort_unstable();
+    Some(ties)
 }
 
 /// The mortar row of every slave node of every contact with a master line, by node: its
@@ -870,6 +924,7 @@ fn mortar_contacts(
     case: &Case,
     mesh: &Mesh,
     obstacle_nodes: &HashMap<usize, (usize, f64)>,
+    thirds: Thirds,
 ) -> Result<HashMap<usize, (usize, MortarRow, f64)>> {
     let origin = &case.origin;
     let mut rows: HashMap<usize, (usize, MortarRow, f64)> = HashMap::new();
@@ -890,8 +945,8 @@ fn mortar_contacts(
         }
         let found = mortar_rows(
             &mesh.nodes,
-            &outward_segments(mesh, slave_lines),
-            &outward_segments(mesh, master_lines),
+            &outward_segments(mesh, slave_lines, thirds)?,
+            &outward_segments(mesh, master_lines, thirds)?,
         );
         if found.is_empty() {
             return input(format!(

@@ -217,36 +217,11 @@ fn a_frictional_pair_agrees_on_one_and_three_ranks() {
 /// out). Stick and slip, the contact conditions, action and reaction, 1 and 3 ranks.
 #[test]
 fn a_disc_dragged_on_a_block() {
-    let case = r#"[mesh]
-file = "disc.msh"
-[[material]]
-group = "disc"
-young = 210000.0
-poisson = 0.3
-[[material]]
-group = "block"
-young = 70000.0
-poisson = 0.33
-[[dirichlet]]
-group = "block_bottom"
-ux = 0.0
-uy = 0.0
-[[dirichlet]]
-group = "disc_top"
-ux = 0.004
-uy = -0.05
-[[contact]]
-slave = "disc_arc"
-master = "block_top"
-friction = "coulomb"
-coefficient = 0.3
-[solver]
-tol = 1e-10
-"#;
+    let case = std::fs::read_to_string(bodies_dir().join("disc.toml")).unwrap();
     let run = |np: usize| {
         let dir = tempfile::TempDir::new().unwrap();
         std::fs::copy(bodies_dir().join("disc.msh"), dir.path().join("disc.msh")).unwrap();
-        std::fs::write(dir.path().join("case.toml"), case).unwrap();
+        std::fs::write(dir.path().join("case.toml"), &case).unwrap();
         let result = run_on_ranks(dir.path(), np, &["case.toml", "--out", "out", "--quiet"]);
         Run::kept(dir, result)
     };

@@ -224,7 +224,10 @@ fn locality_child() {
     // triangle on the first rank, the serial edge cut; with as many parts on every rank
     // (one, two): each rank its parts' lists, none gathered.
     for nparts in [size + 1, size, 2 * size] {
-        let cut = share_cut::cut_shares(&mpi, &tags, &coords, &tris, nparts, 0.03).expect("a cut");
+        let cut = share_cut::cut_shares(&mpi, (&tags, &coords), &tris, (nparts, 0.03), |_, _| {
+            Vec::new()
+        })
+        .expect("a cut");
         check_cut(&mpi, &cut, nparts, &all, nodes);
     }
 

@@ -164,12 +164,21 @@ fn dragged_blocks() -> String {
 /// from the first). With 3 or 6 parts each rank builds its own parts from its share of
 /// the file and writes them, the first rank the manifest; with 4 the first rank splits
 /// the ranks' cut and writes every part. Runs from each split agree with the unsplit
-/// run on every rank count that divides its parts.
+/// run on every rank count that divides its parts; on the quarter disc against a line
+/// and on a disc pressed on a block (two bodies: mortar rows, whose masters are ghosts
+/// where the cut runs through the contact).
 #[test]
 fn a_split_cut_by_every_rank_gives_the_same_answer() {
-    let case = disc_case();
-    let mesh = gmsh_dir().join("quarter_disc_v41_ascii.msh");
-    let dir = case_dir(&case, &mesh, "mesh.msh");
+    let bodies = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bodies");
+    let two_bodies = std::fs::read_to_string(bodies.join("disc.toml"))
+        .unwrap()
+        .replace("\"disc.msh\"", "\"mesh.msh\"");
+    split_by_every_rank(&disc_case(), &gmsh_dir().join("quarter_disc_v41_ascii.msh"));
+    split_by_every_rank(&two_bodies, &bodies.join("disc.msh"));
+}
+
+fn split_by_every_rank(case: &str, mesh: &Path) {
+    let dir = case_dir(case, mesh, "mesh.msh");
     let p = dir.path();
     run(p, 1, "one", "metis");
     let one = read_contact(&p.join("one/contact.csv"));
@@ -298,13 +307,52 @@ fn a_mesh_cut_from_the_ranks_shares_of_the_file_agrees_with_one_rank() {
     check_from_shares(dir.path(), None, "binary rectangle");
 }
 
-/// Two bodies: the ties between their contact sides come from the problem, so the
-/// ranks do not cut from their shares but the first rank's graph, as without them.
+/// Two bodies cut from the ranks' shares: the first rank finds the mortar rows' ties
+/// from the groups' elements (the third corners of the contact lines' triangles from
+/// the ranks) and the cut keeps them together, as METIS does on the first rank's graph:
+/// as few interface dofs as METIS's within 15% (untied, PT-Scotch cuts between the
+/// bodies, every master node across the cut an interface node: twice as many on the
+/// 29k-node disc). The one-rank answer and the contact conditions on 2 and 3 ranks.
 #[test]
 fn two_bodies_read_by_every_rank_are_cut_with_their_ties() {
-    let (case, mesh) = (dragged_blocks(), bodies_dir().join("blocks.msh"));
-    let dir = case_dir(&case, &mesh, "blocks.msh");
-    cut_on_the_first_ranks_graph(dir.path(), Some(Law::Coulomb(0.3)), "two blocks");
+    let bodies = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bodies");
+    let disc = std::fs::read_to_string(bodies.join("disc.toml"))
+        .unwrap()
+        .replace("\"disc.msh\"", "\"mesh.msh\"");
+    let blocks = dragged_blocks().replace("\"blocks.msh\"", "\"mesh.msh\"");
+    for (case, mesh, what) in [
+        (disc, bodies.join("disc.msh"), "disc on a block"),
+        (blocks, bodies_dir().join("blocks.msh"), "two blocks"),
+    ] {
+        let dir = case_dir(&case, &mesh, "mesh.msh");
+        let p = dir.path();
+        run(p, 1, "one", "metis");
+        let one = read_contact(&p.join("one/contact.csv"));
+        let interface = |out: &str| {
+            num(
+                &read_summary(&p.join(out).join("summary.json")),
+                "interface_dofs",
+            )
+        };
+        for np in [2, 3] {
+            let out = format!("sh{np}");
+            let line = run_with(p, np, &out, "ptscotch", &SHARED);
+            let from = format!("PT-Scotch on {np} ranks from their shares of the file");
+            assert!(line.contains(&from), "{what}, {np} ranks: {line}");
+            assert!(line.contains("parts built on their ranks"), "{line}");
+            let rows = read_contact(&p.join(&out).join("contact.csv"));
+            let name = format!("{what}, {np} ranks");
+            assert_same_columns(&one, &rows, 1e-8, &name);
+            check_kkt(&rows, Law::Coulomb(0.3), 1e-6, &name);
+            let metis = format!("metis{np}");
+            run(p, np, &metis, "metis");
+            let (tied, by_metis) = (interface(&out), interface(&metis));
+            assert!(
+                tied <= 1.15 * by_metis,
+                "{name}: {tied} interface dofs against METIS's {by_metis}"
+            );
+        }
+    }
 }
 
 /// Runs read by every rank on 2 and 3 ranks, cut by PT-Scotch on the first rank's
@@ -375,7 +423,7 @@ fn a_file_with_a_repeated_triangle_is_cut_on_the_first_ranks_graph() {
 /// whole mesh gives, shown on 2 and 3 ranks by the same first line (its sizes and r,
 /// which the contact edges, the bounding box and the bodies at the contact set) and the
 /// one-rank answer, for cases with Coulomb and Tresca friction, a wedge against an
-/// inclined line, tractions, a body force and two materials.
+/// inclined line, tractions, a body force, two materials and two bodies in contact.
 #[test]
 fn conditions_found_without_the_whole_mesh_are_the_whole_problems() {
     let tolerance = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/tolerance");
@@ -395,6 +443,14 @@ fn conditions_found_without_the_whole_mesh_are_the_whole_problems() {
         let case = std::fs::read_to_string(tolerance.join(format!("{name}.toml"))).unwrap();
         let case = case.replace(&format!("\"{name}.msh\""), "\"mesh.msh\"");
         cases.push((case, tolerance.join(format!("{name}.msh")), name));
+    }
+    // Two bodies: each slave node's mortar row and its masters, ghosts of its part where
+    // the cut runs through the contact.
+    let bodies = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bodies");
+    for (name, what) in [("blocks", "two blocks"), ("disc", "a disc on a block")] {
+        let case = std::fs::read_to_string(bodies.join(format!("{name}.toml"))).unwrap();
+        let case = case.replace(&format!("\"{name}.msh\""), "\"mesh.msh\"");
+        cases.push((case, bodies.join(format!("{name}.msh")), what));
     }
     for (case, mesh, what) in cases {
         let dir = case_dir(&case, &mesh, "mesh.msh");
@@ -443,21 +499,25 @@ fn same_answer(p: &Path, a: &str, b: &str, ra: &[Row], rb: &[Row], what: &str) {
             "{what}: {name} differs by {d} of {scale}"
         );
     }
+    // Two bodies meshed on their own may have a node each at one point: a point holds
+    // a list of nodes.
     let key = |n: &[f64; 4]| (n[0].to_bits(), n[1].to_bits());
-    let nb: std::collections::HashMap<(u64, u64), [f64; 4]> =
-        read_nodes(&p.join(b).join("nodes.csv"))
-            .iter()
-            .map(|n| (key(n), *n))
-            .collect();
+    let mut nb: std::collections::HashMap<(u64, u64), Vec<[f64; 4]>> = Default::default();
+    let b_nodes = read_nodes(&p.join(b).join("nodes.csv"));
+    for n in &b_nodes {
+        nb.entry(key(n)).or_default().push(*n);
+    }
     let na = read_nodes(&p.join(a).join("nodes.csv"));
-    assert_eq!(na.len(), nb.len(), "{what}");
+    assert_eq!(na.len(), b_nodes.len(), "{what}");
     let scale = na.iter().map(|n| n[2].hypot(n[3])).fold(0.0, f64::max);
     assert!(scale > 0.0, "{what}: nothing moves");
     for n in &na {
-        let m = nb
+        let at = nb
             .get(&key(n))
             .unwrap_or_else(|| panic!("{what}: no node at {n:?}"));
-        let d = (n[2] - m[2]).hypot(n[3] - m[3]);
+        let d = (at.iter())
+            .map(|m| (n[2] - m[2]).hypot(n[3] - m[3]))
+            .fold(f64::INFINITY, f64::min);
         assert!(
             d <= 1e-8 * scale,
             "{what}: u at ({}, {}) differs by {d}",

@@ -136,6 +136,65 @@ pub struct DistDual {
     pub folds: Vec<([u64; 2], [u64; 2])>,
 }
 
+/// `dual`'s rows (of this rank's `triangles`, node tags) with an edge between the first
+/// triangles (lowest ids) around the two nodes of each tie (pairs of node tags, the same
+/// list on every rank) where not already adjacent, as the `partition` crate ties a
+/// contact's slave nodes to their masters: the cut then pays for cutting a tie as for
+/// cutting an edge of the mesh. Collective.
+pub fn with_ties(
+    mpi: &Mpi,
+    dual: &DistDual,
+    triangles: &[[u64; 3]],
+    ties: &[[u64; 2]],
+) -> (Vec<usize>, Vec<u64>) {
+    let mut nodes: Vec<u64> = ties.iter().flatten().copied().collect();
+    nodes.sort_unstable();
+    nodes.dedup();
+    let mut lowest = vec![u64::MAX; nodes.len()];
+    for (i, t) in triangles.iter().enumerate() {
+        for tag in t {
+            if let Ok(k) = nodes.binary_search(tag) {
+                lowest[k] = lowest[k].min(dual.first + i as u64);
+            }
+        }
+    }
+    // Boundary-sized: every rank's lowest ids to every rank.
+    for other in &mpi.exchange(vec![lowest.clone(); mpi.size]) {
+        for (l, &o) in lowest.iter_mut().zip(other) {
+            *l = (*l).min(o);
+        }
+    }
+    let around = |tag: u64| lowest[nodes.binary_search(&tag).expect("a tied node")];
+    let rows = dual.xadj.len() - 1;
+    let mine = |t: u64| t >= dual.first && t < dual.first + rows as u64;
+    let mut extra: Vec<Vec<u64>> = vec![Vec::new(); rows];
+    for &[a, b] in ties {
+        let (ta, tb) = (around(a), around(b));
+        if ta == u64::MAX || tb == u64::MAX || ta == tb {
+            continue;
+        }
+        for (from, to) in [(ta, tb), (tb, ta)] {
+            if mine(from) {
+                extra[(from - dual.first) as usize].push(to);
+            }
+        }
+    }
+    let mut xadj = Vec::with_capacity(rows + 1);
+    xadj.push(0);
+    let mut adjncy = Vec::with_capacity(dual.adjncy.len() + 2 * ties.len());
+    for (i, more) in extra.iter_mut().enumerate() {
+        let start = adjncy.len();
+        adjncy.extend_from_slice(&dual.adjncy[dual.xadj[i]..dual.xadj[i + 1]]);
+        adjncy.append(more);
+        adjncy[start..].sort_unstable();
+        let mut row: Vec<u64> = adjncy.split_off(start);
+        row.dedup();
+        adjncy.extend(row);
+        xadj.push(adjncy.len());
+    }
+    (xadj, adjncy)
+}
+
 /// Builds the dual graph of the triangles spread over the ranks: this rank's are
 /// `triangles` (node tags), its share of one global numbering in rank order.
 /// Collective; one subdomain per rank.

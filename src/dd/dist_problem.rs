@@ -31,9 +31,9 @@ use crate::error::{Error, Result};
 use crate::mesh::gmsh::off_plane_message;
 use crate::mesh::gmsh::shares::{GroupMesh, Scan};
 use crate::mesh::validate;
-use crate::problem::{self, Lengths, Parts};
+use crate::problem::{self, EdgeThirds, Lengths, Parts};
 use crate::split_dir::Facts;
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 /// What the first rank brings: the case, the file's scan, and the groups' elements'
 /// values of every share, in file order (`gmsh::shares::Share::group_values`).
@@ -218,11 +218,13 @@ struct Ask {
 }
 
 /// What the ranks tell the first: per group node, its separate part and the bodies of
-/// the triangles around it; per separate part, its lowest node's point.
+/// the triangles around it; per separate part, its lowest node's point; per edge between
+/// two group nodes (lower first), the third corner of its triangle (`problem::Thirds`).
 struct Told {
     part: Vec<u32>,
     bodies: Vec<Vec<u32>>,
     first_at: Vec<[f64; 2]>,
+    thirds: EdgeThirds,
 }
 
 /// A node as the directory holds it: tag, index among the file's nodes, point.
@@ -232,36 +234,137 @@ type Found = (u64, u64, [f64; 2]);
 /// file's nodes, point; `None` where one is missing. On the first rank (`None`
 /// elsewhere). Collective.
 fn look_up(mpi: &Mpi, tags: &[u64], directory: &Directory) -> Option<Option<Vec<Found>>> {
+    let nodes = find(mpi, tags, directory);
+    if !mpi.is_root() {
+        return None;
+    }
+    Some(nodes.into_iter().collect())
+}
+
+/// Each of this rank's `tags` (any order) as the directory holds it, `None` where it
+/// does not: every rank asks for its own. Collective.
+fn find(mpi: &Mpi, tags: &[u64], directory: &Directory) -> Vec<Option<Found>> {
     let p = mpi.size;
     let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
     for &t in tags {
         send[tag_rank(t, p)].push(t);
     }
     let asked = mpi.exchange(send);
-    let mut send: Vec<Vec<u64>> = vec![Vec::new(); p];
-    for &t in asked.iter().flatten() {
-        let record = match directory.tags.binary_search(&t) {
-            Ok(k) => [
-                t,
-                directory.file[k],
-                directory.xy[k][0].to_bits(),
-                directory.xy[k][1].to_bits(),
-            ],
-            Err(_) => [t, u64::MAX, 0, 0],
-        };
-        send[0].extend_from_slice(&record);
-    }
-    let answered = mpi.exchange(send);
-    if !mpi.is_root() {
-        return None;
-    }
+    let answers: Vec<Vec<u64>> = (asked.iter())
+        .map(|from| {
+            (from.iter())
+                .flat_map(|&t| match directory.tags.binary_search(&t) {
+                    Ok(k) => [
+                        t,
+                        directory.file[k],
+                        directory.xy[k][0].to_bits(),
+                        directory.xy[k][1].to_bits(),
+                    ],
+                    Err(_) => [t, u64::MAX, 0, 0],
+                })
+                .collect()
+        })
+        .collect();
+    let answered = mpi.exchange(answers);
     let mut nodes: Vec<Found> = (answered.iter())
         .flat_map(|v| v.chunks_exact(4))
+        .filter(|c| c[1] != u64::MAX)
         .map(|c| (c[0], c[1], [f64::from_bits(c[2]), f64::from_bits(c[3])]))
         .collect();
     nodes.sort_unstable_by_key(|n| n.0);
-    let complete = nodes.len() == tags.len() && nodes.iter().all(|n| n.1 != u64::MAX);
-    Some(complete.then_some(nodes))
+    (tags.iter())
+        .map(|&t| {
+            let i = nodes.binary_search_by_key(&t, |n| n.0).ok()?;
+            Some(nodes[i])
+        })
+        .collect()
+}
+
+/// The ties of the contacts between two bodies (`problem::mortar_ties`) as pairs of
+/// node tags (slave, master), on every rank, for the cut from the ranks' shares (which
+/// then keeps a contact's two sides together, as the first rank's graph does): the
+/// first rank finds the rows on the groups' elements (`first`), with their nodes'
+/// points from the directory and, for each contact line's edge, the third corner of its
+/// triangle from the rank that holds it (`triangles`, node tags). Empty where no
+/// contact ties two bodies, or the rows cannot be found (the conditions then name the
+/// fault). Collective; before the cut.
+pub fn ties(
+    mpi: &Mpi,
+    first: Option<First>,
+    triangles: &[[u64; 3]],
+    directory: &Directory,
+) -> Vec<[u64; 2]> {
+    let tied = (first.as_ref()).is_some_and(|f| f.case.contacts.iter().any(|c| c.master.is_some()));
+    if !mpi
+        .broadcast(mpi.is_root().then_some(tied))
+        .unwrap_or(false)
+    {
+        return Vec::new();
+    }
+    let tags = first
+        .as_ref()
+        .and_then(|f| f.scan.group_tags(f.group_values));
+    let found = look_up(mpi, tags.as_deref().unwrap_or_default(), directory);
+    let groups = first
+        .as_ref()
+        .zip(found.flatten())
+        .and_then(|(f, found)| f.scan.group_mesh(f.group_values, &found));
+    // The contact lines' edges, by their nodes' tags.
+    let lines: Option<Vec<[u64; 2]>> = first.as_ref().zip(groups.as_ref()).map(|(f, g)| {
+        let tag = |v: usize| g.tags[v];
+        let mut lines: Vec<[u64; 2]> = (problem::tied_lines(f.case, &g.mesh).iter())
+            .map(|&(a, b)| [tag(a).min(tag(b)), tag(a).max(tag(b))])
+            .collect();
+        lines.sort_unstable();
+        lines
+    });
+    let lines: Vec<[u64; 2]> = mpi
+        .broadcast(mpi.is_root().then_some(lines))
+        .ok()
+        .flatten()
+        .unwrap_or_default();
+    // Each line's edge and the third corner of its triangle, where this rank holds it.
+    let mut sides: Vec<([u64; 2], u64)> = Vec::new();
+    for t in triangles {
+        for c in 0..3 {
+            let (a, b) = (t[c], t[(c + 1) % 3]);
+            let edge = [a.min(b), a.max(b)];
+            if lines.binary_search(&edge).is_ok() {
+                sides.push((edge, t[(c + 2) % 3]));
+            }
+        }
+    }
+    let thirds: Vec<u64> = sides.iter().map(|s| s.1).collect();
+    let at = find(mpi, &thirds, directory);
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); mpi.size];
+    for ((edge, _), x) in sides.iter().zip(&at) {
+        if let Some((_, _, x)) = x {
+            send[0].extend_from_slice(&[edge[0], edge[1], x[0].to_bits(), x[1].to_bits()]);
+        }
+    }
+    let got = mpi.exchange(send).concat();
+    let ties = first.zip(groups).and_then(|(f, g)| {
+        let index: HashMap<u64, usize> = g.tags.iter().enumerate().map(|(v, &t)| (t, v)).collect();
+        let thirds: EdgeThirds = (got.chunks_exact(4))
+            .filter_map(|c| {
+                let (a, b) = (*index.get(&c[0])?, *index.get(&c[1])?);
+                Some((
+                    (a.min(b), a.max(b)),
+                    [f64::from_bits(c[2]), f64::from_bits(c[3])],
+                ))
+            })
+            .collect();
+        let ties = problem::mortar_ties(f.case, &g.mesh, &thirds)?;
+        Some(
+            ties.iter()
+                .map(|t| t.map(|v| g.tags[v]))
+                .collect::<Vec<[u64; 2]>>(),
+        )
+    });
+    mpi.broadcast(mpi.is_root().then_some(ties))
+        .ok()
+        .flatten()
+        .unwrap_or_default()
 }
 
 /// Every rank's answer to `ask` from its parts, on the first rank (`None` elsewhere, and
@@ -275,6 +378,7 @@ fn tell(mpi: &Mpi, ask: &Ask, lists: &[PartLists], node_part: &[Vec<u32>]) -> Op
     };
     let wanted: HashSet<u64> = ask.firsts.iter().copied().collect();
     let (mut parts, mut touch, mut firsts) = (Vec::new(), Vec::new(), Vec::new());
+    let mut sides = Vec::new();
     for (l, labels) in lists.iter().zip(node_part) {
         let ks: Vec<Option<usize>> = l.nodes.iter().map(|&t| asked(t)).collect();
         for (k, &q) in ks.iter().zip(labels) {
@@ -296,11 +400,23 @@ fn tell(mpi: &Mpi, ask: &Ask, lists: &[PartLists], node_part: &[Vec<u32>]) -> Op
             continue;
         }
         for (t, &e) in l.triangles.iter().zip(&l.elements) {
-            for tag in t {
-                if let Ok(i) = here.binary_search_by_key(tag, |h| h.0) {
-                    let body = u64::from(run_value(&ask.runs, e));
-                    touch.extend_from_slice(&[here[i].1 as u64, body]);
-                }
+            let ks = t.map(|tag| here.binary_search_by_key(&tag, |h| h.0).ok());
+            for i in ks.iter().flatten() {
+                let body = u64::from(run_value(&ask.runs, e));
+                touch.extend_from_slice(&[here[*i].1 as u64, body]);
+            }
+            // An edge between two asked nodes, with the point of its third corner (a
+            // contact line's edge turns its normal away from it).
+            for c in 0..3 {
+                let (Some(a), Some(b)) = (ks[c], ks[(c + 1) % 3]) else {
+                    continue;
+                };
+                let (a, b) = (here[a].1 as u64, here[b].1 as u64);
+                let Ok(i) = l.nodes.binary_search(&t[(c + 2) % 3]) else {
+                    continue;
+                };
+                let x = l.xy[i];
+                sides.extend_from_slice(&[a.min(b), a.max(b), x[0].to_bits(), x[1].to_bits()]);
             }
         }
     }
@@ -310,6 +426,7 @@ fn tell(mpi: &Mpi, ask: &Ask, lists: &[PartLists], node_part: &[Vec<u32>]) -> Op
         mpi.exchange(send).concat()
     };
     let (parts, touch, firsts) = (to_first(parts), to_first(touch), to_first(firsts));
+    let sides = to_first(sides);
     if !mpi.is_root() {
         return None;
     }
@@ -330,11 +447,18 @@ fn tell(mpi: &Mpi, ask: &Ask, lists: &[PartLists], node_part: &[Vec<u32>]) -> Op
     for c in firsts.chunks_exact(3) {
         first_at[c[0] as usize] = [f64::from_bits(c[1]), f64::from_bits(c[2])];
     }
+    let thirds = (sides.chunks_exact(4))
+        .map(|c| {
+            let x = [f64::from_bits(c[2]), f64::from_bits(c[3])];
+            ((c[0] as usize, c[1] as usize), x)
+        })
+        .collect();
     let complete = part.iter().all(|&q| q != u32::MAX) && first_at.iter().all(|p| !p[0].is_nan());
     complete.then_some(Told {
         part,
         bodies,
         first_at,
+        thirds,
     })
 }
 
@@ -376,13 +500,16 @@ fn on_groups(
             (hi[0] - lo[0]).max(hi[1] - lo[1]).max(0.0)
         },
     };
-    let prob = match problem::build_on_groups(case, groups.mesh, file, &boundary, &parts) {
+    let sides = (&boundary, &told.thirds);
+    let prob = match problem::build_on_groups(case, groups.mesh, file, sides, &parts) {
         Ok(p) => p,
         Err(e) => return Some(Err(e)),
     };
     let nodes = Conditions::records(case, &prob).ok()?;
-    let mut contact_bodies: Vec<u32> = (prob.contact_nodes.iter())
-        .flat_map(|&v| told.bodies[v].iter().copied())
+    // The bodies at the contact, the masters' too, as the whole problem finds them.
+    let masters = prob.contact_masters.iter().flatten().map(|m| m.0);
+    let mut contact_bodies: Vec<u32> = (prob.contact_nodes.iter().copied().chain(masters))
+        .flat_map(|v| told.bodies[v].iter().copied())
         .collect();
     contact_bodies.sort_unstable();
     contact_bodies.dedup();

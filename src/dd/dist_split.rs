@@ -10,9 +10,12 @@
 //! each rank builds, numbers and loads its own part.
 //!
 //! Who holds what: the conditions ([`Conditions`]) come from the first rank's problem;
-//! everything sized like a part stays on the part's rank. Contacts between two bodies
-//! (mortar rows, whose master nodes may be ghosts) are not built here: their runs
-//! split on the first rank.
+//! everything sized like a part stays on the part's rank. A contact between two bodies
+//! adds to the conditions each slave node's mortar row (its master nodes and their
+//! coefficients) and each master node's point: a part that owns a slave node but does
+//! not hold one of its masters takes it as a ghost, and the ranks tell each other which
+//! masters are ghosts somewhere (interface nodes in every part that holds them) and
+//! their interface numbers, boundary-sized lists sent to every rank.
 
 use crate::case::Case;
 use crate::contact::ContactNodes;
@@ -37,6 +40,17 @@ pub struct NodeRecord {
     /// The nodal force of the tractions, which the node's owner alone applies.
     pub traction: [f64; 2],
     pub contact: Option<ContactRecord>,
+    /// Where the node is a master node of mortar rows.
+    pub master: Option<MasterRecord>,
+}
+
+/// A master node of mortar rows: what a part needs of it, also where it holds the node
+/// only as a ghost (a part that owns a slave node but not the triangles of its master).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MasterRecord {
+    /// The components its rows read (`split::contact_components` of each row's normal).
+    pub read: [bool; 2],
+    pub xy: [f64; 2],
 }
 
 /// A contact node's geometry against its obstacle.
@@ -52,6 +66,9 @@ pub struct ContactRecord {
     pub pair: u32,
     /// Its separate part of the mesh and its master's (see `ContactNodes::part`).
     pub part: [u32; 2],
+    /// Its mortar row's master nodes (indices among the file's nodes) and coefficients;
+    /// empty against an obstacle.
+    pub masters: Vec<(u64, f64)>,
 }
 
 /// What the first rank tells the ranks about the problem beyond the parts' triangles:
@@ -66,8 +83,7 @@ pub struct Conditions {
 }
 
 impl Conditions {
-    /// The conditions of `prob`. Refuses a problem with mortar rows (see the module's
-    /// notes).
+    /// The conditions of `prob`.
     pub fn of(case: &Case, prob: &Problem) -> Result<Conditions> {
         let nodes = Self::records(case, prob)?;
         let mut by_file = vec![0u32; prob.file_triangle.len()];
@@ -83,17 +99,23 @@ impl Conditions {
     /// The records of `prob`'s nodes that carry a condition, by increasing file index
     /// (`prob` may hold only those nodes, `Problem::file_node` placing them).
     pub fn records(case: &Case, prob: &Problem) -> Result<Vec<NodeRecord>> {
-        if prob.contact_masters.iter().any(|m| !m.is_empty()) {
-            return Err(Error::Numerical(
-                "internal: a contact between two bodies is split on the first rank".into(),
-            ));
-        }
         let traction = traction_load(case, &prob.mesh)?;
         let mut contact_k = vec![usize::MAX; prob.mesh.num_nodes()];
         for (k, &v) in prob.contact_nodes.iter().enumerate() {
             contact_k[v] = k;
         }
         let c = &prob.contact;
+        let masters = |k: usize| prob.contact_masters.get(k).map_or(&[][..], |m| &m[..]);
+        // A master node is read along the normals of its rows (as `split::split` reads it).
+        let frictional = Problem::is_frictional(case);
+        let mut master_read: std::collections::HashMap<usize, [bool; 2]> = Default::default();
+        for (k, &m) in c.normal.iter().enumerate() {
+            let comps = contact_components(frictional, m);
+            for &(v, _) in masters(k) {
+                let read = master_read.entry(v).or_default();
+                *read = [read[0] || comps[0], read[1] || comps[1]];
+            }
+        }
         let record = |v: usize| -> Option<NodeRecord> {
             let fixed = [prob.fixed[2 * v], prob.fixed[2 * v + 1]];
             let traction = [traction[2 * v], traction[2 * v + 1]];
@@ -107,15 +129,25 @@ impl Conditions {
                     normal: c.normal[k],
                     pair: c.pair[k],
                     part: c.part.get(k).copied().unwrap_or([u32::MAX; 2]),
+                    masters: (masters(k).iter())
+                        .map(|&(m, coef)| (prob.file_node[m] as u64, coef))
+                        .collect(),
                 }
             });
-            let carries =
-                fixed.iter().any(Option::is_some) || traction != [0.0, 0.0] || contact.is_some();
+            let master = master_read.get(&v).map(|&read| MasterRecord {
+                read,
+                xy: prob.mesh.nodes[v],
+            });
+            let carries = fixed.iter().any(Option::is_some)
+                || traction != [0.0, 0.0]
+                || contact.is_some()
+                || master.is_some();
             carries.then(|| NodeRecord {
                 file: prob.file_node[v] as u64,
                 fixed,
                 traction,
                 contact,
+                master,
             })
         };
         let mut nodes: Vec<NodeRecord> = (0..prob.mesh.num_nodes()).filter_map(record).collect();
@@ -163,9 +195,58 @@ pub struct LocalPart {
     on_interface: Vec<bool>,
 }
 
+/// The master nodes (indices among the file's nodes, increasing) of the mortar rows of
+/// the contact nodes that `lists` owns which it does not hold: its ghosts. Empty where
+/// no record has a mortar row.
+fn ghosts_of(lists: &PartLists, records: &[NodeRecord]) -> Vec<u64> {
+    let tied: Vec<&NodeRecord> = (records.iter())
+        .filter(|r| r.contact.as_ref().is_some_and(|c| !c.masters.is_empty()))
+        .collect();
+    if tied.is_empty() {
+        return Vec::new();
+    }
+    let mut wanted: Vec<u64> = (tied.iter())
+        .flat_map(|r| {
+            let masters = &r.contact.as_ref().expect("tied").masters;
+            std::iter::once(r.file).chain(masters.iter().map(|m| m.0))
+        })
+        .collect();
+    wanted.sort_unstable();
+    wanted.dedup();
+    // Which of them the part holds, and whether it owns them: one walk of its nodes.
+    let mut held: Vec<(u64, bool)> = (lists.file_nodes.iter().zip(&lists.owned))
+        .filter(|(f, _)| wanted.binary_search(f).is_ok())
+        .map(|(&f, &o)| (f, o))
+        .collect();
+    held.sort_unstable();
+    let holds = |f: u64| {
+        held.binary_search_by_key(&f, |h| h.0)
+            .ok()
+            .map(|i| held[i].1)
+    };
+    let mut ghosts: Vec<u64> = (tied.iter())
+        .filter(|r| holds(r.file) == Some(true))
+        .flat_map(|r| {
+            r.contact
+                .as_ref()
+                .expect("tied")
+                .masters
+                .iter()
+                .map(|m| m.0)
+        })
+        .filter(|&m| holds(m).is_none())
+        .collect();
+    ghosts.sort_unstable();
+    ghosts.dedup();
+    ghosts
+}
+
 /// Part `lists`'s subproblem but for its interface numbering ([`LocalPart`]), from the
 /// records of the conditioned nodes (`records`, any order; those of nodes the part does
-/// not hold are passed over) and the bodies' runs.
+/// not hold are passed over) and the bodies' runs; `ghosted`: the master nodes
+/// (increasing file indices) that some part holds as a ghost ([`ghosts_of`]), which are
+/// interface nodes in every part that holds them. The part's own ghosts come last among
+/// its nodes, as `split::split` puts them.
 /// Nodes in the Hilbert order of their coordinates and triangles in the order of their
 /// nodes, as the first rank numbers the whole problem (`problem::build`), so that the
 /// assembly walks memory in order whatever the file's order; triangles turned
@@ -175,14 +256,17 @@ pub fn local_part(
     records: &[NodeRecord],
     bodies: &[(u64, u32)],
     case: PartCase,
+    ghosted: &[u64],
 ) -> Result<LocalPart> {
     let n = lists.nodes.len();
+    let ghosts = ghosts_of(lists, records);
     let box_ = renumber::bounding_box(&lists.xy);
     let list_of = renumber::sorted_order(&renumber::hilbert_keys(&lists.xy, box_));
     let of_list = renumber::inverse(&list_of);
     let mut by_file: Vec<(u64, usize)> = (lists.file_nodes.iter().copied())
         .zip(of_list.iter().copied())
         .collect();
+    by_file.extend(ghosts.iter().enumerate().map(|(g, &f)| (f, n + g)));
     by_file.sort_unstable();
     let local_of_file = |f: u64| {
         (by_file.binary_search_by_key(&f, |x| x.0))
@@ -200,8 +284,22 @@ pub fn local_part(
             .map(|i| of_list[i])
             .map_err(|_| not_held(t))
     };
-    let nodes: Vec<[f64; 2]> = list_of.iter().map(|&i| lists.xy[i]).collect();
-    let owned: Vec<bool> = list_of.iter().map(|&i| lists.owned[i]).collect();
+    let mut nodes: Vec<[f64; 2]> = list_of.iter().map(|&i| lists.xy[i]).collect();
+    let mut owned: Vec<bool> = list_of.iter().map(|&i| lists.owned[i]).collect();
+    if !ghosts.is_empty() {
+        let mut masters: Vec<(u64, [f64; 2])> = (records.iter())
+            .filter_map(|r| Some((r.file, r.master?.xy)))
+            .collect();
+        masters.sort_unstable_by_key(|m| m.0);
+        for &f in &ghosts {
+            let i = (masters.binary_search_by_key(&f, |m| m.0)).map_err(|_| {
+                Error::Numerical(format!("internal: master node {f} has no record"))
+            })?;
+            nodes.push(masters[i].1);
+            owned.push(false);
+        }
+    }
+    let all = nodes.len();
     // The corners' local ids by one sort of the corners and a walk along the sorted
     // tags: a search per corner took most of this function on a million triangles.
     let mut corners: Vec<(u64, usize)> = (lists.triangles.par_iter().enumerate())
@@ -234,9 +332,11 @@ pub fn local_part(
         .map(|&t| run_value(bodies, lists.elements[t]))
         .collect();
     drop(listed);
-    let mut fixed = vec![None; 2 * n];
-    let mut load = vec![0.0; 2 * n];
+    let mut fixed = vec![None; 2 * all];
+    let mut load = vec![0.0; 2 * all];
     let mut contact: Vec<(u64, usize, &ContactRecord)> = Vec::new();
+    let mut is_master = vec![false; all];
+    let mut read = vec![[false; 2]; all];
     for r in records {
         let Some(v) = local_of_file(r.file) else {
             continue;
@@ -250,30 +350,42 @@ pub fn local_part(
         if let Some(c) = &r.contact {
             contact.push((c.k, v, c));
         }
+        if let Some(m) = &r.master {
+            is_master[v] = true;
+            read[v] = m.read;
+        }
     }
     // Every part adds its own triangles' share: the parts' loads sum to the whole's.
     add_body_force(&nodes, &triangles, case.body_force, &mut load);
     contact.sort_unstable_by_key(|c| c.0);
-    let mut on_interface = vec![false; n];
+    let mut on_interface = vec![false; all];
     for &t in &lists.interface {
         on_interface[local_of_tag(t)?] = true;
     }
+    // A master node held by a part that owns none of its rows' slave nodes is a ghost
+    // there, and an interface node in every part.
+    for &f in ghosted {
+        if let Some(v) = local_of_file(f) {
+            on_interface[v] = true;
+        }
+    }
     let mut frames = Vec::new();
-    let mut read = vec![[false; 2]; n];
     for &(_, v, c) in &contact {
         let held = [fixed[2 * v].is_some(), fixed[2 * v + 1].is_some()];
-        if in_frame(case.frictional, c.normal, held) {
+        // A master node does not turn: its rows read it in x, y.
+        if !is_master[v] && in_frame(case.frictional, c.normal, held) {
             frames.push((v, c.normal));
             read[v] = [true, false];
         } else {
-            read[v] = contact_components(case.frictional, c.normal);
+            let comps = contact_components(case.frictional, c.normal);
+            read[v] = [read[v][0] || comps[0], read[v][1] || comps[1]];
         }
     }
     frames.sort_unstable_by_key(|f| f.0);
     // The own contact nodes' free dofs that no other part touches; the interface's come
     // with their global numbers.
     let mut boundary_dofs = Vec::new();
-    for v in 0..n {
+    for v in 0..all {
         for c in 0..2 {
             if read[v][c] && !on_interface[v] && fixed[2 * v + c].is_none() {
                 boundary_dofs.push(2 * v + c);
@@ -292,11 +404,26 @@ pub fn local_part(
         fixed_threshold: Vec::new(),
         part: owned_contact.iter().map(|c| c.2.part).collect(),
     };
+    let contact_masters = (owned_contact.iter())
+        .map(|c| {
+            (c.2.masters.iter())
+                .map(|&(f, coef)| {
+                    let v = local_of_file(f).ok_or_else(|| {
+                        Error::Numerical(format!(
+                            "internal: part {} lacks master node {f}",
+                            lists.part
+                        ))
+                    })?;
+                    Ok((v, coef))
+                })
+                .collect::<Result<Vec<(usize, f64)>>>()
+        })
+        .collect::<Result<Vec<_>>>()?;
     let sub = SubProblem {
         rank: lists.part as usize,
-        global_nodes: list_of
-            .iter()
-            .map(|&i| lists.file_nodes[i] as usize)
+        global_nodes: (list_of.iter().map(|&i| lists.file_nodes[i]))
+            .chain(ghosts.iter().copied())
+            .map(|f| f as usize)
             .collect(),
         nodes,
         body,
@@ -311,8 +438,8 @@ pub fn local_part(
         interface_global: Vec::new(),
         interface_nodes: lists.interface.len(),
         frames,
-        contact_masters: vec![Vec::new(); owned_contact.len()],
-        ghosts: 0,
+        contact_masters,
+        ghosts: ghosts.len(),
     };
     Ok(LocalPart {
         sub,
@@ -320,6 +447,15 @@ pub fn local_part(
         by_file,
         on_interface,
     })
+}
+
+impl LocalPart {
+    /// The local id of the node at index `f` among the file's nodes, if the part holds
+    /// it (a ghost too).
+    fn local_of_file(&self, f: u64) -> Option<usize> {
+        let i = self.by_file.binary_search_by_key(&f, |x| x.0).ok()?;
+        Some(self.by_file[i].1)
+    }
 }
 
 /// The free dofs of the interface nodes that `part` owns, by increasing file index then
@@ -351,9 +487,16 @@ pub fn build(
         1 => conditions.unwrap_or_default(),
         _ => mpi.broadcast(conditions)?,
     };
+    // The ghosts of every part, known to every part: boundary-sized.
+    let mine: Vec<u64> = (lists.iter())
+        .flat_map(|l| ghosts_of(l, &conditions.nodes))
+        .collect();
+    let mut ghosted = mpi.exchange(vec![mine; p]).concat();
+    ghosted.sort_unstable();
+    ghosted.dedup();
     let parts = mpi.agree(
         (lists.iter())
-            .map(|l| local_part(l, &conditions.nodes, &conditions.bodies, case))
+            .map(|l| local_part(l, &conditions.nodes, &conditions.bodies, case, &ghosted))
             .collect::<Result<Vec<LocalPart>>>(),
     )?;
     drop(conditions);
@@ -409,16 +552,33 @@ pub fn build(
             }
         }
     }
+    // A ghost's part need not touch its owner's: the owners tell every rank the numbers
+    // of the master nodes that are ghosts somewhere (by file index).
+    if !ghosted.is_empty() {
+        let mut told: Vec<u64> = Vec::new();
+        for (part, number) in parts.iter().zip(&number) {
+            for &f in &ghosted {
+                if let Some(v) = part.local_of_file(f).filter(|&v| part.sub.owned[v]) {
+                    told.extend_from_slice(&[f, number[v][0], number[v][1]]);
+                }
+            }
+        }
+        let told = mpi.exchange(vec![told; p]).concat();
+        for (part, number) in parts.iter().zip(&mut number) {
+            for r in told.chunks_exact(3) {
+                if let Some(v) = part.local_of_file(r[0]).filter(|&v| !part.sub.owned[v]) {
+                    number[v] = [r[1], r[2]];
+                }
+            }
+        }
+    }
     let mut missing = false;
     let mut subs = Vec::with_capacity(k);
-    for ((list, part), number) in lists.iter().zip(parts).zip(&number) {
+    for (part, number) in parts.into_iter().zip(&number) {
         let mut interface: Vec<(usize, usize)> = Vec::new();
-        for &t in &list.interface {
-            let v = (list.nodes.binary_search(&t).ok()).map_or(usize::MAX, |i| part.of_list[i]);
+        for v in (0..part.sub.nodes.len()).filter(|&v| part.on_interface[v]) {
             for c in 0..2 {
-                if v == usize::MAX {
-                    missing = true;
-                } else if part.sub.fixed[2 * v + c].is_none() {
+                if part.sub.fixed[2 * v + c].is_none() {
                     match number[v][c] {
                         u64::MAX => missing = true,
                         b => interface.push((b as usize, 2 * v + c)),
@@ -539,20 +699,23 @@ mod tests {
                     normal: [0.0, 1.0],
                     pair: 0,
                     part: [0, u32::MAX],
+                    masters: Vec::new(),
                 }),
+                master: None,
             },
             NodeRecord {
                 file: 3,
                 fixed: [Some(0.0), Some(0.0)],
                 traction: [0.0, 0.0],
                 contact: None,
+                master: None,
             },
         ];
         let case = PartCase {
             body_force: [0.0, -3.0],
             frictional: false,
         };
-        let part = local_part(&lists, &records, &[(0, 0), (1, 1)], case).expect("a part");
+        let part = local_part(&lists, &records, &[(0, 0), (1, 1)], case, &[]).expect("a part");
         let sub = &part.sub;
         let local = |f: usize| sub.global_nodes.iter().position(|&g| g == f).unwrap();
         let area2 = |t: &[usize; 3]| {
@@ -585,7 +748,7 @@ mod tests {
             file: 9,
             ..records[1].clone()
         };
-        let without = local_part(&lists, &[stray], &[(0, 0)], case).expect("a part");
+        let without = local_part(&lists, &[stray], &[(0, 0)], case, &[]).expect("a part");
         assert!(without.sub.fixed.iter().all(Option::is_none));
     }
 }

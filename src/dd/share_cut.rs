@@ -50,14 +50,15 @@ pub struct ShareCut {
 /// each): its share of the nodes) cut into `nparts` parts. `None` on every rank where
 /// the shares do not make a mesh (a node no rank holds, a tag held twice), the graph
 /// is too large for PT-Scotch's 32-bit numbers, or PT-Scotch fails: the first rank
-/// then cuts as it does without the shares. Collective; one subdomain per rank.
+/// then cuts as it does without the shares. `ties`: pairs of node tags the cut keeps
+/// together (`dist_graph::with_ties`), found from the triangles in their order and the
+/// nodes' directory (`dist_problem::ties`). Collective; one subdomain per rank.
 pub fn cut_shares(
     mpi: &Mpi,
-    tags: &[u64],
-    coords: &[f64],
+    (tags, coords): (&[u64], &[f64]),
     triangles: &[[u64; 3]],
-    nparts: usize,
-    imbalance: f64,
+    (nparts, imbalance): (usize, f64),
+    ties: impl FnOnce(&[[u64; 3]], &Directory) -> Vec<[u64; 2]>,
 ) -> Option<ShareCut> {
     let start = Instant::now();
     let sorted = locality::sort_triangles(mpi, tags, coords, triangles)?;
@@ -68,8 +69,16 @@ pub fn cut_shares(
     }
     let start = Instant::now();
     let dual = dist_graph::dual_graph(mpi, &sorted.triangles);
-    let xadj: Vec<i32> = dual.xadj.iter().map(|&x| x as i32).collect();
-    let adjncy: Vec<i32> = dual.adjncy.iter().map(|&t| t as i32).collect();
+    let ties = ties(&sorted.triangles, &sorted.nodes);
+    // The edge cut counts the mesh's edges alone, as the `partition` crate's does.
+    let (xadj, adjncy): (Vec<i32>, Vec<i32>) = if ties.is_empty() {
+        let xadj = dual.xadj.iter().map(|&x| x as i32).collect();
+        (xadj, dual.adjncy.iter().map(|&t| t as i32).collect())
+    } else {
+        let (x, a) = dist_graph::with_ties(mpi, &dual, &sorted.triangles, &ties);
+        let xadj = x.iter().map(|&x| x as i32).collect();
+        (xadj, a.iter().map(|&t| t as i32).collect())
+    };
     let graph_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let local = ptscotch::LocalGraph {
