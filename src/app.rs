@@ -408,7 +408,13 @@ fn write(ctx: &Subdomain, sub: &SubProblem, solved: &Solved) -> Result<Timings> 
     // Every subdomain takes part, also where the tables failed (see write_nodes_csv).
     let nodes = match opts.nodes_csv {
         true => write_nodes_csv(ctx, sub, &solved.u),
-        false => Ok(Written::default()),
+        false => {
+            // An earlier run's table would not match this run's answer.
+            if mpi.is_root() {
+                let _ = std::fs::remove_file(opts.out.join("nodes.csv"));
+            }
+            Ok(Written::default())
+        }
     };
     let tables = nodes.and_then(|nodes| Ok(tables?.map(|(all, w)| (all, w + nodes))));
     drop(output);

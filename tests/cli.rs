@@ -504,3 +504,42 @@ fn monitor_lines_show_what_the_friction_law_has() {
         }
     }
 }
+
+/// A run into the directory of an earlier one on more subdomains, with `--nodes-csv`,
+/// leaves none of that run's files that do not match it: the earlier pieces its index
+/// does not list and its nodes.csv are gone; the index lists exactly the pieces left.
+#[test]
+fn a_new_run_leaves_no_earlier_piece_or_table_in_its_directory() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let p = dir.path();
+    let base = [
+        "--builtin",
+        "block",
+        "--out",
+        "out",
+        "--quiet",
+        "--no-plots",
+    ];
+    let (code, _, err) = run_on_ranks(p, 3, &[&base[..], &["--nodes-csv"]].concat());
+    assert_eq!(code, 0, "{err}");
+    let pieces = |p: &std::path::Path| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(p.join("out"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .filter(|n| n.ends_with(".vtu"))
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(pieces(p).len(), 3, "{:?}", pieces(p));
+    let (code, _, err) = run_in(p, &[&base[..], &["--subdomains-per-rank", "1"]].concat());
+    assert_eq!(code, 0, "{err}");
+    let left = pieces(p);
+    assert_eq!(left, ["solution_0_0.vtu"], "{left:?}");
+    assert!(
+        !p.join("out/nodes.csv").exists(),
+        "an earlier nodes.csv is left"
+    );
+    let index = std::fs::read_to_string(p.join("out/solution.pvtu")).unwrap();
+    assert_eq!(index.matches("<Piece ").count(), left.len(), "{index}");
+}

@@ -188,6 +188,7 @@ impl Gathered {
             write_atomic(&dir.join(name), &bytes)?;
             written = written + Written::file(bytes.len());
         }
+        remove_stale_pieces(dir, &sources);
         Ok(written)
     }
 
@@ -387,5 +388,69 @@ impl Extremes {
             interface_nodes: over(|s| s.interface_nodes as f64),
             sent_bytes_per_sweep: over(|s| s.sent_bytes_per_sweep),
         }
+    }
+}
+
+/// Removes the `.vtu` pieces of an earlier run in `dir` that this run's index (`sources`)
+/// does not list: a run on fewer subdomains, or with smaller pieces, would otherwise leave
+/// files that look like part of its answer. Only names of the pieces' own form go.
+fn remove_stale_pieces(dir: &Path, sources: &[String]) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else {
+            continue;
+        };
+        if is_piece_name(name) && !sources.iter().any(|s| s == name) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+/// Whether `name` is a piece's file name: `solution_<subdomain>_<k>.vtu`.
+fn is_piece_name(name: &str) -> bool {
+    let Some(middle) = name
+        .strip_prefix("solution_")
+        .and_then(|n| n.strip_suffix(".vtu"))
+    else {
+        return false;
+    };
+    let numbers: Vec<&str> = middle.split('_').collect();
+    numbers.len() == 2
+        && numbers
+            .iter()
+            .all(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{is_piece_name, remove_stale_pieces};
+
+    #[test]
+    fn only_the_pieces_an_index_does_not_list_are_removed() {
+        assert!(is_piece_name("solution_0_12.vtu"));
+        assert!(!is_piece_name("solution_0.vtu"));
+        assert!(!is_piece_name("solution_0_x.vtu"));
+        assert!(!is_piece_name("solution_0_1.vtu.tmp"));
+        assert!(!is_piece_name("my_solution_0_1.vtu"));
+        let dir = tempfile::TempDir::new().unwrap();
+        let names = [
+            "solution_0_0.vtu",
+            "solution_0_1.vtu",
+            "solution_3_0.vtu",
+            "notes.vtu",
+        ];
+        for n in names {
+            std::fs::write(dir.path().join(n), b"x").unwrap();
+        }
+        remove_stale_pieces(dir.path(), &["solution_0_0.vtu".to_string()]);
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["notes.vtu", "solution_0_0.vtu"]);
     }
 }
