@@ -89,15 +89,7 @@ pub fn build(
         });
     }
     let checked = dist_check::check(mpi, (directory, around), lists, bbox)?;
-    // The groups' nodes from the directory.
-    let tags = first
-        .as_ref()
-        .and_then(|f| f.scan.group_tags(f.group_values));
-    let found = look_up(mpi, tags.as_deref().unwrap_or_default(), directory);
-    let groups = first
-        .as_ref()
-        .zip(found)
-        .and_then(|(f, found)| f.scan.group_mesh(f.group_values, &found?));
+    let groups = groups_mesh(mpi, first.as_ref(), directory);
     let checked = match checked {
         Ok(c) => c,
         Err(dist_check::Fault::Repeat) => return Ok(Outcome::FallBack),
@@ -230,6 +222,17 @@ struct Told {
 /// A node as the directory holds it: tag, index among the file's nodes, point.
 type Found = (u64, u64, [f64; 2]);
 
+/// The groups' mesh on the first rank, its nodes' points from the directory; `None`
+/// elsewhere, and where a group's node is not in the directory. Collective.
+fn groups_mesh(mpi: &Mpi, first: Option<&First>, directory: &Directory) -> Option<GroupMesh> {
+    let tags = first.and_then(|f| f.scan.group_tags(f.group_values));
+    let found = look_up(mpi, tags.as_deref().unwrap_or_default(), directory);
+    let found = found.flatten();
+    first
+        .zip(found)
+        .and_then(|(f, found)| f.scan.group_mesh(f.group_values, &found))
+}
+
 /// The nodes of `tags` (increasing) as the directory holds them: tag, index among the
 /// file's nodes, point; `None` where one is missing. On the first rank (`None`
 /// elsewhere). Collective.
@@ -301,14 +304,7 @@ pub fn ties(
     {
         return Vec::new();
     }
-    let tags = first
-        .as_ref()
-        .and_then(|f| f.scan.group_tags(f.group_values));
-    let found = look_up(mpi, tags.as_deref().unwrap_or_default(), directory);
-    let groups = first
-        .as_ref()
-        .zip(found.flatten())
-        .and_then(|(f, found)| f.scan.group_mesh(f.group_values, &found));
+    let groups = groups_mesh(mpi, first.as_ref(), directory);
     // The contact lines' edges, by their nodes' tags.
     let lines: Option<Vec<[u64; 2]>> = first.as_ref().zip(groups.as_ref()).map(|(f, g)| {
         let tag = |v: usize| g.tags[v];
@@ -323,26 +319,7 @@ pub fn ties(
         .ok()
         .flatten()
         .unwrap_or_default();
-    // Each line's edge and the third corner of its triangle, where this rank holds it.
-    let mut sides: Vec<([u64; 2], u64)> = Vec::new();
-    for t in triangles {
-        for c in 0..3 {
-            let (a, b) = (t[c], t[(c + 1) % 3]);
-            let edge = [a.min(b), a.max(b)];
-            if lines.binary_search(&edge).is_ok() {
-                sides.push((edge, t[(c + 2) % 3]));
-            }
-        }
-    }
-    let thirds: Vec<u64> = sides.iter().map(|s| s.1).collect();
-    let at = find(mpi, &thirds, directory);
-    let mut send: Vec<Vec<u64>> = vec![Vec::new(); mpi.size];
-    for ((edge, _), x) in sides.iter().zip(&at) {
-        if let Some((_, _, x)) = x {
-            send[0].extend_from_slice(&[edge[0], edge[1], x[0].to_bits(), x[1].to_bits()]);
-        }
-    }
-    let got = mpi.exchange(send).concat();
+    let got = line_thirds(mpi, &lines, triangles, directory);
     let ties = first.zip(groups).and_then(|(f, g)| {
         let index: HashMap<u64, usize> = g.tags.iter().enumerate().map(|(v, &t)| (t, v)).collect();
         let thirds: EdgeThirds = (got.chunks_exact(4))
@@ -365,6 +342,37 @@ pub fn ties(
         .ok()
         .flatten()
         .unwrap_or_default()
+}
+
+/// Each of `lines`' edges (node tags, lower first, sorted) with the point of the third
+/// corner of its triangle, from the rank that holds the triangle (its `triangles`, node
+/// tags; the point from the directory): on the first rank, four values an edge (the two
+/// tags, x and y bits); empty elsewhere. Collective.
+fn line_thirds(
+    mpi: &Mpi,
+    lines: &[[u64; 2]],
+    triangles: &[[u64; 3]],
+    directory: &Directory,
+) -> Vec<u64> {
+    let mut sides: Vec<([u64; 2], u64)> = Vec::new();
+    for t in triangles {
+        for c in 0..3 {
+            let (a, b) = (t[c], t[(c + 1) % 3]);
+            let edge = [a.min(b), a.max(b)];
+            if lines.binary_search(&edge).is_ok() {
+                sides.push((edge, t[(c + 2) % 3]));
+            }
+        }
+    }
+    let thirds: Vec<u64> = sides.iter().map(|s| s.1).collect();
+    let at = find(mpi, &thirds, directory);
+    let mut send: Vec<Vec<u64>> = vec![Vec::new(); mpi.size];
+    for ((edge, _), x) in sides.iter().zip(&at) {
+        if let Some((_, _, x)) = x {
+            send[0].extend_from_slice(&[edge[0], edge[1], x[0].to_bits(), x[1].to_bits()]);
+        }
+    }
+    mpi.exchange(send).concat()
 }
 
 /// Every rank's answer to `ask` from its parts, on the first rank (`None` elsewhere, and
