@@ -199,17 +199,18 @@ pub struct LocalPart {
 /// the contact nodes that `lists` owns which it does not hold: its ghosts. Empty where
 /// no record has a mortar row.
 fn ghosts_of(lists: &PartLists, records: &[NodeRecord]) -> Vec<u64> {
-    let tied: Vec<&NodeRecord> = (records.iter())
-        .filter(|r| r.contact.as_ref().is_some_and(|c| !c.masters.is_empty()))
+    // The slave nodes with a row, and the rows' master nodes.
+    let tied: Vec<(u64, &[(u64, f64)])> = (records.iter())
+        .filter_map(|r| {
+            let masters = &r.contact.as_ref()?.masters;
+            (!masters.is_empty()).then_some((r.file, &masters[..]))
+        })
         .collect();
     if tied.is_empty() {
         return Vec::new();
     }
     let mut wanted: Vec<u64> = (tied.iter())
-        .flat_map(|r| {
-            let masters = &r.contact.as_ref().expect("tied").masters;
-            std::iter::once(r.file).chain(masters.iter().map(|m| m.0))
-        })
+        .flat_map(|&(f, masters)| std::iter::once(f).chain(masters.iter().map(|m| m.0)))
         .collect();
     wanted.sort_unstable();
     wanted.dedup();
@@ -220,20 +221,12 @@ fn ghosts_of(lists: &PartLists, records: &[NodeRecord]) -> Vec<u64> {
         .collect();
     held.sort_unstable();
     let holds = |f: u64| {
-        held.binary_search_by_key(&f, |h| h.0)
-            .ok()
-            .map(|i| held[i].1)
+        let i = held.binary_search_by_key(&f, |h| h.0).ok()?;
+        Some(held[i].1)
     };
     let mut ghosts: Vec<u64> = (tied.iter())
-        .filter(|r| holds(r.file) == Some(true))
-        .flat_map(|r| {
-            r.contact
-                .as_ref()
-                .expect("tied")
-                .masters
-                .iter()
-                .map(|m| m.0)
-        })
+        .filter(|&&(f, _)| holds(f) == Some(true))
+        .flat_map(|&(_, masters)| masters.iter().map(|m| m.0))
         .filter(|&m| holds(m).is_none())
         .collect();
     ghosts.sort_unstable();
