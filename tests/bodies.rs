@@ -10,11 +10,6 @@ mod common;
 
 use common::*;
 use std::f64::consts::PI;
-use std::path::{Path, PathBuf};
-
-fn bodies_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bodies")
-}
 
 /// Runs `toml` (written beside a copy of blocks.msh) on `np` ranks with `--nodes-csv`.
 fn run_blocks(toml: &str, np: usize) -> Run {

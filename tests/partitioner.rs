@@ -14,12 +14,8 @@
 
 mod common;
 use common::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use tempfile::TempDir;
-
-fn bodies_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bodies")
-}
 
 /// A directory holding `case.toml` and `file` (copied from `from`).
 fn case_dir(case: &str, from: &Path, file: &str) -> TempDir {
@@ -169,7 +165,7 @@ fn dragged_blocks() -> String {
 /// where the cut runs through the contact).
 #[test]
 fn a_split_cut_by_every_rank_gives_the_same_answer() {
-    let bodies = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bodies");
+    let bodies = bodies_dir();
     let two_bodies = std::fs::read_to_string(bodies.join("disc.toml"))
         .unwrap()
         .replace("\"disc.msh\"", "\"mesh.msh\"");
@@ -315,7 +311,7 @@ fn a_mesh_cut_from_the_ranks_shares_of_the_file_agrees_with_one_rank() {
 /// 29k-node disc). The one-rank answer and the contact conditions on 2 and 3 ranks.
 #[test]
 fn two_bodies_read_by_every_rank_are_cut_with_their_ties() {
-    let bodies = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bodies");
+    let bodies = bodies_dir();
     let disc = std::fs::read_to_string(bodies.join("disc.toml"))
         .unwrap()
         .replace("\"disc.msh\"", "\"mesh.msh\"");
@@ -446,7 +442,7 @@ fn conditions_found_without_the_whole_mesh_are_the_whole_problems() {
     }
     // Two bodies: each slave node's mortar row and its masters, ghosts of its part where
     // the cut runs through the contact.
-    let bodies = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bodies");
+    let bodies = bodies_dir();
     for (name, what) in [("blocks", "two blocks"), ("disc", "a disc on a block")] {
         let case = std::fs::read_to_string(bodies.join(format!("{name}.toml"))).unwrap();
         let case = case.replace(&format!("\"{name}.msh\""), "\"mesh.msh\"");

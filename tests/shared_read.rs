@@ -193,7 +193,8 @@ fn with_point(text: &str, tag: u64, xyz: [f64; 3]) -> String {
 
 /// Where the ranks cut the mesh from their shares and the first rank builds only the
 /// conditions (`dd::dist_problem`), a fault of the mesh or of the case is named as the
-/// first rank's reading of the whole file names it: the one-rank line on 2 and 3 ranks.
+/// first rank's reading of the whole file names it: the one-rank line on 2 and 3 ranks;
+/// also for two bodies, whose contact lines the first rank checks on the groups' elements.
 #[test]
 fn a_faulty_mesh_or_case_gives_the_one_rank_line_where_the_ranks_cut() {
     let text = String::from_utf8(fixture("quarter_disc_v41_ascii.msh")).unwrap();
@@ -257,6 +258,23 @@ fn a_faulty_mesh_or_case_gives_the_one_rank_line_where_the_ranks_cut() {
             disc.replace("[0.0, 0.0]", "[0.0, 0.5]"),
         ),
     ];
+    // Two bodies: faults of the contact's lines, found on the groups' elements.
+    let blocks_mesh = std::fs::read_to_string(bodies_dir().join("blocks.msh")).unwrap();
+    let blocks = std::fs::read_to_string(bodies_dir().join("blocks.toml"))
+        .unwrap()
+        .replace("\"blocks.msh\"", "\"mesh.msh\"");
+    let two_bodies = [
+        (
+            "a master line that shares a node with its slave",
+            blocks.replace("master = \"lower_top\"", "master = \"upper_left\""),
+        ),
+        (
+            "a slave line that faces no master",
+            blocks.replace("master = \"lower_top\"", "master = \"bottom\""),
+        ),
+    ];
+    let meshes = (meshes.into_iter())
+        .chain(two_bodies.map(|(what, case)| (what, blocks_mesh.clone(), case)));
     for (what, mesh, case) in meshes {
         let dir = case_dir(&case, mesh.as_bytes());
         let one = refused(dir.path(), 1, "metis");

@@ -48,6 +48,11 @@ pub fn gmsh_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gmsh")
 }
 
+/// The two-body meshes and cases (`tests/data/bodies`).
+pub fn bodies_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bodies")
+}
+
 /// One finished run of the binary. The temporary directory lives as long as this value.
 pub struct Run {
     pub code: i32,
