@@ -27,6 +27,7 @@ use crate::host;
 use crate::linear::SparseCholesky;
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
 use faer::{Mat, Side};
+use rayon::prelude::*;
 
 /// C restricted to one rank's own contact nodes: packed rows (the normal value of each
 /// own contact node, then, with friction, the tangential ones) against positions in B.
@@ -330,15 +331,30 @@ impl InterfaceFactor {
     }
 
     fn dense(n: usize, pieces: &[(Vec<usize>, Mat<f64>)], threads: usize) -> Result<Self> {
-        let mut s = Mat::<f64>::zeros(n, n);
-        for (idx, piece) in pieces {
-            for (a, &ia) in idx.iter().enumerate() {
+        // Each piece's column of each dof of the system.
+        let columns: Vec<Vec<usize>> = (pieces.iter())
+            .map(|(idx, _)| {
+                let mut at = vec![usize::MAX; n];
                 for (b, &ib) in idx.iter().enumerate() {
-                    s[(ia, ib)] += piece[(a, b)];
+                    at[ib] = b;
                 }
-            }
-        }
+                at
+            })
+            .collect();
         let l = with_threads(threads, || {
+            // The sum on the pool, a column a job, the pieces added in their order as one
+            // thread adds them: on one thread it was the factorization's serial part.
+            let mut s = Mat::<f64>::zeros(n, n);
+            let sum = |(j, mut col): (usize, faer::ColMut<f64>)| {
+                for ((idx, piece), at) in pieces.iter().zip(&columns) {
+                    if let Some(&b) = at.get(j).filter(|&&b| b != usize::MAX) {
+                        for (a, &ia) in idx.iter().enumerate() {
+                            col[ia] += piece[(a, b)];
+                        }
+                    }
+                }
+            };
+            s.as_mut().par_col_iter_mut().enumerate().for_each(sum);
             faer::linalg::solvers::Llt::new(s.as_ref(), Side::Lower).map(|llt| llt.L().to_owned())
         })
         .map_err(|_| singular())?;

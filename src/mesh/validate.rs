@@ -75,10 +75,12 @@ fn references(mesh: &Mesh, name: &str) -> Result<()> {
             "{name}: the mesh has no triangles; mesh the surface in 2D (`gmsh -2`)"
         ));
     }
+    // On the pool, the first fault as a scan in order meets it: these scans of the whole
+    // mesh ran on one core while the first rank's borrowed threads waited.
     if let Some(k) = mesh
         .nodes
-        .iter()
-        .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+        .par_iter()
+        .position_first(|p| !(p[0].is_finite() && p[1].is_finite()))
     {
         let p = mesh.nodes[k];
         return input(format!(
@@ -90,9 +92,9 @@ fn references(mesh: &Mesh, name: &str) -> Result<()> {
     }
     if let Some((t, &bad)) = mesh
         .triangles
-        .iter()
+        .par_iter()
         .enumerate()
-        .find_map(|(t, tri)| tri.iter().find(|&&i| i >= n).map(|i| (t, i)))
+        .find_map_first(|(t, tri)| tri.iter().find(|&&i| i >= n).map(|i| (t, i)))
     {
         return input(format!(
             "{name}: triangle {} uses node {}, but the mesh has {n} nodes; fix the mesh",
@@ -118,11 +120,16 @@ fn references(mesh: &Mesh, name: &str) -> Result<()> {
 }
 
 fn used_nodes(mesh: &Mesh) -> Vec<bool> {
-    let mut used = vec![false; mesh.nodes.len()];
-    for &i in mesh.triangles.iter().flatten() {
-        used[i] = true;
-    }
-    used
+    use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+    let used: Vec<AtomicBool> = (0..mesh.nodes.len())
+        .into_par_iter()
+        .map(|_| AtomicBool::new(false))
+        .collect();
+    mesh.triangles
+        .par_iter()
+        .flatten()
+        .for_each(|&i| used[i].store(true, Relaxed));
+    used.into_iter().map(AtomicBool::into_inner).collect()
 }
 
 /// Rejects two nodes at one place when a triangle uses at least one of them.
@@ -244,10 +251,10 @@ pub fn duplicate_message(
 /// Rejects nodes that no triangle uses: their displacement has no stiffness at all, so
 /// the matrix would be singular (or, under a condition, a load would act on nothing).
 fn unused_nodes(mesh: &Mesh, used: &[bool], name: &str) -> Result<()> {
-    let count = used.iter().filter(|&&u| !u).count();
-    let Some(first) = used.iter().position(|&u| !u) else {
+    let Some(first) = used.par_iter().position_first(|&u| !u) else {
         return Ok(());
     };
+    let count = used.par_iter().filter(|&&u| !u).count();
     let group = mesh
         .line_groups
         .iter()
