@@ -196,7 +196,9 @@ pub fn split(
     // The components each node's contact reads (none off the contact boundary), in the
     // node's frame where it has one.
     let mut read = vec![[false; 2]; n];
-    let mut frame: Vec<Option<[f64; 2]>> = vec![None; n];
+    // Only contact nodes turn: a map, not a vector sized like the mesh, which one thread
+    // filled while the others waited.
+    let mut frame: std::collections::HashMap<usize, [f64; 2]> = Default::default();
     let masters = |k: usize| prob.contact_masters.get(k).map_or(&[][..], |m| &m[..]);
     let mut is_master = vec![false; n];
     for k in 0..prob.contact_nodes.len() {
@@ -212,7 +214,7 @@ pub fn split(
         // several slave nodes along theirs): a master node does not turn; the slave node
         // does, like a node against an obstacle.
         if !is_master[c] && in_frame(frictional, m, fixed) {
-            frame[c] = Some(m);
+            frame.insert(c, m);
             read[c] = [true, false];
         } else {
             read[c] = contact_components(frictional, m);
@@ -255,17 +257,24 @@ pub fn split(
         g.sort_unstable();
         g.dedup();
     }
-    let mut interface_index: Vec<[Option<usize>; 2]> = vec![[None; 2]; n];
+    // Each interface dof's number plus one (0: none), numbered by node then component;
+    // zeroed memory, so the vector costs nothing where it is not written. The loop runs
+    // over the interface and contact nodes alone.
+    let mut interface_index = vec![[0u32; 2]; n];
     let mut n_interface = 0;
     let mut n_boundary = 0;
-    for v in 0..n {
+    let boundary_nodes: Vec<usize> = (0..n)
+        .into_par_iter()
+        .filter(|&v| on_interface[v] || is_contact[v])
+        .collect();
+    for v in boundary_nodes {
         for c in 0..2 {
             if prob.fixed[2 * v + c].is_some() {
                 continue;
             }
             if on_interface[v] {
-                interface_index[v][c] = Some(n_interface);
                 n_interface += 1;
+                interface_index[v][c] = n_interface as u32;
                 n_boundary += 1;
             } else if is_contact[v] && read[v][c] {
                 n_boundary += 1;
@@ -302,8 +311,8 @@ pub fn split(
             for c in 0..2 {
                 fixed.push(prob.fixed[2 * g + c]);
                 load.push(if owned[l] { prob.load[2 * g + c] } else { 0.0 });
-                if let Some(b) = interface_index[g][c] {
-                    interface.push((b, 2 * l + c));
+                if let Some(b) = interface_index[g][c].checked_sub(1) {
+                    interface.push((b as usize, 2 * l + c));
                 } else if is_contact[g] && read[g][c] && prob.fixed[2 * g + c].is_none() {
                     boundary_dofs.push(2 * l + c);
                 }
@@ -335,7 +344,7 @@ pub fn split(
             interface_global,
             interface_nodes: p.interface.len(),
             frames: (all_nodes.iter().enumerate())
-                .filter_map(|(l, &g)| frame[g].map(|m| (l, m)))
+                .filter_map(|(l, &g)| frame.get(&g).map(|&m| (l, m)))
                 .collect(),
             contact_masters: (mine.iter())
                 .map(|&k| masters(k).iter().map(|&(v, c)| (local_of[v], c)).collect())
