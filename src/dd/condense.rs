@@ -331,7 +331,7 @@ impl InterfaceFactor {
     }
 
     fn dense(n: usize, pieces: &[(Vec<usize>, Mat<f64>)], threads: usize) -> Result<Self> {
-        // Each piece's column of each dof of the system.
+        // Each piece's column of each dof of the system (a piece's dofs are distinct).
         let columns: Vec<Vec<usize>> = (pieces.iter())
             .map(|(idx, _)| {
                 let mut at = vec![usize::MAX; n];
