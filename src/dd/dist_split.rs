@@ -236,10 +236,10 @@ fn ghosts_of(lists: &PartLists, records: &[NodeRecord]) -> Vec<u64> {
 
 /// Part `lists`'s subproblem but for its interface numbering ([`LocalPart`]), from the
 /// records of the conditioned nodes (`records`, any order; those of nodes the part does
-/// not hold are passed over) and the bodies' runs; `ghosted`: the master nodes
-/// (increasing file indices) that some part holds as a ghost ([`ghosts_of`]), which are
-/// interface nodes in every part that holds them. The part's own ghosts come last among
-/// its nodes, as `split::split` puts them.
+/// not hold are passed over) and the bodies' runs; `ghosts`: the part's own ghosts
+/// ([`ghosts_of`]), which come last among its nodes, as `split::split` puts them, and
+/// the master nodes (increasing file indices) that some part holds as a ghost, which are
+/// interface nodes in every part that holds them.
 /// Nodes in the Hilbert order of their coordinates and triangles in the order of their
 /// nodes, as the first rank numbers the whole problem (`problem::build`), so that the
 /// assembly walks memory in order whatever the file's order; triangles turned
@@ -249,10 +249,9 @@ pub fn local_part(
     records: &[NodeRecord],
     bodies: &[(u64, u32)],
     case: PartCase,
-    ghosted: &[u64],
+    (ghosts, ghosted): (&[u64], &[u64]),
 ) -> Result<LocalPart> {
     let n = lists.nodes.len();
-    let ghosts = ghosts_of(lists, records);
     let box_ = renumber::bounding_box(&lists.xy);
     let list_of = renumber::sorted_order(&renumber::hilbert_keys(&lists.xy, box_));
     let of_list = renumber::inverse(&list_of);
@@ -284,7 +283,7 @@ pub fn local_part(
             .filter_map(|r| Some((r.file, r.master?.xy)))
             .collect();
         masters.sort_unstable_by_key(|m| m.0);
-        for &f in &ghosts {
+        for &f in ghosts {
             let i = (masters.binary_search_by_key(&f, |m| m.0)).map_err(|_| {
                 Error::Numerical(format!("internal: master node {f} has no record"))
             })?;
@@ -481,15 +480,18 @@ pub fn build(
         _ => mpi.broadcast(conditions)?,
     };
     // The ghosts of every part, known to every part: boundary-sized.
-    let mine: Vec<u64> = (lists.iter())
-        .flat_map(|l| ghosts_of(l, &conditions.nodes))
+    let ghosts: Vec<Vec<u64>> = (lists.iter())
+        .map(|l| ghosts_of(l, &conditions.nodes))
         .collect();
-    let mut ghosted = mpi.exchange(vec![mine; p]).concat();
+    let mut ghosted = mpi.exchange(vec![ghosts.concat(); p]).concat();
     ghosted.sort_unstable();
     ghosted.dedup();
     let parts = mpi.agree(
-        (lists.iter())
-            .map(|l| local_part(l, &conditions.nodes, &conditions.bodies, case, &ghosted))
+        (lists.iter().zip(&ghosts))
+            .map(|(l, own)| {
+                let nodes = &conditions.nodes;
+                local_part(l, nodes, &conditions.bodies, case, (own, &ghosted))
+            })
             .collect::<Result<Vec<LocalPart>>>(),
     )?;
     drop(conditions);
@@ -708,7 +710,8 @@ mod tests {
             body_force: [0.0, -3.0],
             frictional: false,
         };
-        let part = local_part(&lists, &records, &[(0, 0), (1, 1)], case, &[]).expect("a part");
+        let part =
+            local_part(&lists, &records, &[(0, 0), (1, 1)], case, (&[], &[])).expect("a part");
         let sub = &part.sub;
         let local = |f: usize| sub.global_nodes.iter().position(|&g| g == f).unwrap();
         let area2 = |t: &[usize; 3]| {
@@ -741,7 +744,7 @@ mod tests {
             file: 9,
             ..records[1].clone()
         };
-        let without = local_part(&lists, &[stray], &[(0, 0)], case, &[]).expect("a part");
+        let without = local_part(&lists, &[stray], &[(0, 0)], case, (&[], &[])).expect("a part");
         assert!(without.sub.fixed.iter().all(Option::is_none));
     }
 }
