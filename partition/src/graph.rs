@@ -7,6 +7,7 @@ use crate::PartitionError;
 use metis::Idx;
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::atomic::{AtomicI32, Ordering::Relaxed};
 
 /// A graph in METIS' CSR form with optional vertex and edge weights (absent: all 1).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -52,27 +53,53 @@ pub struct Stars {
     tris: Vec<Idx>,
 }
 
+/// Triangles from which [`Stars::new`] counts by pieces on the pool.
+const STARS_PIECE_MIN: usize = 1 << 16;
+
+/// At most this many pieces: each holds a count per node.
+const STARS_PIECES_MAX: usize = 4;
+
 impl Stars {
     /// Needs valid triangles (node ids `< num_nodes`).
+    ///
+    /// On one thread this pass was a run's longest one-thread step of the partition
+    /// (about 30 ms at 1M nodes, the pool's other threads waiting). So each piece of
+    /// the triangles counts its nodes on its own thread; a node's slots are then given
+    /// out piece by piece, in triangle order, and each piece fills its own slots. The
+    /// lists are those of one pass in triangle order, on any number of threads.
     pub fn new(num_nodes: usize, triangles: &[[usize; 3]]) -> Result<Self, PartitionError> {
         to_idx(3 * triangles.len())?;
-        let mut start = vec![0 as Idx; num_nodes + 1];
-        for t in triangles {
-            for &n in t {
-                start[n + 1] += 1;
-            }
-        }
-        for i in 1..start.len() {
-            start[i] += start[i - 1];
-        }
-        let mut fill = start.clone();
+        let pieces = (triangles.len() / STARS_PIECE_MIN)
+            .min(rayon::current_num_threads())
+            .clamp(1, STARS_PIECES_MAX);
+        let len = triangles.len().div_ceil(pieces).max(1);
+        let mut next: Vec<Vec<Idx>> = triangles
+            .par_chunks(len)
+            .map(|piece| {
+                let mut count = vec![0 as Idx; num_nodes];
+                for t in piece {
+                    for &n in t {
+                        count[n] += 1;
+                    }
+                }
+                count
+            })
+            .collect();
+        let start = first_slots(&mut next, num_nodes);
         let mut tris = vec![0 as Idx; 3 * triangles.len()];
-        for (e, t) in triangles.iter().enumerate() {
-            for &n in t {
-                tris[fill[n] as usize] = e as Idx;
-                fill[n] += 1;
-            }
-        }
+        let slots = atomic_view(&mut tris);
+        triangles
+            .par_chunks(len)
+            .zip(next.par_iter_mut())
+            .enumerate()
+            .for_each(|(k, (piece, next))| {
+                for (i, t) in piece.iter().enumerate() {
+                    for &n in t {
+                        slots[next[n] as usize].store((k * len + i) as Idx, Relaxed);
+                        next[n] += 1;
+                    }
+                }
+            });
         Ok(Self { start, tris })
     }
 
@@ -128,21 +155,89 @@ pub(crate) fn dual_from_stars(
         .collect();
     let total = blocks.iter().map(|b| b.1.len()).sum();
     to_idx(total)?;
-    let mut xadj = Vec::with_capacity(ne + 1);
-    xadj.push(0 as Idx);
-    let mut adjncy = Vec::with_capacity(total);
-    for (row_len, block) in blocks {
-        for len in row_len {
-            xadj.push(xadj[xadj.len() - 1] + len);
-        }
-        adjncy.extend_from_slice(&block);
+    // Joined on the pool too: each block's rows and entries go to their places from
+    // the block's first entry (on one thread this took 10-20 ms at 1M nodes).
+    let mut xadj = vec![0 as Idx; ne + 1];
+    let mut adjncy = vec![0 as Idx; total];
+    let mut rows_left = &mut xadj[1..];
+    let mut entries_left = &mut adjncy[..];
+    let mut places = Vec::with_capacity(blocks.len());
+    let mut first = 0 as Idx;
+    for (row_len, block) in &blocks {
+        let (rows, rest) = rows_left.split_at_mut(row_len.len());
+        let (entries, more) = entries_left.split_at_mut(block.len());
+        (rows_left, entries_left) = (rest, more);
+        places.push((rows, entries, first));
+        first += block.len() as Idx;
     }
+    places
+        .into_par_iter()
+        .zip(&blocks)
+        .for_each(|((rows, entries, mut at), (row_len, block))| {
+            for (x, &len) in rows.iter_mut().zip(row_len) {
+                at += len;
+                *x = at;
+            }
+            entries.copy_from_slice(block);
+        });
     Ok(Graph {
         xadj,
         adjncy,
         vwgt: None,
         adjwgt: None,
     })
+}
+
+/// Each piece's count per node (`counts[k][n]`) turned into the first slot of its
+/// triangles around node `n`: after the slots of node `n - 1`, and of the pieces before
+/// `k` around `n`. Returns where each node's list starts (and the end). By ranges of
+/// nodes on the pool: the ranges' totals first, then each range from its base.
+fn first_slots(counts: &mut [Vec<Idx>], num_nodes: usize) -> Vec<Idx> {
+    const RANGE: usize = 1 << 14;
+    let ranges = num_nodes.div_ceil(RANGE);
+    let totals: Vec<Idx> = (0..ranges)
+        .into_par_iter()
+        .map(|r| {
+            let span = r * RANGE..((r + 1) * RANGE).min(num_nodes);
+            counts.iter().map(|c| c[span.clone()].iter().sum::<Idx>()).sum()
+        })
+        .collect();
+    let mut end = 0;
+    let bases: Vec<Idx> = (totals.iter())
+        .map(|&t| {
+            end += t;
+            end - t
+        })
+        .collect();
+    let mut columns: Vec<Vec<&mut [Idx]>> = (0..ranges).map(|_| Vec::new()).collect();
+    for c in counts.iter_mut() {
+        for (r, piece) in c.chunks_mut(RANGE).enumerate() {
+            columns[r].push(piece);
+        }
+    }
+    let mut start = vec![0 as Idx; num_nodes + 1];
+    start[num_nodes] = end;
+    (start[..num_nodes].par_chunks_mut(RANGE))
+        .zip(columns)
+        .zip(bases)
+        .for_each(|((start, mut columns), mut at)| {
+            for (i, s) in start.iter_mut().enumerate() {
+                *s = at;
+                for c in columns.iter_mut() {
+                    let n = c[i];
+                    c[i] = at;
+                    at += n;
+                }
+            }
+        });
+    start
+}
+
+/// `v` as atomics, which threads may store to at once.
+fn atomic_view(v: &mut [Idx]) -> &[AtomicI32] {
+    // SAFETY: `AtomicI32` has the size, alignment and bit validity of `i32` (`Idx`), and
+    // the exclusive borrow of `v` lasts as long as the view.
+    unsafe { &*(v as *mut [Idx] as *const [AtomicI32]) }
 }
 
 /// Sorts `row` and moves its distinct values to its head; returns how many there are.

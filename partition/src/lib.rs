@@ -34,6 +34,7 @@ mod metis_rng;
 pub use graph::Stars;
 use graph::{dual_from_stars, pieces_and_cut, to_idx, Graph};
 use metis::Idx;
+use rayon::prelude::*;
 pub use metis_rng::is_private as metis_runs_concurrently;
 use std::collections::BTreeMap;
 use std::fmt;
@@ -194,20 +195,24 @@ pub fn dual_graph(num_nodes: usize, triangles: &[[usize; 3]]) -> Result<DualGrap
     })
 }
 
+/// The first invalid triangle's error, found on the pool (a pass over every triangle
+/// that the other threads would otherwise wait for).
 fn validate_triangles(num_nodes: usize, triangles: &[[usize; 3]]) -> Result<(), PartitionError> {
-    for (element, t) in triangles.iter().enumerate() {
+    let fault = |(element, t): (usize, &[usize; 3])| {
         if let Some(&node) = t.iter().find(|&&n| n >= num_nodes) {
-            return Err(PartitionError::NodeOutOfRange {
+            return Some(PartitionError::NodeOutOfRange {
                 element,
                 node,
                 num_nodes,
             });
         }
-        if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
-            return Err(PartitionError::DegenerateTriangle { element });
-        }
+        (t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+            .then_some(PartitionError::DegenerateTriangle { element })
+    };
+    match triangles.par_iter().enumerate().find_map_first(fault) {
+        Some(e) => Err(e),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// One part (one MPI rank's share) of a partitioned mesh. All ids are global.
@@ -569,7 +574,7 @@ pub fn partition_from_element_parts(
 
 /// Every part id below `nparts`, else the first triangle whose is not.
 fn check_part_ids(element_part: &[u32], nparts: usize) -> Result<(), PartitionError> {
-    match element_part.iter().position(|&p| p as usize >= nparts) {
+    match element_part.par_iter().position_first(|&p| p as usize >= nparts) {
         Some(element) => Err(PartitionError::PartOutOfRange {
             element,
             part: element_part[element],
@@ -747,10 +752,7 @@ fn metis_kway(
 /// Gives every empty part one triangle: the highest-numbered triangle of the largest
 /// part (lowest id on ties). Needs `nparts <= element_part.len()`.
 fn fill_empty_parts(element_part: &mut [u32], nparts: usize) {
-    let mut sizes = vec![0usize; nparts];
-    for &p in element_part.iter() {
-        sizes[p as usize] += 1;
-    }
+    let mut sizes = part_sizes(element_part, nparts);
     for empty in 0..nparts {
         if sizes[empty] > 0 {
             continue;
@@ -765,6 +767,49 @@ fn fill_empty_parts(element_part: &mut [u32], nparts: usize) {
         sizes[largest as usize] -= 1;
         sizes[empty] += 1;
     }
+}
+
+/// Each part's number of triangles, counted by pieces on the pool (these passes over
+/// every triangle ran on one thread while the pool's others waited).
+fn part_sizes(element_part: &[u32], nparts: usize) -> Vec<usize> {
+    const PIECE: usize = 1 << 16;
+    let count = |piece: &[u32]| {
+        let mut sizes = vec![0usize; nparts];
+        for &p in piece {
+            sizes[p as usize] += 1;
+        }
+        sizes
+    };
+    if element_part.len() <= PIECE {
+        return count(element_part);
+    }
+    (element_part.par_chunks(PIECE).map(count)).reduce(
+        || vec![0; nparts],
+        |mut a, b| {
+            a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
+            a
+        },
+    )
+}
+
+/// A range of nodes' share of each part's lists in [`build_partition`].
+#[derive(Default)]
+struct NodeLists {
+    nodes: Vec<usize>,
+    owned: Vec<bool>,
+    interface: Vec<usize>,
+    shared: BTreeMap<u32, Vec<usize>>,
+}
+
+/// The nodes in each range of [`build_partition`]'s pass over the nodes: a few ranges
+/// a thread, each at least 2^15 nodes, and not so many that their lists (one per part
+/// and range) hold more than about 2^20 entries of their own.
+fn node_range(num_nodes: usize, nparts: usize) -> usize {
+    let ranges = (4 * rayon::current_num_threads())
+        .min(num_nodes >> 15)
+        .min((1 << 20) / nparts.max(1))
+        .max(1);
+    num_nodes.div_ceil(ranges).max(1)
 }
 
 /// The mesh's connectivity that both the partition and the ownership rules read: the
@@ -806,10 +851,7 @@ fn build_partition(
         return Err(PartitionError::ContactNodeOutOfRange { node, num_nodes });
     }
 
-    let mut sizes = vec![0usize; nparts];
-    for &p in &element_part {
-        sizes[p as usize] += 1;
-    }
+    let sizes = part_sizes(&element_part, nparts);
     let mut parts: Vec<Part> = sizes
         .iter()
         .map(|&size| Part {
@@ -821,48 +863,69 @@ fn build_partition(
         parts[p as usize].elements.push(e);
     }
 
-    // Nodes are visited in increasing order, so every per-part list comes out sorted.
+    // By ranges of nodes on the pool, each range's lists joined in range order: nodes
+    // are visited in increasing order, so every per-part list comes out sorted.
     let mut node_owner = vec![NO_PART; num_nodes];
-    let mut shared: Vec<BTreeMap<u32, Vec<usize>>> = vec![BTreeMap::new(); nparts];
-    let mut interface_nodes = 0;
-    let mut touching = Vec::new();
-    for (n, owner_of_n) in node_owner.iter_mut().enumerate() {
-        let star = stars.of(n);
-        let Some(&first) = star.first() else {
-            continue;
-        };
-        // Most nodes lie inside one part: no list to sort.
-        let p0 = element_part[first as usize];
-        if star.iter().all(|&t| element_part[t as usize] == p0) {
-            *owner_of_n = p0;
-            let part = &mut parts[p0 as usize];
-            part.nodes.push(n);
-            part.owned.push(true);
-            continue;
-        }
-        touching.clear();
-        touching.extend(star.iter().map(|&t| element_part[t as usize]));
-        touching.sort_unstable();
-        touching.dedup();
-        let touching = &touching[..];
-        // Ownership rule: the lowest part id touching the node. Simple, deterministic,
-        // and computable by every rank from the shared lists alone.
-        let owner = touching[0];
-        *owner_of_n = owner;
-        for &p in touching {
-            let part = &mut parts[p as usize];
-            part.nodes.push(n);
-            part.owned.push(p == owner);
-            part.interface.push(n);
-            for &q in touching.iter().filter(|&&q| q != p) {
-                shared[p as usize].entry(q).or_default().push(n);
+    let range = node_range(num_nodes, nparts);
+    let ranges: Vec<(Vec<NodeLists>, usize)> = node_owner
+        .par_chunks_mut(range)
+        .enumerate()
+        .map(|(r, owners)| {
+            let mut lists: Vec<NodeLists> = (0..nparts).map(|_| NodeLists::default()).collect();
+            let mut interface_nodes = 0;
+            let mut touching = Vec::new();
+            for (i, owner_of_n) in owners.iter_mut().enumerate() {
+                let n = r * range + i;
+                let star = stars.of(n);
+                let Some(&first) = star.first() else {
+                    continue;
+                };
+                // Most nodes lie inside one part: no list to sort.
+                let p0 = element_part[first as usize];
+                if star.iter().all(|&t| element_part[t as usize] == p0) {
+                    *owner_of_n = p0;
+                    let part = &mut lists[p0 as usize];
+                    part.nodes.push(n);
+                    part.owned.push(true);
+                    continue;
+                }
+                touching.clear();
+                touching.extend(star.iter().map(|&t| element_part[t as usize]));
+                touching.sort_unstable();
+                touching.dedup();
+                // Ownership rule: the lowest part id touching the node. Simple,
+                // deterministic, and computable by every rank from the shared lists alone.
+                let owner = touching[0];
+                *owner_of_n = owner;
+                for &p in &touching {
+                    let part = &mut lists[p as usize];
+                    part.nodes.push(n);
+                    part.owned.push(p == owner);
+                    part.interface.push(n);
+                    for &q in touching.iter().filter(|&&q| q != p) {
+                        part.shared.entry(q).or_default().push(n);
+                    }
+                }
+                interface_nodes += 1;
+            }
+            (lists, interface_nodes)
+        })
+        .collect();
+    let interface_nodes = ranges.iter().map(|r| r.1).sum();
+    parts.par_iter_mut().enumerate().for_each(|(p, part)| {
+        let mut shared: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+        for (lists, _) in &ranges {
+            let l = &lists[p];
+            part.nodes.extend_from_slice(&l.nodes);
+            part.owned.extend_from_slice(&l.owned);
+            part.interface.extend_from_slice(&l.interface);
+            for (&q, nodes) in &l.shared {
+                shared.entry(q).or_default().extend_from_slice(nodes);
             }
         }
-        interface_nodes += 1;
-    }
-    for (part, map) in parts.iter_mut().zip(shared) {
-        part.neighbours = map.into_iter().collect();
-    }
+        part.neighbours = shared.into_iter().collect();
+    });
+    drop(ranges);
     for &n in &contact {
         match node_owner[n] {
             NO_PART => return Err(PartitionError::ContactNodeUnused { node: n }),

@@ -44,14 +44,8 @@ pub fn hilbert_keys(points: &[[f64; 2]], bbox: [[f64; 2]; 2]) -> Vec<u64> {
 
 /// The bounding box of `points` (lower corner, upper corner).
 pub fn bounding_box(points: &[[f64; 2]]) -> [[f64; 2]; 2] {
-    let mut b = [[f64::INFINITY; 2], [f64::NEG_INFINITY; 2]];
-    for p in points {
-        for c in 0..2 {
-            b[0][c] = b[0][c].min(p[c]);
-            b[1][c] = b[1][c].max(p[c]);
-        }
-    }
-    b
+    let (lo, hi) = crate::mesh::validate::bounding_box(points);
+    [lo, hi]
 }
 
 /// The indices of `keys` sorted by key, equal keys by index: position -> index.

@@ -23,15 +23,29 @@ pub const SAME_LINE: f64 = 1e-9;
 const PARALLEL: f64 = 1e-9;
 
 /// Lower and upper corners of the box around `nodes` (infinite corners when empty).
+///
+/// The start of a run asks for the whole mesh's box several times (checks, order, r),
+/// each on one thread where the pool's others wait: hence by pieces on the pool.
 pub fn bounding_box(nodes: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in nodes {
-        for c in 0..2 {
-            lo[c] = lo[c].min(p[c]);
-            hi[c] = hi[c].max(p[c]);
+    const PIECE: usize = 1 << 15;
+    let of = |nodes: &[[f64; 2]]| {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in nodes {
+            for c in 0..2 {
+                lo[c] = lo[c].min(p[c]);
+                hi[c] = hi[c].max(p[c]);
+            }
         }
+        (lo, hi)
+    };
+    if nodes.len() <= PIECE {
+        return of(nodes);
     }
-    (lo, hi)
+    let both = |(a, b): ([f64; 2], [f64; 2]), (c, d): ([f64; 2], [f64; 2])| {
+        ([a[0].min(c[0]), a[1].min(c[1])], [b[0].max(d[0]), b[1].max(d[1])])
+    };
+    let empty = || ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    nodes.par_chunks(PIECE).map(of).reduce(empty, both)
 }
 
 /// The mesh size that relative tolerances refer to: the larger side of the bounding box.
