@@ -199,7 +199,10 @@ fn first_slots(counts: &mut [Vec<Idx>], num_nodes: usize) -> Vec<Idx> {
         .into_par_iter()
         .map(|r| {
             let span = r * RANGE..((r + 1) * RANGE).min(num_nodes);
-            counts.iter().map(|c| c[span.clone()].iter().sum::<Idx>()).sum()
+            counts
+                .iter()
+                .map(|c| c[span.clone()].iter().sum::<Idx>())
+                .sum()
         })
         .collect();
     let mut end = 0;

@@ -34,8 +34,8 @@ mod metis_rng;
 pub use graph::Stars;
 use graph::{dual_from_stars, pieces_and_cut, to_idx, Graph};
 use metis::Idx;
-use rayon::prelude::*;
 pub use metis_rng::is_private as metis_runs_concurrently;
+use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::Mutex;
@@ -574,7 +574,10 @@ pub fn partition_from_element_parts(
 
 /// Every part id below `nparts`, else the first triangle whose is not.
 fn check_part_ids(element_part: &[u32], nparts: usize) -> Result<(), PartitionError> {
-    match element_part.par_iter().position_first(|&p| p as usize >= nparts) {
+    match element_part
+        .par_iter()
+        .position_first(|&p| p as usize >= nparts)
+    {
         Some(element) => Err(PartitionError::PartOutOfRange {
             element,
             part: element_part[element],

@@ -42,7 +42,10 @@ pub fn bounding_box(nodes: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
         return of(nodes);
     }
     let both = |(a, b): ([f64; 2], [f64; 2]), (c, d): ([f64; 2], [f64; 2])| {
-        ([a[0].min(c[0]), a[1].min(c[1])], [b[0].max(d[0]), b[1].max(d[1])])
+        (
+            [a[0].min(c[0]), a[1].min(c[1])],
+            [b[0].max(d[0]), b[1].max(d[1])],
+        )
     };
     let empty = || ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     nodes.par_chunks(PIECE).map(of).reduce(empty, both)
