@@ -14,6 +14,7 @@ use std::path::Path;
 use std::str::FromStr;
 
 use crate::error::{input, Error, Result};
+use crate::mesh::validate::NodeRows;
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 
@@ -1420,10 +1421,8 @@ impl TagIndex {
 /// MSH 2.2 repeats an element once per physical group, so a triangle in two physical
 /// surfaces appears twice; a mesh never holds the same triangle twice on purpose.
 ///
-/// Repeats share their smallest node, so triangles are bucketed by it (a counting sort:
-/// a couple of triangles per node) and each bucket is sorted on its own. The nodes are
-/// cut into ranges, one per piece of work on the pool's threads, each of which buckets
-/// only the triangles whose smallest node is in its range.
+/// Repeats share their smallest node, so triangles are put in rows by it
+/// ([`NodeRows`]: a couple of triangles per node) and each row is sorted on its own.
 ///
 /// Returns, when any was dropped, the new index of each triangle as read (a repeat's is
 /// that of the triangle kept in its place).
@@ -1431,14 +1430,7 @@ fn drop_repeated_triangles(
     num_nodes: usize,
     triangles: &mut Vec<[usize; 3]>,
 ) -> Option<Vec<usize>> {
-    let all: &[[usize; 3]] = triangles;
-    let smallest = |t: &[usize; 3]| t[0].min(t[1]).min(t[2]);
-    let ranges =
-        crate::mesh::validate::balanced_ranges(num_nodes, all.len(), 1, |t| smallest(&all[t]));
-    // Every (repeat, the triangle it repeats) pair, in file order within a range.
-    let repeats: Vec<(usize, usize)> = (ranges.into_par_iter())
-        .flat_map_iter(|nodes| repeats_from(all, nodes.start, nodes.end))
-        .collect();
+    let repeats = repeats_of(num_nodes, triangles);
     if repeats.is_empty() {
         return None;
     }
@@ -1465,50 +1457,50 @@ fn drop_repeated_triangles(
     Some(new_index)
 }
 
-/// The repeats among the triangles whose smallest node is in `lo..hi`: each with the
-/// first triangle of the same three nodes in the file.
-fn repeats_from(triangles: &[[usize; 3]], lo: usize, hi: usize) -> Vec<(usize, usize)> {
+/// Every (repeat, the first triangle of the same three nodes in the file) pair, in
+/// file order within each smallest node.
+fn repeats_of(num_nodes: usize, triangles: &[[usize; 3]]) -> Vec<(usize, usize)> {
     let key = |t: &[usize; 3]| {
         let mut k = *t;
         k.sort_unstable();
         k
     };
-    let smallest = |t: &[usize; 3]| t[0].min(t[1]).min(t[2]);
-    let mut start = vec![0usize; hi - lo + 1];
-    for t in triangles {
-        let m = smallest(t);
-        if (lo..hi).contains(&m) {
-            start[m - lo + 1] += 1;
+    let Some(rows) = NodeRows::new(num_nodes, triangles, 1, |i, t, put| {
+        put(t[0].min(t[1]).min(t[2]), (key(t), i))
+    }) else {
+        // Beyond 2^32 triangles: one thread, one sort.
+        let mut all: Vec<([usize; 3], usize)> = triangles
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (key(t), i))
+            .collect();
+        all.sort_unstable();
+        return runs_of_repeats(&all);
+    };
+    let found = rows.scan(Vec::new, |repeats, _, row| {
+        if row.len() > 1 {
+            // By key, then by position in the file: the first of equal keys is kept.
+            row.sort_unstable();
+            repeats.extend(runs_of_repeats(row));
         }
-    }
-    for i in 0..hi - lo {
-        start[i + 1] += start[i];
-    }
-    let mut next = start.clone();
-    let mut bucketed = vec![([0usize; 3], 0usize); start[hi - lo]];
-    for (i, t) in triangles.iter().enumerate() {
-        let m = smallest(t);
-        if (lo..hi).contains(&m) {
-            bucketed[next[m - lo]] = (key(t), i);
-            next[m - lo] += 1;
-        }
-    }
-    drop(next);
+        Ok::<(), ()>(())
+    });
+    found.map(|f| f.concat()).unwrap_or_default()
+}
+
+/// In `sorted` (key, position) pairs, each repeat of a key with the first position of
+/// its key.
+fn runs_of_repeats(sorted: &[([usize; 3], usize)]) -> Vec<(usize, usize)> {
     let mut repeats = Vec::new();
-    for w in start.windows(2) {
-        let bucket = &mut bucketed[w[0]..w[1]];
-        if bucket.len() < 2 {
-            continue;
-        }
-        // By key, then by position in the file: the first of equal keys is the one kept.
-        bucket.sort_unstable();
-        let mut kept = bucket[0];
-        for &t in &bucket[1..] {
-            if t.0 == kept.0 {
-                repeats.push((t.1, kept.1));
-            } else {
-                kept = t;
-            }
+    let Some(&first) = sorted.first() else {
+        return repeats;
+    };
+    let mut kept = first;
+    for &t in &sorted[1..] {
+        if t.0 == kept.0 {
+            repeats.push((t.1, kept.1));
+        } else {
+            kept = t;
         }
     }
     repeats

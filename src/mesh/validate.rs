@@ -397,122 +397,140 @@ fn edges(mesh: &Mesh, listed_cw: &[bool], name: &str) -> Result<HashSet<(usize, 
         ));
     }
     let cw_majority = 2 * listed_cw.iter().filter(|&&c| c).count() > nt;
-    // The nodes in ranges, each range's rows built, sorted and scanned on a thread of
-    // its own (each reads every triangle for the edges whose lower node is in its
-    // range, so a few ranges only); the ranges are taken in node order again, so the
-    // first fold reported is the one a scan in order would meet first.
-    // Two ranges a thread: the mesh's parts are found beside them (`check_with`), and
-    // the thread that finishes those takes a range still waiting.
-    let pieces = balanced_ranges(n, 3 * nt, 2, |e| {
-        let t = &mesh.triangles[e / 3];
-        t[e % 3].min(t[(e + 1) % 3])
-    });
-    let scanned: Vec<std::result::Result<Vec<(usize, usize)>, Fold>> = pieces
-        .into_par_iter()
-        .map(|nodes| {
-            let (start, mut entries) = edge_rows(&mesh.triangles, nodes.clone());
-            let mut found = Vec::new();
-            for low in nodes.clone() {
-                let row = &mut entries
-                    [start[low - nodes.start] as usize..start[low - nodes.start + 1] as usize];
-                row.sort_unstable();
-                for run in row.chunk_by(|x, y| x.0 == y.0) {
-                    let high = run[0].0 as usize;
-                    match run {
-                        [_] => found.push((low, high)),
-                        [x, y] if (x.1 ^ y.1) & 1 == 1 => {}
-                        _ => {
-                            let (x, y) = same_way(run.iter().map(|e| u64::from(e.1)));
-                            return Err(Fold {
-                                edge: (low, high),
-                                triangles: (x as usize, y as usize),
-                            });
-                        }
-                    }
+    // Each edge in the row of its lower node: (other node, triangle << 1 | 1 when the
+    // triangle runs the edge from low to high). The rows are scanned in node order, so
+    // the first fold reported is the one a scan in order would meet first.
+    let rows = NodeRows::new(n, &mesh.triangles, 3, |t, tri, put| {
+        for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
+            put(
+                a.min(b),
+                (a.max(b) as u32, (t as u32) << 1 | u32::from(a < b)),
+            );
+        }
+    })
+    .expect("fewer than 2^30 edges, checked above");
+    let scanned = rows.scan(Vec::new, |found, low, row| {
+        row.sort_unstable();
+        for run in row.chunk_by(|x, y| x.0 == y.0) {
+            let high = run[0].0 as usize;
+            match run {
+                [_] => found.push((low, high)),
+                [x, y] if (x.1 ^ y.1) & 1 == 1 => {}
+                _ => {
+                    let (x, y) = same_way(run.iter().map(|e| u64::from(e.1)));
+                    return Err(Fold {
+                        edge: (low, high),
+                        triangles: (x as usize, y as usize),
+                    });
                 }
             }
-            Ok(found)
-        })
-        .collect();
-    let mut boundary = HashSet::new();
-    for scan in scanned {
-        match scan {
-            Ok(found) => boundary.extend(found),
-            Err(Fold {
-                edge: (low, high),
-                triangles: (x, y),
-            }) => {
-                let bad = inverted([x, y], |t| listed_cw[t] != cw_majority);
-                let other = x + y - bad;
-                return input(fold_message(
-                    name,
-                    (bad, mesh.triangles[bad], centroid(mesh, bad)),
-                    [mesh.nodes[low], mesh.nodes[high]],
-                    other,
-                ));
-            }
+        }
+        Ok(())
+    });
+    drop(rows);
+    match scanned {
+        Ok(found) => Ok(found.into_iter().flatten().collect()),
+        Err(Fold {
+            edge: (low, high),
+            triangles: (x, y),
+        }) => {
+            let bad = inverted([x, y], |t| listed_cw[t] != cw_majority);
+            let other = x + y - bad;
+            input(fold_message(
+                name,
+                (bad, mesh.triangles[bad], centroid(mesh, bad)),
+                [mesh.nodes[low], mesh.nodes[high]],
+                other,
+            ))
         }
     }
-    Ok(boundary)
 }
 
-/// `0..n` in at most `per_thread` ranges per thread of the pool, and at most eight, of
-/// about as many of the `keys` (nodes, with repeats) each, found from every 64th of them:
-/// a triangle's lowest node is more often a low-numbered one, so equal ranges of nodes
-/// would not do. Each range's work reads every triangle, hence few ranges.
-pub fn balanced_ranges(
-    n: usize,
-    count: usize,
-    per_thread: usize,
-    keys: impl Fn(usize) -> usize,
-) -> Vec<std::ops::Range<usize>> {
-    let pieces = (per_thread * rayon::current_num_threads())
-        .min(8)
-        .min(count.div_ceil(1 << 16))
-        .max(1);
-    let mut sample: Vec<usize> = (0..count).step_by(64).map(keys).collect();
-    sample.sort_unstable();
-    let mut cuts = vec![0];
-    for k in 1..pieces {
-        let at = sample[k * sample.len() / pieces].min(n);
-        cuts.push(at.max(cuts[k - 1]));
-    }
-    cuts.push(n);
-    cuts.windows(2).map(|w| w[0]..w[1]).collect()
+/// Entries that the triangles of a mesh give their nodes (e.g. each edge to its lower
+/// node), in rows by node, for scans of every node's row by ranges of nodes on the pool.
+///
+/// Each piece of the triangles makes its own rows on a thread of its own (counted, then
+/// filled); a node's row is then its rows in the pieces, in piece order, so in the
+/// order of the triangles. Why pieces: ranges of nodes that each read every triangle
+/// for their own nodes had to be few, and the last one ran alone while the pool's
+/// other threads waited; with the rows made, the ranges can be many and small.
+pub struct NodeRows<T> {
+    /// Each piece's row starts (`n + 1`) and entries.
+    pieces: Vec<(Vec<u32>, Vec<T>)>,
 }
 
-/// The edges from each node of `nodes` to higher-numbered ones, in compressed rows
-/// (`start` from the range's first node): (other node, triangle << 1 | 1 when the
-/// triangle runs the edge from low to high).
-fn edge_rows(
-    triangles: &[[usize; 3]],
-    nodes: std::ops::Range<usize>,
-) -> (Vec<u32>, Vec<(u32, u32)>) {
-    let lo = nodes.start;
-    let mut start = vec![0u32; nodes.len() + 1];
-    for t in triangles {
-        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            if nodes.contains(&a.min(b)) {
-                start[a.min(b) - lo + 1] += 1;
-            }
+impl<T: Copy + Default + Send + Sync> NodeRows<T> {
+    /// Nodes in a range of [`NodeRows::scan`].
+    const RANGE: usize = 1 << 13;
+
+    /// The rows of `n` nodes: `entries(t, triangle, put)` calls `put(node, entry)` for
+    /// each of the at most `per_triangle` entries of triangle `t` (the same ones each
+    /// time it is called). `None` where their count may not fit 32 bits.
+    pub fn new(
+        n: usize,
+        triangles: &[[usize; 3]],
+        per_triangle: usize,
+        entries: impl Fn(usize, &[usize; 3], &mut dyn FnMut(usize, T)) + Sync,
+    ) -> Option<Self> {
+        let nt = triangles.len();
+        if nt.checked_mul(per_triangle)? >= u32::MAX as usize {
+            return None;
         }
+        let pieces = rayon::current_num_threads()
+            .clamp(1, 4)
+            .min(nt.div_ceil(1 << 16))
+            .max(1);
+        let len = nt.div_ceil(pieces).max(1);
+        let pieces = (triangles.par_chunks(len).enumerate())
+            .map(|(k, piece)| {
+                let mut start = vec![0u32; n + 1];
+                for (i, t) in piece.iter().enumerate() {
+                    entries(k * len + i, t, &mut |node, _| start[node + 1] += 1);
+                }
+                for i in 0..n {
+                    start[i + 1] += start[i];
+                }
+                let mut fill = start.clone();
+                let mut rows = vec![T::default(); start[n] as usize];
+                for (i, t) in piece.iter().enumerate() {
+                    entries(k * len + i, t, &mut |node, e| {
+                        rows[fill[node] as usize] = e;
+                        fill[node] += 1;
+                    });
+                }
+                (start, rows)
+            })
+            .collect();
+        Some(NodeRows { pieces })
     }
-    for i in 0..nodes.len() {
-        start[i + 1] += start[i];
+
+    /// `scan(node, row)` on every node's row, by ranges of nodes on the pool, each with
+    /// its own state from `state()`; the first error in node order, else every range's
+    /// state in node order.
+    pub fn scan<S: Send, E: Send>(
+        &self,
+        state: impl Fn() -> S + Sync,
+        scan: impl Fn(&mut S, usize, &mut Vec<T>) -> std::result::Result<(), E> + Sync,
+    ) -> std::result::Result<Vec<S>, E> {
+        let n = self.pieces.first().map_or(0, |p| p.0.len() - 1);
+        (0..n.div_ceil(Self::RANGE))
+            .into_par_iter()
+            .map(|r| {
+                let mut s = state();
+                let mut row = Vec::new();
+                for node in r * Self::RANGE..((r + 1) * Self::RANGE).min(n) {
+                    row.clear();
+                    for (start, entries) in &self.pieces {
+                        row.extend_from_slice(
+                            &entries[start[node] as usize..start[node + 1] as usize],
+                        );
+                    }
+                    scan(&mut s, node, &mut row)?;
+                }
+                Ok(s)
+            })
+            .collect()
     }
-    let mut fill = start.clone();
-    let mut entries = vec![(0u32, 0u32); start[nodes.len()] as usize];
-    for (t, tri) in triangles.iter().enumerate() {
-        for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
-            let low = a.min(b);
-            if nodes.contains(&low) {
-                entries[fill[low - lo] as usize] =
-                    (a.max(b) as u32, (t as u32) << 1 | u32::from(a < b));
-                fill[low - lo] += 1;
-            }
-        }
-    }
-    (start, entries)
 }
 
 /// Two triangles that run one edge the same way, from its `run` of (triangle << 1 | 1
