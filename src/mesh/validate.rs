@@ -529,6 +529,10 @@ impl<T: Copy + Default + Send + Sync> NodeRows<T> {
                 }
                 Ok(s)
             })
+            // Each range's outcome kept, then taken in node order: rayon's own collect
+            // into a `Result` returns whichever error it meets first.
+            .collect::<Vec<_>>()
+            .into_iter()
             .collect()
     }
 }
