@@ -1332,6 +1332,11 @@ impl Builder {
 /// tag serves nearly every file; a tag far beyond the node count (a file renumbered by
 /// hand, or merged) goes to a hash map instead. Hashing every tag took 70% of the parse of
 /// a 2.2M-node mesh.
+///
+/// Where every tag so far is one run, the first tag at index 0 and each next tag at the
+/// next index (a mesh fresh from Gmsh), a tag's index is its offset in the run: the
+/// elements' millions of lookups then read no table, whose scattered reads were a tenth
+/// of the read of a 1M-node mesh.
 #[derive(Debug, Default)]
 struct TagIndex {
     table: Vec<usize>,
@@ -1339,6 +1344,20 @@ struct TagIndex {
     /// Tags below it use the table: a few times the announced node count, so the table
     /// stays a few bytes per node whatever the tags.
     table_limit: u64,
+    /// The tags recorded so far as a run, while they are one.
+    run: Run,
+}
+
+/// The tags a [`TagIndex`] holds, while they are one run.
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
+enum Run {
+    /// None yet.
+    #[default]
+    Empty,
+    /// Tags `first..first + len`, tag `first + k` at index `k`.
+    Tags { first: u64, len: u64 },
+    /// Not one run.
+    Broken,
 }
 
 impl TagIndex {
@@ -1349,25 +1368,50 @@ impl TagIndex {
         self.table_limit = (n as u64).saturating_mul(4).max(1 << 16);
     }
 
+    /// The run of tags (see [`TagIndex`]) after recording `count` consecutive tags from
+    /// `tag` at indices from `index`.
+    fn extend_run(&mut self, tag: u64, index: usize, count: u64) {
+        self.run = match self.run {
+            Run::Empty if index == 0 => Run::Tags {
+                first: tag,
+                len: count,
+            },
+            Run::Tags { first, len }
+                if first.checked_add(len) == Some(tag) && len == index as u64 =>
+            {
+                Run::Tags {
+                    first,
+                    len: len + count,
+                }
+            }
+            _ => Run::Broken,
+        };
+    }
+
     /// Records `tag` at `index`; false if the tag was already there.
     fn insert(&mut self, tag: u64, index: usize) -> bool {
-        if tag >= self.table_limit {
-            return match self.others.entry(tag) {
+        let new = if tag >= self.table_limit {
+            match self.others.entry(tag) {
                 std::collections::hash_map::Entry::Occupied(_) => false,
                 std::collections::hash_map::Entry::Vacant(v) => {
                     v.insert(index);
                     true
                 }
-            };
-        }
-        let t = tag as usize;
-        if t >= self.table.len() {
-            self.table.resize(t + 1, Self::NONE);
-        }
-        let slot = &mut self.table[t];
-        let new = *slot == Self::NONE;
+            }
+        } else {
+            let t = tag as usize;
+            if t >= self.table.len() {
+                self.table.resize(t + 1, Self::NONE);
+            }
+            let slot = &mut self.table[t];
+            let new = *slot == Self::NONE;
+            if new {
+                *slot = index;
+            }
+            new
+        };
         if new {
-            *slot = index;
+            self.extend_run(tag, index, 1);
         }
         new
     }
@@ -1395,6 +1439,7 @@ impl TagIndex {
             if stretch.par_iter().all(|&slot| slot == Self::NONE) {
                 let fill = |(i, slot): (usize, &mut usize)| *slot = first + i;
                 stretch.par_iter_mut().enumerate().for_each(fill);
+                self.extend_run(lo as u64, first, tags.len() as u64);
                 return Ok(());
             }
         }
@@ -1407,6 +1452,12 @@ impl TagIndex {
     }
 
     fn get(&self, tag: u64) -> Option<usize> {
+        if let Run::Tags { first, len } = self.run {
+            let k = tag.wrapping_sub(first);
+            if k < len {
+                return Some(k as usize);
+            }
+        }
         if tag >= self.table_limit {
             return self.others.get(&tag).copied();
         }
@@ -2181,6 +2232,37 @@ mod tests {
         assert_eq!(index.insert_all(&[u64::MAX - 1, u64::MAX], 720), Ok(()));
         assert_eq!(index.get(u64::MAX), Some(721));
         assert_eq!(index.insert_all(&[], 730), Ok(()));
+    }
+
+    #[test]
+    fn tags_in_one_run_are_found_by_their_offset_and_the_run_ends_at_the_first_other() {
+        let mut index = TagIndex::default();
+        index.expect(1000);
+        assert_eq!(index.insert_all(&(1..=600).collect::<Vec<_>>(), 0), Ok(()));
+        assert!(index.insert(601, 600));
+        assert_eq!(
+            index.insert_all(&(602..700).collect::<Vec<_>>(), 601),
+            Ok(())
+        );
+        assert_eq!(index.run, Run::Tags { first: 1, len: 699 });
+        assert_eq!(
+            (index.get(1), index.get(699), index.get(700)),
+            (Some(0), Some(698), None)
+        );
+        assert_eq!(index.get(0), None);
+        // A repeat leaves the run as it was.
+        assert!(!index.insert(5, 699));
+        assert_eq!(index.run, Run::Tags { first: 1, len: 699 });
+        // A tag out of the run's order ends it; the table still answers.
+        assert!(index.insert(900, 699));
+        assert_eq!(index.run, Run::Broken);
+        let found: Vec<Option<usize>> = [1, 699, 900, 700].map(|t| index.get(t)).to_vec();
+        assert_eq!(found, [Some(0), Some(698), Some(699), None]);
+        // A first block not at index 0 is no run.
+        let mut later = TagIndex::default();
+        later.expect(10);
+        assert_eq!(later.insert_all(&[1, 2, 3], 4), Ok(()));
+        assert_eq!(later.run, Run::Broken);
     }
 
     #[test]
