@@ -147,11 +147,7 @@ pub fn by_hilbert_curve(mesh: Mesh) -> (Mesh, Renumbering) {
     let surface_groups = mesh
         .surface_groups
         .into_iter()
-        .map(|(name, tris)| {
-            let mut t: Vec<usize> = tris.par_iter().map(|&t| new_tri[t]).collect();
-            t.par_sort_unstable();
-            (name, t)
-        })
+        .map(|(name, tris)| (name, renamed_group(&tris, &new_tri, &tri_order)))
         .collect();
     let line_groups = mesh
         .line_groups
@@ -176,6 +172,46 @@ pub fn by_hilbert_curve(mesh: Mesh) -> (Mesh, Renumbering) {
         tri_old_of: tri_order,
     };
     (mesh, numbering)
+}
+
+/// A group's triangles `tris` (old indices) by their new indices (`new_tri`: old -> new;
+/// `tri_order`: new -> old), in increasing order. A large group (a body is often every
+/// triangle) is read off the new order through a set of its members, where sorting its
+/// new indices was the Hilbert order's longest step; a small one is sorted.
+fn renamed_group(tris: &[usize], new_tri: &[usize], tri_order: &[usize]) -> Vec<usize> {
+    let nt = tri_order.len();
+    if tris.len() < nt / 8 {
+        let mut t: Vec<usize> = tris.par_iter().map(|&t| new_tri[t]).collect();
+        t.par_sort_unstable();
+        // A triangle named twice (two physical groups of one name) once, as below.
+        t.dedup();
+        return t;
+    }
+    let words = nt.div_ceil(64);
+    let member = (tris.par_chunks(1 << 14))
+        .fold(
+            || vec![0u64; words],
+            |mut bits, piece| {
+                for &t in piece {
+                    bits[t / 64] |= 1 << (t % 64);
+                }
+                bits
+            },
+        )
+        .reduce(
+            || vec![0u64; words],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(a, b)| *a |= b);
+                a
+            },
+        );
+    (0..nt)
+        .into_par_iter()
+        .filter(|&t| {
+            let old = tri_order[t];
+            member[old / 64] >> (old % 64) & 1 == 1
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -277,6 +313,19 @@ mod tests {
         let (re, Renumbering { old_of, .. }) = by_hilbert_curve(scrambled.clone());
         let carried = &re.surface_groups["left"];
         assert_eq!(carried.len(), body.len());
+        // A large group goes through a set of its members, a small one is sorted: the
+        // same list either way, a triangle named twice once.
+        assert!(8 * body.len() >= re.triangles.len() && 8 * 3 < re.triangles.len());
+        let (_, Renumbering { tri_old_of, .. }) = by_hilbert_curve(scrambled.clone());
+        let new_tri = inverse(&tri_old_of);
+        let few = [body[3], body[0], body[3]];
+        let mut expected: Vec<usize> = few.iter().map(|&t| new_tri[t]).collect();
+        expected.sort_unstable();
+        expected.dedup();
+        assert_eq!(renamed_group(&few, &new_tri, &tri_old_of), expected);
+        let mut twice = body.clone();
+        twice.extend_from_slice(&body[..10]);
+        assert_eq!(&renamed_group(&twice, &new_tri, &tri_old_of), carried);
         assert!(carried.windows(2).all(|w| w[0] < w[1]));
         assert!(carried.iter().all(|&t| left(&re, t)));
         assert_eq!(re.nodes.len(), n);
