@@ -187,30 +187,10 @@ fn renamed_group(tris: &[usize], new_tri: &[usize], tri_order: &[usize]) -> Vec<
         t.dedup();
         return t;
     }
-    let words = nt.div_ceil(64);
-    let member = (tris.par_chunks(1 << 14))
-        .fold(
-            || vec![0u64; words],
-            |mut bits, piece| {
-                for &t in piece {
-                    bits[t / 64] |= 1 << (t % 64);
-                }
-                bits
-            },
-        )
-        .reduce(
-            || vec![0u64; words],
-            |mut a, b| {
-                a.iter_mut().zip(b).for_each(|(a, b)| *a |= b);
-                a
-            },
-        );
+    let member = crate::mesh::bit_set(nt, tris);
     (0..nt)
         .into_par_iter()
-        .filter(|&t| {
-            let old = tri_order[t];
-            member[old / 64] >> (old % 64) & 1 == 1
-        })
+        .filter(|&t| crate::mesh::in_set(&member, tri_order[t]))
         .collect()
 }
 
