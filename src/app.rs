@@ -19,7 +19,7 @@ use crate::dd::full::{DirectStep, DirectSystem};
 use crate::dd::local_factor::LocalFactor;
 use crate::dd::ownership::{InterfaceFigures, PartLists};
 use crate::dd::share_cut::{cut_shares, ShareCut};
-use crate::dd::split::{split, GlobalMap, SubProblem};
+use crate::dd::split::{split, split_whole, GlobalMap, SubProblem};
 use crate::dd::step::{CondensedStep, LocalSystem, StepSetup};
 use crate::error::{Error, Result};
 use crate::fem::{AssemblyFigures, Material, Materials};
@@ -1077,6 +1077,8 @@ fn with_graph(
                 .map(Some)
                 .map_err(|e| cannot_partition(mesh_name, e))
         }
+        // One part is the problem itself (`whole`): no graph, no stars.
+        (None, false) if nparts == 1 => Ok(None),
         (None, false) => mesh_graph(prob, mesh_name, nparts).map(Some),
     })?;
     let graph_s = graph_start.elapsed().as_secs_f64();
@@ -1334,6 +1336,12 @@ fn split_cut(
             let conditions = conditions(&case, &prob);
             split_s = start.elapsed().as_secs_f64();
             return conditions;
+        }
+        if nparts == 1 && cut.is_none() && from_shares.is_none() {
+            let start = Instant::now();
+            let done = whole(&case, prob);
+            split_s = start.elapsed().as_secs_f64();
+            return Ok(done);
         }
         let (element_part, edge_cut) = match (cut, from_shares) {
             (_, Some(c)) => {
@@ -1598,6 +1606,20 @@ fn facts(prob: &Problem, partition: String, map: Option<&GlobalMap>) -> Facts {
 enum SplitOut {
     Here(Vec<SubProblem>),
     OnRanks(Conditions, PartCase),
+}
+
+/// The one subdomain of `prob`: the problem itself, moved ([`split_whole`]). Its
+/// pieces are the mesh's separate parts, which the problem's checks counted.
+fn whole(case: &Case, prob: Problem) -> (Facts, SplitOut) {
+    let pieces = match prob.holding.first.len() {
+        0 => partition::node_pieces(&prob.mesh.triangles),
+        p => p,
+    };
+    let quality = partition::Quality::one_part(prob.mesh.triangles.len(), pieces);
+    let mut facts = facts(&prob, quality.to_string(), None);
+    let (sub, map) = split_whole(prob, Problem::is_frictional(case));
+    facts.n_boundary = map.n_boundary;
+    (facts, SplitOut::Here(vec![sub]))
 }
 
 /// What `contact-par split` is asked for.

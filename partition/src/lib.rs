@@ -269,6 +269,25 @@ pub struct Quality {
     pub disconnected_parts: usize,
 }
 
+impl Quality {
+    /// The figures of the one part of a mesh of `num_elements` triangles in `pieces`
+    /// pieces: no cut, no interface, no neighbours.
+    pub fn one_part(num_elements: usize, pieces: usize) -> Quality {
+        Quality {
+            nparts: 1,
+            num_elements,
+            edge_cut: 0,
+            min_part_elements: num_elements,
+            max_part_elements: num_elements,
+            imbalance: 1.0,
+            interface_nodes: 0,
+            max_part_interface_nodes: 0,
+            neighbours: vec![0],
+            disconnected_parts: usize::from(pieces > 1),
+        }
+    }
+}
+
 impl fmt::Display for Quality {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let nmin = self.neighbours.iter().copied().min().unwrap_or(0);

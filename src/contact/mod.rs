@@ -59,7 +59,7 @@ impl Reduce for NoComm {
 }
 
 /// The contact nodes a rank owns, with their lumped weights, frames and initial gaps.
-#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct ContactNodes {
     /// Lumped boundary weight w_i (half the length of each contact edge at the node).
     pub w: Vec<f64>,

@@ -22,7 +22,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Everything one rank needs, and nothing of the others' parts.
-#[derive(Debug, Clone, Serialize, Deserialize, Default)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct SubProblem {
     pub rank: usize,
     /// The mesh file's index of each local node: its row in `nodes.csv`.
@@ -160,7 +160,7 @@ pub fn in_frame(frictional: bool, m: [f64; 2], fixed: [bool; 2]) -> bool {
 }
 
 /// The global numbering shared by all ranks, known in full on the first rank only.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct GlobalMap {
     /// Number of interface dofs (the size of the dense interface system).
     pub n_interface: usize,
@@ -183,6 +183,119 @@ pub fn contact_components(frictional: bool, m: [f64; 2]) -> [bool; 2] {
     }
 }
 
+/// What the contact reads of each node of a problem (see [`split`]).
+struct ContactReads {
+    /// Contact nodes and the master nodes of their rows.
+    is_contact: Vec<bool>,
+    /// The components each node's contact reads (none off the contact boundary), in the
+    /// node's frame where it has one.
+    read: Vec<[bool; 2]>,
+    /// Only contact nodes turn: a map, not a vector sized like the mesh, which one thread
+    /// filled while the others waited.
+    frame: std::collections::HashMap<usize, [f64; 2]>,
+    is_master: Vec<bool>,
+}
+
+impl ContactReads {
+    fn of(prob: &Problem, frictional: bool) -> Self {
+        let n = prob.mesh.num_nodes();
+        let mut is_contact = vec![false; n];
+        let mut read = vec![[false; 2]; n];
+        let mut frame: std::collections::HashMap<usize, [f64; 2]> = Default::default();
+        let mut is_master = vec![false; n];
+        for k in 0..prob.contact_nodes.len() {
+            for &(v, _) in masters_of(prob, k) {
+                is_master[v] = true;
+            }
+        }
+        for (k, &c) in prob.contact_nodes.iter().enumerate() {
+            is_contact[c] = true;
+            let m = prob.contact.normal[k];
+            let fixed = [0, 1].map(|i| prob.fixed[2 * c + i].is_some());
+            // A mortar row reads its master nodes in x, y along its normal (the rows of
+            // several slave nodes along theirs): a master node does not turn; the slave
+            // node does, like a node against an obstacle.
+            if !is_master[c] && in_frame(frictional, m, fixed) {
+                frame.insert(c, m);
+                read[c] = [true, false];
+            } else {
+                read[c] = contact_components(frictional, m);
+            }
+        }
+        // A master node is read like the slave node of its row.
+        for k in 0..prob.contact_nodes.len() {
+            let comps = contact_components(frictional, prob.contact.normal[k]);
+            for &(v, _) in masters_of(prob, k) {
+                is_contact[v] = true;
+                read[v] = [read[v][0] || comps[0], read[v][1] || comps[1]];
+            }
+        }
+        ContactReads {
+            is_contact,
+            read,
+            frame,
+            is_master,
+        }
+    }
+
+    /// A contact dof in B: read by the contact and free.
+    fn in_b(&self, prob: &Problem, v: usize, c: usize) -> bool {
+        self.is_contact[v] && self.read[v][c] && prob.fixed[2 * v + c].is_none()
+    }
+}
+
+/// The master nodes and coefficients of contact node `k`'s row (none against an obstacle).
+fn masters_of(prob: &Problem, k: usize) -> &[(usize, f64)] {
+    prob.contact_masters.get(k).map_or(&[][..], |m| &m[..])
+}
+
+/// [`split`] into one part, `prob`'s arrays moved rather than copied: the one subdomain
+/// of a one-rank run is the whole problem in its own numbering (every node is on a
+/// triangle, which the problem's checks make sure of), with its contact dofs for B and
+/// no interface. On a one-rank run of a million nodes the copy, the node stars and the
+/// ownership pass of the general split took 0.25 s on its one thread.
+pub fn split_whole(prob: Problem, frictional: bool) -> (SubProblem, GlobalMap) {
+    let reads = ContactReads::of(&prob, frictional);
+    let nc = prob.contact_nodes.len();
+    let mut at_contact: Vec<usize> = (prob.contact_nodes.iter().copied())
+        .chain(prob.contact_masters.iter().flatten().map(|&(v, _)| v))
+        .collect();
+    at_contact.sort_unstable();
+    at_contact.dedup();
+    let boundary_dofs: Vec<usize> = (at_contact.iter())
+        .flat_map(|&v| [2 * v, 2 * v + 1])
+        .filter(|&d| reads.in_b(&prob, d / 2, d % 2))
+        .collect();
+    let mut frames: Vec<(usize, [f64; 2])> = reads.frame.into_iter().collect();
+    frames.sort_unstable_by_key(|f| f.0);
+    let all: Vec<usize> = (0..nc).collect();
+    let sub = SubProblem {
+        rank: 0,
+        owned: vec![true; prob.mesh.num_nodes()],
+        contact: prob.contact.select(&all),
+        contact_masters: (0..nc).map(|k| masters_of(&prob, k).to_vec()).collect(),
+        n_contact_dofs: boundary_dofs.len(),
+        boundary_dofs,
+        interface_global: Vec::new(),
+        interface_nodes: 0,
+        frames,
+        ghosts: 0,
+        global_nodes: prob.file_node,
+        nodes: prob.mesh.nodes,
+        triangles: prob.mesh.triangles,
+        body: prob.body,
+        fixed: prob.fixed,
+        load: prob.load,
+        contact_nodes: prob.contact_nodes,
+    };
+    let map = GlobalMap {
+        n_interface: 0,
+        n_boundary: sub.n_contact_dofs,
+        contact_counts: vec![nc],
+    };
+    (sub, map)
+}
+
 /// Splits `prob` by `part`; `frictional` tells which components of a contact node belong
 /// to B ([`contact_components`]).
 pub fn split(
@@ -192,42 +305,14 @@ pub fn split(
 ) -> Result<(Vec<SubProblem>, GlobalMap)> {
     let n = prob.mesh.num_nodes();
     let nparts = part.nparts;
-    let mut is_contact = vec![false; n];
-    // The components each node's contact reads (none off the contact boundary), in the
-    // node's frame where it has one.
-    let mut read = vec![[false; 2]; n];
-    // Only contact nodes turn: a map, not a vector sized like the mesh, which one thread
-    // filled while the others waited.
-    let mut frame: std::collections::HashMap<usize, [f64; 2]> = Default::default();
-    let masters = |k: usize| prob.contact_masters.get(k).map_or(&[][..], |m| &m[..]);
-    let mut is_master = vec![false; n];
-    for k in 0..prob.contact_nodes.len() {
-        for &(v, _) in masters(k) {
-            is_master[v] = true;
-        }
-    }
-    for (k, &c) in prob.contact_nodes.iter().enumerate() {
-        is_contact[c] = true;
-        let m = prob.contact.normal[k];
-        let fixed = [0, 1].map(|i| prob.fixed[2 * c + i].is_some());
-        // A mortar row reads its master nodes in x, y along its normal (the rows of
-        // several slave nodes along theirs): a master node does not turn; the slave node
-        // does, like a node against an obstacle.
-        if !is_master[c] && in_frame(frictional, m, fixed) {
-            frame.insert(c, m);
-            read[c] = [true, false];
-        } else {
-            read[c] = contact_components(frictional, m);
-        }
-    }
-    // A master node is read like the slave node of its row.
-    for k in 0..prob.contact_nodes.len() {
-        let comps = contact_components(frictional, prob.contact.normal[k]);
-        for &(v, _) in masters(k) {
-            is_contact[v] = true;
-            read[v] = [read[v][0] || comps[0], read[v][1] || comps[1]];
-        }
-    }
+    let reads = ContactReads::of(prob, frictional);
+    let ContactReads {
+        is_contact,
+        frame,
+        is_master,
+        ..
+    } = &reads;
+    let masters = |k: usize| masters_of(prob, k);
     let mut on_interface = vec![false; n];
     for p in &part.parts {
         for &v in &p.interface {
@@ -276,7 +361,7 @@ pub fn split(
                 n_interface += 1;
                 interface_index[v][c] = n_interface as u32;
                 n_boundary += 1;
-            } else if is_contact[v] && read[v][c] {
+            } else if reads.in_b(prob, v, c) {
                 n_boundary += 1;
             }
         }
@@ -313,7 +398,7 @@ pub fn split(
                 load.push(if owned[l] { prob.load[2 * g + c] } else { 0.0 });
                 if let Some(b) = interface_index[g][c].checked_sub(1) {
                     interface.push((b as usize, 2 * l + c));
-                } else if is_contact[g] && read[g][c] && prob.fixed[2 * g + c].is_none() {
+                } else if reads.in_b(prob, g, c) {
                     boundary_dofs.push(2 * l + c);
                 }
             }
