@@ -398,12 +398,11 @@ pub fn materials_fault(
 
 /// The bodies of the triangles that touch `nodes`, increasing and without repeats.
 fn touching(mesh: &Mesh, body: &[u32], nodes: &[usize]) -> Vec<u32> {
-    let mut is_node = vec![false; mesh.num_nodes()];
-    for &v in nodes {
-        is_node[v] = true;
-    }
-    let mut out: Vec<u32> = (mesh.triangles.iter().zip(body))
-        .filter(|(t, _)| t.iter().any(|&v| is_node[v]))
+    // A scan of every triangle: on the pool, where it ran on one core of the first
+    // rank's start (15-20 ms at 1M nodes) while the other waited.
+    let is_node = crate::mesh::bit_set(mesh.num_nodes(), nodes);
+    let mut out: Vec<u32> = (mesh.triangles.par_iter().zip(body))
+        .filter(|(t, _)| t.iter().any(|&v| crate::mesh::in_set(&is_node, v)))
         .map(|(_, &b)| b)
         .collect();
     out.sort_unstable();
