@@ -1611,10 +1611,7 @@ enum SplitOut {
 /// The one subdomain of `prob`: the problem itself, moved ([`split_whole`]). Its
 /// pieces are the mesh's separate parts, which the problem's checks counted.
 fn whole(case: &Case, prob: Problem) -> (Facts, SplitOut) {
-    let pieces = match prob.holding.first.len() {
-        0 => partition::node_pieces(&prob.mesh.triangles),
-        p => p,
-    };
+    let pieces = prob.holding.first.len();
     let quality = partition::Quality::one_part(prob.mesh.triangles.len(), pieces);
     let mut facts = facts(&prob, quality.to_string(), None);
     let (sub, map) = split_whole(prob, Problem::is_frictional(case));

@@ -998,7 +998,10 @@ fn quality(
     let (pieces, edge_cut) = match from {
         Pieces::Graph(graph) => pieces_and_cut(graph, nparts, |e| element_part[e]),
         Pieces::Stars(stars, cut) => (part_node_pieces(stars, element_part, nparts), cut),
-        Pieces::Nodes(triangles) => (vec![node_pieces(triangles)], 0),
+        Pieces::Nodes(triangles) => {
+            debug_assert_eq!(nparts, 1);
+            return Quality::one_part(element_part.len(), node_pieces(triangles));
+        }
     };
     let sizes = parts.iter().map(|p| p.elements.len());
     let max_part_elements = sizes.clone().max().unwrap_or(0);
