@@ -79,12 +79,16 @@ pub struct Options {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Partitioner {
     /// [`Partitioner::PtScotch`] when the ranks span several nodes, else
-    /// [`Partitioner::Metis`]: on one node the first rank borrows every core the others
-    /// would cut on, and METIS cut 2M triangles a little faster there (0.28 s against
-    /// 0.35 s on 2 ranks, docs/performance.md); on a cluster the
-    /// first rank has its node's cores only, and into many parts METIS alone slows
-    /// down (docs/cost-model.md).
+    /// [`Partitioner::Geometric`]: on one node the first rank borrows every core the
+    /// others would cut on, and cut 2M triangles faster there than PT-Scotch
+    /// (docs/performance.md); on a cluster the first rank has its node's cores only,
+    /// and into many parts it alone slows down (docs/cost-model.md).
     Auto,
+    /// The first rank alone: recursive straight cuts through the triangles' centroids,
+    /// refined (`partition::MeshGraph::cut_straight`), as good a cut as METIS's on the
+    /// meshes measured at a fraction of its cost; METIS where they leave a part in
+    /// pieces or bodies are tied (docs/performance.md).
+    Geometric,
     /// The first rank alone: the graph coarsened, METIS on the coarsest, refined back
     /// (the `partition` crate).
     Metis,
@@ -99,10 +103,35 @@ impl Partitioner {
             && nparts > 1
             && match self {
                 Partitioner::Auto => mpi.node_ranks < mpi.size,
-                Partitioner::Metis => false,
+                Partitioner::Geometric | Partitioner::Metis => false,
                 Partitioner::PtScotch => true,
             }
     }
+
+    /// Whether the first rank tries straight cuts before METIS.
+    fn straight_first(self) -> bool {
+        matches!(self, Partitioner::Auto | Partitioner::Geometric)
+    }
+}
+
+/// The first rank's cut of `graph` (of `prob`'s triangles) into `nparts` parts: straight
+/// cuts where `straight` asks for them and they apply, else METIS; with the name of the
+/// method that made it.
+fn first_rank_cut(
+    graph: &partition::MeshGraph,
+    prob: &Problem,
+    nparts: usize,
+    straight: bool,
+) -> (
+    std::result::Result<Vec<u32>, partition::PartitionError>,
+    &'static str,
+) {
+    if straight {
+        if let Some(parts) = graph.cut_straight(&prob.mesh.centroids(), nparts) {
+            return (Ok(parts), "straight cuts");
+        }
+    }
+    (graph.cut(nparts), "METIS")
 }
 
 /// Who reads a Gmsh mesh file when the job has several ranks.
@@ -1205,7 +1234,8 @@ fn cut_and_split(
         Stage::Ready(setup) => Ok(Err(*setup)),
         Stage::Split(done) => Ok(Ok(*done)),
         Stage::Problem(t) => host::on_idle_cores(mpi.node_ranks, || {
-            split_cut(*t, cut, on_ranks, layout, timer).map(Ok)
+            let straight = opts.partitioner.straight_first();
+            split_cut(*t, cut, on_ranks, straight, layout, timer).map(Ok)
         }),
     });
     mpi.barrier_sleeping();
@@ -1310,6 +1340,7 @@ fn split_cut(
     t: ToCut,
     cut: Option<(Vec<u32>, f64)>,
     on_ranks: bool,
+    straight: bool,
     layout: Layout,
     timer: &Timer,
 ) -> Result<SplitDone> {
@@ -1329,6 +1360,7 @@ fn split_cut(
     } = t;
     let by_ranks = cut.as_ref().map(|c| c.1);
     let (mut cut_s, mut split_s) = (by_ranks.unwrap_or(0.0), 0.0);
+    let mut method = "METIS";
     let shares_s = from_shares.as_ref().map(|c| (c.seconds, c.read_after));
     let (facts, out) = timer.time(Phase::Partition, || {
         if on_ranks {
@@ -1354,7 +1386,9 @@ fn split_cut(
             (None, None) => {
                 let start = Instant::now();
                 let no_graph = || Error::Numerical("internal: no graph to cut".into());
-                let parts = graph.as_ref().ok_or_else(no_graph)?.cut(nparts);
+                let graph = graph.as_ref().ok_or_else(no_graph)?;
+                let parts;
+                (parts, method) = first_rank_cut(graph, &prob, nparts, straight);
                 cut_s = start.elapsed().as_secs_f64();
                 (parts.map_err(|e| cannot_partition(&mesh_name, e))?, None)
             }
@@ -1386,7 +1420,7 @@ fn split_cut(
             )
         }
         (Some(_), None) => format!("PT-Scotch on {} ranks", layout.ranks),
-        (None, None) => "the first rank".to_string(),
+        (None, None) => format!("the first rank, {method}"),
     };
     Ok(SplitDone {
         case,
@@ -1674,11 +1708,13 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
     let ranks = mpi.size;
     let done = prepared.map(|(case, prob, mesh_name, graph)| {
         host::on_idle_cores(mpi.node_ranks, || -> Result<()> {
-            let element_part = match cut {
-                Some(parts) => parts,
-                None => graph
-                    .cut(opts.parts)
-                    .map_err(|e| cannot_partition(&mesh_name, e))?,
+            let straight = opts.partitioner.straight_first();
+            let (element_part, method) = match cut {
+                Some(parts) => (parts, "PT-Scotch"),
+                None => {
+                    let (parts, method) = first_rank_cut(&graph, &prob, opts.parts, straight);
+                    (parts.map_err(|e| cannot_partition(&mesh_name, e))?, method)
+                }
             };
             let cut = Cut {
                 nparts: opts.parts,
@@ -1691,7 +1727,7 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
             let split = split_dir::write(&opts.out, &case, &facts, &subs)?;
             let who = match on_ranks {
                 true => format!("cut by PT-Scotch on {ranks} ranks: "),
-                false => String::new(),
+                false => format!("cut by {method}: "),
             };
             print_split(print, opts, &facts, split.parts, &who);
             Ok(())

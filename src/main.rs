@@ -164,9 +164,12 @@ struct Cli {
     /// several nodes).
     #[arg(long, default_value = "auto", value_parser = parse_mesh_read)]
     mesh_read: MeshRead,
-    /// Who cuts a mesh read from one file into subdomains: metis (the first rank alone:
+    /// Who cuts a mesh read from one file into subdomains: geometric (the first rank
+    /// alone: recursive straight cuts through the triangles' centroids, refined; METIS
+    /// where a part would be in pieces or bodies are tied), metis (the first rank alone:
     /// the dual graph coarsened, METIS, refined back), ptscotch (every rank: PT-Scotch
-    /// on the graph spread over the ranks) or auto (default: see docs/performance.md).
+    /// on the graph spread over the ranks) or auto (default: ptscotch when the ranks
+    /// span several nodes, else geometric; see docs/performance.md).
     #[arg(long, default_value = "auto", value_parser = parse_partitioner)]
     partitioner: Partitioner,
 }
@@ -194,10 +197,10 @@ struct SplitArgs {
     /// Refinement level of the built-in case.
     #[arg(long, default_value_t = 1)]
     level: u32,
-    /// Who cuts the mesh: metis (this process, or the first rank) or ptscotch (every
-    /// rank of `mpirun -n N contact-par split ...`, PT-Scotch); auto (default): as in a
-    /// run, ptscotch when the ranks span several nodes. The first rank reads the mesh
-    /// and writes the parts.
+    /// Who cuts the mesh: geometric or metis (this process, or the first rank; as in a
+    /// run) or ptscotch (every rank of `mpirun -n N contact-par split ...`, PT-Scotch);
+    /// auto (default): as in a run, ptscotch when the ranks span several nodes, else
+    /// geometric. The first rank reads the mesh and writes the parts.
     #[arg(long, default_value = "auto", value_parser = parse_partitioner)]
     partitioner: Partitioner,
 }
@@ -232,9 +235,10 @@ fn parse_mesh_read(s: &str) -> Result<MeshRead, String> {
 fn parse_partitioner(s: &str) -> Result<Partitioner, String> {
     match s {
         "auto" => Ok(Partitioner::Auto),
+        "geometric" => Ok(Partitioner::Geometric),
         "metis" => Ok(Partitioner::Metis),
         "ptscotch" => Ok(Partitioner::PtScotch),
-        _ => Err(format!("\"{s}\" is not auto, metis or ptscotch")),
+        _ => Err(format!("\"{s}\" is not auto, geometric, metis or ptscotch")),
     }
 }
 

@@ -59,13 +59,14 @@ fn edge_cut(line: &str) -> usize {
     digits.parse().unwrap()
 }
 
-/// PT-Scotch's edge cut (partition line `line`) against METIS's (`metis`): the fixtures
-/// are small (tens of cut edges), so within a quarter plus two edges.
+/// The edge cut of another partitioner (partition line `line`) against METIS's
+/// (`metis`): the fixtures are small (tens of cut edges), so within a quarter plus two
+/// edges.
 fn near_metis(line: &str, metis: &str, what: &str) {
-    let (pts, met) = (edge_cut(line), edge_cut(metis));
+    let (other, met) = (edge_cut(line), edge_cut(metis));
     assert!(
-        4 * pts <= 5 * met + 8,
-        "{what}: PT-Scotch cuts {pts} edges, METIS {met}"
+        4 * other <= 5 * met + 8,
+        "{what}: {other} edges cut, METIS {met}"
     );
 }
 
@@ -100,7 +101,21 @@ fn check(dir: &Path, law: Law, what: &str) {
         run(p, np, &again, "ptscotch");
         same_bytes(p, &out, &again);
         let metis = run(p, np, &format!("metis{np}"), "metis");
-        assert!(metis.contains("(the first rank)"), "{what}: {metis}");
+        assert!(metis.contains("(the first rank, METIS)"), "{what}: {metis}");
+        // The first rank's straight cuts (the default on one node): the same answer.
+        let geo = run(p, np, &format!("geo{np}"), "geometric");
+        assert!(
+            geo.contains("(the first rank, straight cuts)"),
+            "{what}: {geo}"
+        );
+        let rows = read_contact(&p.join(format!("geo{np}")).join("contact.csv"));
+        assert_same_columns(
+            &one,
+            &rows,
+            1e-8,
+            &format!("{what}, 1 vs {np} ranks, lines"),
+        );
+        near_metis(&geo, &metis, &format!("{what}, {np} ranks, lines"));
         // More parts than ranks: PT-Scotch cuts 2 per rank.
         let k2 = format!("pts{np}k2");
         let args = [

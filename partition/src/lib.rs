@@ -30,6 +30,7 @@
 mod coarsen;
 mod graph;
 mod metis_rng;
+mod straight;
 
 pub use graph::Stars;
 use graph::{dual_from_stars, pieces_and_cut, to_idx, Graph};
@@ -484,6 +485,21 @@ impl MeshGraph {
             Some(g) => partition_graph(g, nparts, METIS_MAX_VERTICES),
             None => Ok(vec![0; self.triangles]),
         }
+    }
+
+    /// Recursive straight cuts of the graph into `nparts` parts of equal size, refined
+    /// as METIS's cut is (see the `straight` module), from each triangle's centroid
+    /// `centroids[e]`; `None` where they do not apply: one part, no graph, a part left in
+    /// several pieces (the caller cuts with [`MeshGraph::cut`] then).
+    ///
+    /// # Panics
+    /// If `centroids` does not hold one position per triangle.
+    pub fn cut_straight(&self, centroids: &[[f64; 2]], nparts: usize) -> Option<Vec<u32>> {
+        let g = self.graph.as_ref()?;
+        let max_weight =
+            (g.num_vertices() as i64 * (1000 + i64::from(UFACTOR))) / (1000 * nparts.max(1) as i64);
+        let part = straight::straight_cuts(g, centroids, nparts, max_weight, REFINE_PASSES)?;
+        Some(part.into_iter().map(|p| p as u32).collect())
     }
 
     /// The [`Partition`] of the triangles' parts `element_part`, cut by any

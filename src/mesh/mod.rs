@@ -67,6 +67,19 @@ impl Mesh {
     }
 
     /// Twice the signed area of triangle `t` (positive when counter-clockwise).
+    /// Each triangle's centroid, on the pool's threads.
+    pub fn centroids(&self) -> Vec<[f64; 2]> {
+        use rayon::prelude::*;
+        let xy = &self.nodes;
+        self.triangles
+            .par_iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|n| xy[n]);
+                [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0]
+            })
+            .collect()
+    }
+
     pub fn signed_area2(&self, t: usize) -> f64 {
         signed_area2(&self.nodes, self.triangles[t])
     }
