@@ -6,7 +6,9 @@
 //!    share an edge;
 //! 2. METIS k-way partitioning of that graph with fixed options, on large meshes after
 //!    coarsening it here and followed by refinement (see [`partition_mesh`]), so the
-//!    same mesh always gives the same parts;
+//!    same mesh always gives the same parts; or, from the triangles' positions,
+//!    recursive straight cuts followed by the same refinement
+//!    ([`MeshGraph::cut_straight`]);
 //! 3. ownership: an element belongs to its METIS part, a node to the lowest part id
 //!    among the parts of the elements touching it;
 //! 4. per-part bookkeeping: local elements and nodes, interface nodes, the shared node

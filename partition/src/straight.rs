@@ -51,6 +51,7 @@ pub(crate) fn straight_cuts(
         graph,
         centroids,
         label: (0..n).map(|_| AtomicU64::new(1)).collect(),
+        reach: reach(graph, centroids),
     };
     let mut ids: Vec<Idx> = (0..n as Idx).collect();
     cuts.cut(&mut ids, 1, nparts);
@@ -105,6 +106,40 @@ struct Cuts<'a> {
     /// sides of set `s` are `2s` and `2s + 1`): a set's vertices read their neighbours'
     /// labels to tell their own set from the others, which other tasks relabel at once.
     label: Vec<AtomicU64>,
+    /// Along each direction, the farthest apart two neighbours lie ([`reach`]).
+    reach: [f64; DIRECTIONS.len()],
+}
+
+/// Along each direction, the largest distance between the positions of two neighbours:
+/// an edge a line crosses joins a vertex on its near side within this distance of the
+/// line, so only those are searched.
+fn reach(graph: &Graph, centroids: &[[f64; 2]]) -> [f64; DIRECTIONS.len()] {
+    // Each edge once, from its lower end; the diagonals' distances from the axes'.
+    let [dx, dy, sum, diff] = (0..graph.num_vertices())
+        .into_par_iter()
+        .fold(
+            || [0.0f64; 4],
+            |mut far, v| {
+                let p = centroids[v];
+                for &u in graph.neighbours(v).iter().filter(|&&u| u as usize > v) {
+                    let q = centroids[u as usize];
+                    let (x, y) = (q[0] - p[0], q[1] - p[1]);
+                    far = [
+                        far[0].max(x.abs()),
+                        far[1].max(y.abs()),
+                        far[2].max((x + y).abs()),
+                        far[3].max((x - y).abs()),
+                    ];
+                }
+                far
+            },
+        )
+        .reduce(|| [0.0; 4], |a, b| std::array::from_fn(|d| a[d].max(b[d])));
+    debug_assert_eq!(
+        DIRECTIONS,
+        [[1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, -1.0]]
+    );
+    [dx, dy, sum, diff]
 }
 
 impl Cuts<'_> {
@@ -135,7 +170,10 @@ impl Cuts<'_> {
             .into_iter()
             .reduce(|a, b| if b.0 < a.0 { b } else { a })
             .expect("four directions");
-        let (near, far): (Vec<Idx>, Vec<Idx>) = ids.iter().partition(|&&v| !line.beyond(self, v));
+        let (near, far): (Vec<Idx>, Vec<Idx>) = match large {
+            true => ids.par_iter().partition(|&&v| !line.beyond(self, v)),
+            false => ids.iter().partition(|&&v| !line.beyond(self, v)),
+        };
         debug_assert_eq!(near.len(), m, "the pivot is the m-th of distinct keys");
         ids[..near.len()].copy_from_slice(&near);
         ids[near.len()..].copy_from_slice(&far);
@@ -164,26 +202,26 @@ impl Cuts<'_> {
     /// dual-graph edges it crosses inside the set.
     fn try_line(&self, ids: &[Idx], set: u64, m: usize, d: usize) -> (usize, Line) {
         let mut keys: Vec<(f64, Idx)> = ids.iter().map(|&v| (self.key(d, v), v)).collect();
-        let line = match keys.get(m) {
-            Some(_) => {
-                keys.select_nth_unstable_by(m, |a, b| order(*a, *b));
-                Line(d, keys[m])
-            }
-            // Nothing on the far side: no vertex is beyond.
-            None => Line(d, (f64::INFINITY, Idx::MAX)),
-        };
-        drop(keys);
-        let crossed = |v: &Idx| match line.beyond(self, *v) {
+        if m == keys.len() {
+            // Nothing on the far side: no vertex is beyond, no edge crossed.
+            return (0, Line(d, (f64::INFINITY, Idx::MAX)));
+        }
+        keys.select_nth_unstable_by(m, |a, b| order(*a, *b));
+        let line = Line(d, keys[m]);
+        // Twice the reach: a margin far beyond the round-off of the keys' differences.
+        let from = line.1 .0 - 2.0 * self.reach[d];
+        let crossed = |&(k, v): &(f64, Idx)| match k < from {
             true => 0,
-            false => (self.graph.neighbours(*v as usize).iter())
+            false => (self.graph.neighbours(v as usize).iter())
                 .filter(|&&u| {
                     self.label[u as usize].load(Atomic::Relaxed) == set && line.beyond(self, u)
                 })
                 .count(),
         };
-        let edges = match ids.len() >= PARALLEL {
-            true => ids.par_iter().map(crossed).sum(),
-            false => ids.iter().map(crossed).sum(),
+        let near = &keys[..m];
+        let edges = match near.len() >= PARALLEL {
+            true => near.par_iter().map(crossed).sum(),
+            false => near.iter().map(crossed).sum(),
         };
         (edges, line)
     }
@@ -238,6 +276,43 @@ mod tests {
         // The part of x < 20 is one side.
         for (v, c) in centroids.iter().enumerate() {
             assert_eq!(part[v], Idx::from(c[0] > 20.0), "triangle {v} at {c:?}");
+        }
+    }
+
+    #[test]
+    fn the_edges_a_line_crosses_are_all_counted() {
+        // Positions moved off the grid's lattice, so that keys differ by odd amounts.
+        let (graph, mut centroids) = grid(37, 23);
+        for (v, c) in centroids.iter_mut().enumerate() {
+            let h = (v as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+            c[0] += (h % 997) as f64 * 1e-4;
+            c[1] += (h % 991) as f64 * 7e-5;
+        }
+        let n = graph.num_vertices();
+        let cuts = Cuts {
+            graph: &graph,
+            centroids: &centroids,
+            label: (0..n).map(|_| AtomicU64::new(1)).collect(),
+            reach: reach(&graph, &centroids),
+        };
+        let ids: Vec<Idx> = (0..n as Idx).collect();
+        for m in [1, n / 3, n / 2, n - 1] {
+            for d in 0..DIRECTIONS.len() {
+                let (edges, line) = cuts.try_line(&ids, 1, m, d);
+                let beyond = |v: usize| line.beyond(&cuts, v as Idx);
+                assert_eq!((0..n).filter(|&v| !beyond(v)).count(), m);
+                let all: usize = (0..n)
+                    .filter(|&v| !beyond(v))
+                    .map(|v| {
+                        graph
+                            .neighbours(v)
+                            .iter()
+                            .filter(|&&u| beyond(u as usize))
+                            .count()
+                    })
+                    .sum();
+                assert_eq!(edges, all, "direction {d}, {m} on the near side");
+            }
         }
     }
 
