@@ -87,7 +87,7 @@ pub enum Partitioner {
     /// The first rank alone: recursive straight cuts through the triangles' centroids,
     /// refined (`partition::MeshGraph::cut_straight`), as good a cut as METIS's on the
     /// meshes measured at a fraction of its cost; METIS where they leave a part in
-    /// pieces or bodies are tied (docs/performance.md).
+    /// pieces (docs/performance.md).
     Geometric,
     /// The first rank alone: the graph coarsened, METIS on the coarsest, refined back
     /// (the `partition` crate).

@@ -166,7 +166,7 @@ struct Cli {
     mesh_read: MeshRead,
     /// Who cuts a mesh read from one file into subdomains: geometric (the first rank
     /// alone: recursive straight cuts through the triangles' centroids, refined; METIS
-    /// where a part would be in pieces or bodies are tied), metis (the first rank alone:
+    /// where a part would be in pieces), metis (the first rank alone:
     /// the dual graph coarsened, METIS, refined back), ptscotch (every rank: PT-Scotch
     /// on the graph spread over the ranks) or auto (default: ptscotch when the ranks
     /// span several nodes, else geometric; see docs/performance.md).

@@ -3,9 +3,9 @@
 //! A set of triangles is cut in two by a straight line across one of four directions
 //! (the axes and the diagonals), placed at the quantile that gives each side its share
 //! of the parts; the direction whose line crosses the fewest dual-graph edges wins, and
-//! each side is cut again until every part is one set. One pass of the greedy refinement
-//! that follows METIS's cut elsewhere in this crate then smooths the parts' boundaries
-//! where the lines cross the mesh's rows of triangles.
+//! each side is cut again until every part is one set. The greedy refinement that
+//! follows METIS's cut elsewhere in this crate then smooths the parts' boundaries where
+//! the lines cross the mesh's rows of triangles.
 //!
 //! On the connected meshes measured (docs/performance.md of contact-par) the edge cut
 //! is that of the coarsened METIS cut within a few percent either way, from 2 to 64
@@ -147,9 +147,8 @@ impl Cuts<'_> {
     /// order its vertices had, so that the runs keep the locality of the graph's
     /// numbering.
     fn cut(&self, ids: &mut [Idx], set: u64, nparts: usize) {
-        // A heap number past 63 bits: a chain of cuts that deep has no triangles left to
-        // share; the runs stay where they are.
-        if nparts == 1 || set >= 1 << 62 {
+        // At most 2^31 vertices, so no chain of cuts is 63 deep: the heap numbers fit.
+        if nparts == 1 {
             return;
         }
         let first = nparts / 2;

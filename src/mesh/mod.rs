@@ -66,7 +66,6 @@ impl Mesh {
         self.nodes.len()
     }
 
-    /// Twice the signed area of triangle `t` (positive when counter-clockwise).
     /// Each triangle's centroid, on the pool's threads.
     pub fn centroids(&self) -> Vec<[f64; 2]> {
         use rayon::prelude::*;
@@ -80,6 +79,7 @@ impl Mesh {
             .collect()
     }
 
+    /// Twice the signed area of triangle `t` (positive when counter-clockwise).
     pub fn signed_area2(&self, t: usize) -> f64 {
         signed_area2(&self.nodes, self.triangles[t])
     }
