@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""The partition of a run from one mesh file, by the first rank alone (`--partitioner
-metis`), by every rank on the first rank's graph (`--partitioner ptscotch`), and by every
+"""The partition of a run from one mesh file, by the first rank alone (its straight cuts,
+`--partitioner geometric`, or METIS, `--partitioner metis`), by every rank on the first rank's graph (`--partitioner ptscotch`), and by every
 rank from its own share of the file (`shares`: `--partitioner ptscotch --mesh-read
 shared`), against the rank count: each piece's seconds and the parts' quality.
 
     python3 run-scripts/cut_study.py CASE.toml [CASE.toml ...] --out DIR \\
-        [--ranks 2,4,8,16,32] [--runs 3] [--partitioners metis,ptscotch,shares] [--append]
+        [--ranks 2,4,8,16,32] [--runs 3] [--partitioners geometric,metis,ptscotch,shares] [--append]
         [--binary target/release/contact-par]
 
 Each case runs on each rank count (`--oversubscribe --bind-to none`, one thread and one
@@ -95,7 +95,7 @@ def main():
     ap.add_argument("--out", required=True)
     ap.add_argument("--ranks", default="2,4,8,16,32")
     ap.add_argument("--runs", type=int, default=3)
-    ap.add_argument("--partitioners", default="metis,ptscotch,shares")
+    ap.add_argument("--partitioners", default="geometric,metis,ptscotch,shares")
     ap.add_argument("--append", action="store_true", help="add the rows to DIR/cut.csv")
     ap.add_argument("--binary", default="target/release/contact-par")
     a = ap.parse_args()
@@ -116,7 +116,7 @@ def main():
                     # A contact between bodies (or a file whose records are not the
                     # problem's triangles): the ranks cut the first rank's graph.
                     partitioner = "shares-fell-back"
-                on_ranks = partitioner != "metis"
+                on_ranks = partitioner not in ("geometric", "metis")
                 med.update(case=os.path.basename(case), ranks=ranks, runs=len(rs),
                            partitioner=partitioner, nodes=rs[0]["nodes"],
                            triangles=rs[0]["triangles"],

@@ -24,7 +24,7 @@ python3 run-scripts/start_study.py tests/data/gmsh/quarter_disc.toml --runs 1 \
 python3 run-scripts/cost_model.py docs/data/scale-summaries/*.json --start "$start_dir" >/dev/null
 python3 run-scripts/start_study.py tests/data/gmsh/quarter_disc.toml --runs 1 \
   --partitioner ptscotch --out "$(mktemp -d)/start-ptscotch" >/dev/null
-# The partition study (the first rank's METIS against PT-Scotch on the ranks, on the
+# The partition study (the first rank's straight cuts and METIS against PT-Scotch on the ranks, on the
 # first rank's graph and from the ranks' shares of the file) and the
 # cost model's cut on it, on two meshes (seconds).
 cut_dir="$(mktemp -d)/cut"
