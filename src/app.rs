@@ -85,9 +85,9 @@ pub enum Partitioner {
     /// and into many parts it alone slows down (docs/cost-model.md).
     Auto,
     /// The first rank alone: recursive straight cuts through the triangles' centroids,
-    /// refined (`partition::MeshGraph::cut_straight`), as good a cut as METIS's on the
-    /// meshes measured at a fraction of its cost; METIS where they leave a part in
-    /// pieces (docs/performance.md).
+    /// refined (`partition::MeshGraph::cut_straight`): edge cuts within a few percent of
+    /// METIS's on the meshes measured, at a fraction of its cost; METIS where they leave
+    /// a part in pieces (docs/performance.md).
     Geometric,
     /// The first rank alone: the graph coarsened, METIS on the coarsest, refined back
     /// (the `partition` crate).
