@@ -498,8 +498,7 @@ impl MeshGraph {
     /// If `centroids` does not hold one position per triangle.
     pub fn cut_straight(&self, centroids: &[[f64; 2]], nparts: usize) -> Option<Vec<u32>> {
         let g = self.graph.as_ref()?;
-        let max_weight =
-            (g.num_vertices() as i64 * (1000 + i64::from(UFACTOR))) / (1000 * nparts.max(1) as i64);
+        let max_weight = max_part_weight(g.num_vertices(), nparts);
         let part = straight::straight_cuts(g, centroids, nparts, max_weight, REFINE_PASSES)?;
         Some(part.into_iter().map(|p| p as u32).collect())
     }
@@ -646,6 +645,12 @@ const MIN_COARSE_VERTICES_PER_PART: usize = 1000;
 /// METIS' load imbalance tolerance, in thousandths above 1.
 const UFACTOR: Idx = 30;
 
+/// The heaviest part the refinement allows of `n` unit-weight vertices in `nparts`
+/// parts: METIS's imbalance tolerance ([`UFACTOR`]) over an even share.
+fn max_part_weight(n: usize, nparts: usize) -> i64 {
+    (n as i64 * (1000 + i64::from(UFACTOR))) / (1000 * nparts.max(1) as i64)
+}
+
 /// Refinement sweeps per projected level (METIS' own default `niter`).
 const REFINE_PASSES: usize = 10;
 
@@ -729,7 +734,7 @@ fn partition_graph(
         }
     };
 
-    let max_weight = (n as i64 * (1000 + i64::from(UFACTOR))) / (1000 * nparts as i64);
+    let max_weight = max_part_weight(n, nparts);
     // Projection keeps the part weights.
     let mut weight = vec![0i64; nparts];
     for (v, &p) in part.iter().enumerate() {
