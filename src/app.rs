@@ -123,15 +123,15 @@ fn first_rank_cut(
     nparts: usize,
     straight: bool,
 ) -> (
-    std::result::Result<Vec<u32>, partition::PartitionError>,
+    std::result::Result<Parts, partition::PartitionError>,
     &'static str,
 ) {
     if straight {
         if let Some(parts) = graph.cut_straight(&prob.mesh.centroids(), nparts) {
-            return (Ok(parts), "straight cuts");
+            return (Ok(Parts::Straight(parts)), "straight cuts");
         }
     }
-    (graph.cut(nparts), "METIS")
+    (graph.cut(nparts).map(Parts::Graph), "METIS")
 }
 
 /// Who reads a Gmsh mesh file when the job has several ranks.
@@ -1375,14 +1375,14 @@ fn split_cut(
             split_s = start.elapsed().as_secs_f64();
             return Ok(done);
         }
-        let (element_part, edge_cut) = match (cut, from_shares) {
+        let parts = match (cut, from_shares) {
             (_, Some(c)) => {
                 let parts = c.element_part.ok_or_else(|| {
                     Error::Numerical("internal: the ranks' cut did not reach the first rank".into())
                 })?;
-                (parts, Some(c.edge_cut))
+                Parts::Elsewhere(parts, c.edge_cut)
             }
-            (Some((parts, _)), None) => (parts, None),
+            (Some((parts, _)), None) => Parts::Graph(parts),
             (None, None) => {
                 let start = Instant::now();
                 let no_graph = || Error::Numerical("internal: no graph to cut".into());
@@ -1390,15 +1390,11 @@ fn split_cut(
                 let parts;
                 (parts, method) = first_rank_cut(graph, &prob, nparts, straight);
                 cut_s = start.elapsed().as_secs_f64();
-                (parts.map_err(|e| cannot_partition(&mesh_name, e))?, None)
+                parts.map_err(|e| cannot_partition(&mesh_name, e))?
             }
         };
         let start = Instant::now();
-        let cut = Cut {
-            nparts,
-            element_part,
-            edge_cut,
-        };
+        let cut = Cut { nparts, parts };
         let split = match graph {
             Some(graph) => split_parts(&case, &prob, &mesh_name, graph, cut)
                 .map(|(facts, subs)| (facts, SplitOut::Here(subs))),
@@ -1575,10 +1571,18 @@ fn cannot_partition(mesh_name: &str, e: partition::PartitionError) -> Error {
 /// The triangles' parts.
 struct Cut {
     nparts: usize,
-    element_part: Vec<u32>,
-    /// The edges cut, counted where the parts were cut from a graph that the first
-    /// rank does not hold ([`ShareParts`]); `None` where it does.
-    edge_cut: Option<usize>,
+    parts: Parts,
+}
+
+/// Each triangle's part, and what the partitioner counted of them.
+enum Parts {
+    /// Cut from the graph the first rank holds, which the quality report counts on.
+    Graph(Vec<u32>),
+    /// Cut from a graph that the first rank does not hold ([`ShareParts`]), with the
+    /// edges cut counted there.
+    Elsewhere(Vec<u32>, usize),
+    /// Straight cuts, which counted their pieces and edges cut as they made them.
+    Straight(partition::StraightParts),
 }
 
 /// The problem split along the cut.
@@ -1590,14 +1594,11 @@ fn split_parts(
     cut: Cut,
 ) -> Result<(Facts, Vec<SubProblem>)> {
     let (triangles, contact) = (&prob.mesh.triangles, &prob.contact_nodes);
-    let Cut {
-        nparts,
-        element_part,
-        edge_cut,
-    } = cut;
-    let part = match edge_cut {
-        Some(cut) => graph.finish_cut(triangles, contact, nparts, element_part, cut),
-        None => graph.finish(triangles, contact, nparts, element_part),
+    let Cut { nparts, parts } = cut;
+    let part = match parts {
+        Parts::Graph(parts) => graph.finish(triangles, contact, nparts, parts),
+        Parts::Elsewhere(parts, cut) => graph.finish_cut(triangles, contact, nparts, parts, cut),
+        Parts::Straight(parts) => graph.finish_straight(triangles, contact, nparts, parts),
     }
     .map_err(|e| cannot_partition(mesh_name, e))?;
     let (subs, map) = split(prob, &part, Problem::is_frictional(case))?;
@@ -1709,8 +1710,8 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
     let done = prepared.map(|(case, prob, mesh_name, graph)| {
         host::on_idle_cores(mpi.node_ranks, || -> Result<()> {
             let straight = opts.partitioner.straight_first();
-            let (element_part, method) = match cut {
-                Some(parts) => (parts, "PT-Scotch"),
+            let (parts, method) = match cut {
+                Some(parts) => (Parts::Graph(parts), "PT-Scotch"),
                 None => {
                     let (parts, method) = first_rank_cut(&graph, &prob, opts.parts, straight);
                     (parts.map_err(|e| cannot_partition(&mesh_name, e))?, method)
@@ -1718,8 +1719,7 @@ pub fn split_case(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()>
             };
             let cut = Cut {
                 nparts: opts.parts,
-                element_part,
-                edge_cut: None,
+                parts,
             };
             let (facts, subs) = split_parts(&case, &prob, &mesh_name, graph, cut)?;
 

@@ -496,11 +496,41 @@ impl MeshGraph {
     ///
     /// # Panics
     /// If `centroids` does not hold one position per triangle.
-    pub fn cut_straight(&self, centroids: &[[f64; 2]], nparts: usize) -> Option<Vec<u32>> {
+    pub fn cut_straight(&self, centroids: &[[f64; 2]], nparts: usize) -> Option<StraightParts> {
         let g = self.graph.as_ref()?;
         let max_weight = max_part_weight(g.num_vertices(), nparts);
-        let part = straight::straight_cuts(g, centroids, nparts, max_weight, REFINE_PASSES)?;
-        Some(part.into_iter().map(|p| p as u32).collect())
+        let (part, edge_cut) =
+            straight::straight_cuts(g, centroids, nparts, max_weight, REFINE_PASSES)?;
+        Some(StraightParts {
+            element_part: part.into_iter().map(|p| p as u32).collect(),
+            edge_cut,
+        })
+    }
+
+    /// [`MeshGraph::finish`] for the parts of [`MeshGraph::cut_straight`], whose pieces
+    /// and cut were counted as they were made: the quality report does not count them
+    /// again.
+    ///
+    /// # Errors
+    /// As [`MeshGraph::finish`].
+    ///
+    /// # Panics
+    /// If the parts are not of `triangles`, or not in `nparts` parts.
+    pub fn finish_straight(
+        self,
+        triangles: &[[usize; 3]],
+        contact_nodes: &[usize],
+        nparts: usize,
+        parts: StraightParts,
+    ) -> Result<Partition, PartitionError> {
+        let counted = Counted::Connected(parts.edge_cut);
+        self.finish_with(
+            triangles,
+            contact_nodes,
+            nparts,
+            parts.element_part,
+            counted,
+        )
     }
 
     /// The [`Partition`] of the triangles' parts `element_part`, cut by any
@@ -520,7 +550,7 @@ impl MeshGraph {
         nparts: usize,
         element_part: Vec<u32>,
     ) -> Result<Partition, PartitionError> {
-        self.finish_with(triangles, contact_nodes, nparts, element_part, None)
+        self.finish_with(triangles, contact_nodes, nparts, element_part, Counted::No)
     }
 
     /// [`MeshGraph::finish`] for parts cut where the graph was built too (on the
@@ -547,7 +577,7 @@ impl MeshGraph {
             contact_nodes,
             nparts,
             element_part,
-            Some(edge_cut),
+            Counted::Elsewhere(edge_cut),
         )
     }
 
@@ -557,7 +587,7 @@ impl MeshGraph {
         contact_nodes: &[usize],
         nparts: usize,
         mut element_part: Vec<u32>,
-        edge_cut: Option<usize>,
+        counted: Counted,
     ) -> Result<Partition, PartitionError> {
         assert_eq!(element_part.len(), triangles.len());
         check_nparts(nparts, triangles.len())?;
@@ -572,8 +602,27 @@ impl MeshGraph {
             nparts,
             element_part,
             &self.mesh,
-            edge_cut,
+            counted,
         )
+    }
+}
+
+/// The parts of [`MeshGraph::cut_straight`]: each in one piece, none empty.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StraightParts {
+    element_part: Vec<u32>,
+    edge_cut: usize,
+}
+
+impl StraightParts {
+    /// Each triangle's part.
+    pub fn element_part(&self) -> &[u32] {
+        &self.element_part
+    }
+
+    /// The dual-graph edges between parts.
+    pub fn edge_cut(&self) -> usize {
+        self.edge_cut
     }
 }
 
@@ -605,7 +654,14 @@ pub fn partition_from_element_parts(
     check_part_ids(&element_part, nparts)?;
     validate_triangles(num_nodes, triangles)?;
     let mesh = Connectivity::new(num_nodes, triangles)?;
-    build_partition(triangles, contact_nodes, nparts, element_part, &mesh, None)
+    build_partition(
+        triangles,
+        contact_nodes,
+        nparts,
+        element_part,
+        &mesh,
+        Counted::No,
+    )
 }
 
 /// Every part id below `nparts`, else the first triangle whose is not.
@@ -884,7 +940,7 @@ fn build_partition(
     nparts: usize,
     element_part: Vec<u32>,
     mesh: &Connectivity,
-    cut_elsewhere: Option<usize>,
+    counted: Counted,
 ) -> Result<Partition, PartitionError> {
     let stars = &mesh.stars;
     let num_nodes = stars.num_nodes();
@@ -983,9 +1039,10 @@ fn build_partition(
         &element_part,
         &parts,
         interface_nodes,
-        match cut_elsewhere {
-            Some(cut) => Pieces::Stars(stars, cut),
-            None => match &mesh.graph {
+        match counted {
+            Counted::Connected(cut) => Pieces::Connected(cut),
+            Counted::Elsewhere(cut) => Pieces::Stars(stars, cut),
+            Counted::No => match &mesh.graph {
                 Some(g) => Pieces::Graph(g),
                 None => Pieces::Nodes(triangles),
             },
@@ -1000,8 +1057,20 @@ fn build_partition(
     })
 }
 
+/// What the partitioner counted of its parts.
+enum Counted {
+    /// Nothing.
+    No,
+    /// The edges cut, on a graph the caller does not hold.
+    Elsewhere(usize),
+    /// The edges cut, and every part in one piece.
+    Connected(usize),
+}
+
 /// Where the quality's pieces and cut come from.
 enum Pieces<'a> {
+    /// Every part in one piece, and the edges cut, as counted where they were cut.
+    Connected(usize),
     /// The dual graph: each part's edge-connected pieces, the edges cut.
     Graph(&'a Graph),
     /// A cut counted elsewhere, and each part's pieces joined through shared nodes.
@@ -1019,6 +1088,7 @@ fn quality(
     from: Pieces,
 ) -> Quality {
     let (pieces, edge_cut) = match from {
+        Pieces::Connected(cut) => (vec![1; nparts], cut),
         Pieces::Graph(graph) => pieces_and_cut(graph, nparts, |e| element_part[e]),
         Pieces::Stars(stars, cut) => (part_node_pieces(stars, element_part, nparts), cut),
         Pieces::Nodes(triangles) => {

@@ -21,6 +21,7 @@ use metis::Idx;
 use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::sync::atomic::{AtomicU64, Ordering as Atomic};
+use std::sync::Mutex;
 
 /// Directions a line is tried across (unnormalised: only the order of the projections
 /// counts).
@@ -30,29 +31,44 @@ const DIRECTIONS: [[f64; 2]; 4] = [[1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, -1.
 /// the pool's threads; smaller ones are not worth a task.
 const PARALLEL: usize = 20_000;
 
+/// Vertices a task of a pass over a large set takes at least.
+const CHUNK: usize = 1 << 14;
+
+/// Buckets per direction of [`Cuts::lines_by_buckets`]'s counts.
+const BUCKETS: usize = 1024;
+
 /// The part of every vertex of `graph`, whose vertex `v` lies at `centroids[v]`, cut
 /// into `nparts` parts of equal size and refined (`max_weight`: the largest part
-/// allowed, `passes`: refinement passes); `None` where the lines do not apply (weighted
-/// vertices or edges, which they do not see; fewer vertices than parts) or left a part
-/// in several pieces.
+/// allowed, `passes`: refinement passes), and the edges cut; `None` where the lines do
+/// not apply (weighted vertices or edges, which they do not see; fewer vertices than
+/// parts) or left a part in several pieces.
 pub(crate) fn straight_cuts(
     graph: &Graph,
     centroids: &[[f64; 2]],
     nparts: usize,
     max_weight: i64,
     passes: usize,
-) -> Option<Vec<Idx>> {
+) -> Option<(Vec<Idx>, usize)> {
     let n = graph.num_vertices();
     assert_eq!(centroids.len(), n, "one position per vertex");
     if graph.vwgt.is_some() || graph.adjwgt.is_some() || nparts < 2 || n < nparts {
         return None;
     }
-    let cuts = Cuts {
-        graph,
-        centroids,
-        label: (0..n).map(|_| AtomicU64::new(1)).collect(),
-        reach: reach(graph, centroids),
-    };
+    let (mut part, boundary) = lines(graph, centroids, nparts);
+    let mut weight = vec![0i64; nparts];
+    for &p in &part {
+        weight[p as usize] += 1;
+    }
+    coarsen::refine(graph, &mut part, &mut weight, max_weight, passes, boundary);
+    let (pieces, cut) = pieces_and_cut(graph, nparts, |v| part[v] as u32);
+    pieces.iter().all(|&p| p == 1).then_some((part, cut))
+}
+
+/// The parts of the straight lines alone, and the vertices on the parts' boundaries
+/// (in increasing order).
+fn lines(graph: &Graph, centroids: &[[f64; 2]], nparts: usize) -> (Vec<Idx>, Vec<Idx>) {
+    let n = graph.num_vertices();
+    let cuts = Cuts::new(graph, centroids);
     let mut ids: Vec<Idx> = (0..n as Idx).collect();
     cuts.cut(&mut ids, 1, nparts);
     // Each part is a run of `ids`, in part order, of the sizes the cuts gave it.
@@ -65,21 +81,14 @@ pub(crate) fn straight_cuts(
         start += len;
     }
     drop(ids);
-    let mut weight = vec![0i64; nparts];
-    for &p in &part {
-        weight[p as usize] += 1;
-    }
-    let boundary: Vec<Idx> = (0..n)
-        .into_par_iter()
-        .filter(|&v| {
-            let p = part[v];
-            graph.neighbours(v).iter().any(|&u| part[u as usize] != p)
-        })
-        .map(|v| v as Idx)
-        .collect();
-    coarsen::refine(graph, &mut part, &mut weight, max_weight, passes, boundary);
-    let (pieces, _) = pieces_and_cut(graph, nparts, |v| part[v] as u32);
-    pieces.iter().all(|&p| p == 1).then_some(part)
+    // Every edge between two parts was crossed by the line that first set its ends
+    // apart: the ends of those edges are the parts' boundary, found without a pass over
+    // the graph. In order, so that the refinement sees them in the same order on any
+    // number of threads.
+    let mut boundary = cuts.boundary.into_inner().expect("no task panicked");
+    boundary.par_sort_unstable();
+    boundary.dedup();
+    (part, boundary)
 }
 
 /// The sizes of the parts that [`Cuts::cut`] makes of `n` vertices, in part order.
@@ -108,19 +117,34 @@ struct Cuts<'a> {
     label: Vec<AtomicU64>,
     /// Along each direction, the farthest apart two neighbours lie ([`reach`]).
     reach: [f64; DIRECTIONS.len()],
+    /// Along each direction, the lowest and highest position of a vertex.
+    range: [[f64; 2]; DIRECTIONS.len()],
+    /// The ends of the edges the chosen lines cross: where the parts meet.
+    boundary: Mutex<Vec<Idx>>,
+}
+
+/// A line tried: the edges it crosses inside its set, and the vertices on its near side
+/// at which they start.
+struct Tried {
+    edges: usize,
+    line: Line,
+    band: Vec<Idx>,
 }
 
 /// Along each direction, the largest distance between the positions of two neighbours:
 /// an edge a line crosses joins a vertex on its near side within this distance of the
 /// line, so only those are searched.
-fn reach(graph: &Graph, centroids: &[[f64; 2]]) -> [f64; DIRECTIONS.len()] {
+fn reach(graph: &Graph, centroids: &[[f64; 2]]) -> Reach {
     // Each edge once, from its lower end; the diagonals' distances from the axes'.
-    let [dx, dy, sum, diff] = (0..graph.num_vertices())
+    let (far, range) = (0..graph.num_vertices())
         .into_par_iter()
         .fold(
-            || [0.0f64; 4],
-            |mut far, v| {
+            || ([0.0f64; 4], [[f64::INFINITY, f64::NEG_INFINITY]; 4]),
+            |(mut far, mut range), v| {
                 let p = centroids[v];
+                for (r, k) in range.iter_mut().zip(keys(p)) {
+                    *r = [r[0].min(k), r[1].max(k)];
+                }
                 for &u in graph.neighbours(v).iter().filter(|&&u| u as usize > v) {
                     let q = centroids[u as usize];
                     let (x, y) = (q[0] - p[0], q[1] - p[1]);
@@ -131,18 +155,54 @@ fn reach(graph: &Graph, centroids: &[[f64; 2]]) -> [f64; DIRECTIONS.len()] {
                         far[3].max((x - y).abs()),
                     ];
                 }
-                far
+                (far, range)
             },
         )
-        .reduce(|| [0.0; 4], |a, b| std::array::from_fn(|d| a[d].max(b[d])));
+        .reduce(
+            || ([0.0; 4], [[f64::INFINITY, f64::NEG_INFINITY]; 4]),
+            |a, b| {
+                let far = std::array::from_fn(|d| a.0[d].max(b.0[d]));
+                let range =
+                    std::array::from_fn(|d| [a.1[d][0].min(b.1[d][0]), a.1[d][1].max(b.1[d][1])]);
+                (far, range)
+            },
+        );
+    Reach { far, range }
+}
+
+/// Along each direction: the largest distance between two neighbours' positions, and
+/// the lowest and highest position.
+struct Reach {
+    far: [f64; DIRECTIONS.len()],
+    range: [[f64; 2]; DIRECTIONS.len()],
+}
+
+/// Where position `p` lies along each direction.
+fn keys(p: [f64; 2]) -> [f64; DIRECTIONS.len()] {
     debug_assert_eq!(
         DIRECTIONS,
         [[1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, -1.0]]
     );
-    [dx, dy, sum, diff]
+    let [x, y] = p;
+    [x, y, x + y, x - y]
 }
 
-impl Cuts<'_> {
+impl<'a> Cuts<'a> {
+    fn new(graph: &'a Graph, centroids: &'a [[f64; 2]]) -> Self {
+        let Reach { far, range } = reach(graph, centroids);
+        Cuts {
+            graph,
+            centroids,
+            label: (0..graph.num_vertices())
+                .into_par_iter()
+                .map(|_| AtomicU64::new(1))
+                .collect(),
+            reach: far,
+            range,
+            boundary: Mutex::new(Vec::new()),
+        }
+    }
+
     /// Cuts `ids` (all labelled `set`) into `nparts` runs, in place; each side keeps the
     /// order its vertices had, so that the runs keep the locality of the graph's
     /// numbering.
@@ -154,21 +214,30 @@ impl Cuts<'_> {
         let first = nparts / 2;
         let m = split_at(ids.len(), first, nparts);
         let large = ids.len() >= PARALLEL;
-        let try_direction = |d: usize| self.try_line(ids, set, m, d);
-        let tried: Vec<(usize, Line)> = if large {
-            (0..DIRECTIONS.len())
-                .into_par_iter()
-                .map(try_direction)
-                .collect()
-        } else {
-            (0..DIRECTIONS.len()).map(try_direction).collect()
+        let tried: Vec<Tried> = match large {
+            true => self.lines_by_buckets(ids, set, m).into(),
+            false => (0..DIRECTIONS.len())
+                .map(|d| self.try_line(ids, set, m, d))
+                .collect(),
         };
         // The fewest edges crossed, the first direction on a tie: the same parts on any
         // number of threads.
-        let (_, line) = tried
+        let Tried { line, band, .. } = tried
             .into_iter()
-            .reduce(|a, b| if b.0 < a.0 { b } else { a })
+            .reduce(|a, b| if b.edges < a.edges { b } else { a })
             .expect("four directions");
+        // The crossed edges' far ends, while their labels still tell the set.
+        let mut ends = Vec::with_capacity(2 * band.len());
+        for &v in &band {
+            ends.push(v);
+            ends.extend(
+                (self.graph.neighbours(v as usize).iter()).filter(|&&u| self.across(set, &line, u)),
+            );
+        }
+        self.boundary
+            .lock()
+            .expect("no task panicked")
+            .append(&mut ends);
         let (near, far): (Vec<Idx>, Vec<Idx>) = match large {
             true => ids.par_iter().partition(|&&v| !line.beyond(self, v)),
             false => ids.iter().partition(|&&v| !line.beyond(self, v)),
@@ -178,51 +247,179 @@ impl Cuts<'_> {
         ids[near.len()..].copy_from_slice(&far);
         drop((near, far));
         let (a, b) = ids.split_at_mut(m);
-        let relabel = |side: &[Idx], to: u64| {
-            for &v in side {
-                self.label[v as usize].store(to, Atomic::Relaxed);
+        // A side that is a part is not cut again: its labels are read no more.
+        let relabel = |side: &[Idx], to: u64, parts: usize| {
+            if parts > 1 {
+                for &v in side {
+                    self.label[v as usize].store(to, Atomic::Relaxed);
+                }
             }
         };
         if large {
-            rayon::join(|| relabel(a, 2 * set), || relabel(b, 2 * set + 1));
+            rayon::join(
+                || relabel(a, 2 * set, first),
+                || relabel(b, 2 * set + 1, nparts - first),
+            );
             rayon::join(
                 || self.cut(a, 2 * set, first),
                 || self.cut(b, 2 * set + 1, nparts - first),
             );
         } else {
-            relabel(a, 2 * set);
-            relabel(b, 2 * set + 1);
+            relabel(a, 2 * set, first);
+            relabel(b, 2 * set + 1, nparts - first);
             self.cut(a, 2 * set, first);
             self.cut(b, 2 * set + 1, nparts - first);
         }
     }
 
-    /// The line across direction `d` with `m` of `ids` on its near side, and the
-    /// dual-graph edges it crosses inside the set.
-    fn try_line(&self, ids: &[Idx], set: u64, m: usize, d: usize) -> (usize, Line) {
+    /// The line across direction `d` with `m` of `ids` on its near side, the dual-graph
+    /// edges it crosses inside the set, and the vertices they start from.
+    fn try_line(&self, ids: &[Idx], set: u64, m: usize, d: usize) -> Tried {
         let mut keys: Vec<(f64, Idx)> = ids.iter().map(|&v| (self.key(d, v), v)).collect();
         if m == keys.len() {
             // Nothing on the far side: no vertex is beyond, no edge crossed.
-            return (0, Line(d, (f64::INFINITY, Idx::MAX)));
+            let line = Line(d, (f64::INFINITY, Idx::MAX));
+            return self.crossings(set, line, &[]);
         }
         keys.select_nth_unstable_by(m, |a, b| order(*a, *b));
         let line = Line(d, keys[m]);
         // Twice the reach: a margin far beyond the round-off of the keys' differences.
         let from = line.1 .0 - 2.0 * self.reach[d];
-        let crossed = |&(k, v): &(f64, Idx)| match k < from {
-            true => 0,
-            false => (self.graph.neighbours(v as usize).iter())
-                .filter(|&&u| {
-                    self.label[u as usize].load(Atomic::Relaxed) == set && line.beyond(self, u)
-                })
-                .count(),
+        let near: Vec<Idx> = (keys[..m].iter())
+            .filter(|&&(k, _)| k >= from)
+            .map(|&(_, v)| v)
+            .collect();
+        self.crossings(set, line, &near)
+    }
+
+    /// [`Cuts::try_line`] across every direction at once, for large sets: the m-th key
+    /// is found from counts of the keys in buckets of equal width (a histogram), then
+    /// among the keys of its bucket alone, which are gathered with those near enough
+    /// below it to start an edge the line may cross. Two passes over the set, each
+    /// reading its positions once for all four directions, where sorting out the m-th
+    /// key of each direction on its own took a copy of the keys and several passes over
+    /// it.
+    fn lines_by_buckets(&self, ids: &[Idx], set: u64, m: usize) -> [Tried; 4] {
+        const D: usize = DIRECTIONS.len();
+        let chunks = || ids.par_iter().with_min_len(CHUNK);
+        // The whole graph's range: a set's keys lie inside it, in fewer buckets the
+        // smaller the set.
+        let lo: [f64; D] = std::array::from_fn(|d| self.range[d][0]);
+        // Monotone in the key (a difference from one value, times one positive
+        // factor, rounded down), so a bucket's keys all lie between those of the
+        // buckets before and after it, and equal keys share a bucket.
+        let scale: [f64; D] = std::array::from_fn(|d| {
+            let [lo, hi] = self.range[d];
+            match hi > lo {
+                true => BUCKETS as f64 / (hi - lo),
+                false => 0.0,
+            }
+        });
+        let bucket = |d: usize, k: f64| (((k - lo[d]) * scale[d]) as usize).min(BUCKETS - 1);
+        let counts = chunks()
+            .fold(
+                || vec![0usize; D * BUCKETS],
+                |mut c, &v| {
+                    for (d, k) in self.keys(v).into_iter().enumerate() {
+                        c[d * BUCKETS + bucket(d, k)] += 1;
+                    }
+                    c
+                },
+            )
+            .reduce(
+                || vec![0usize; D * BUCKETS],
+                |mut a, b| {
+                    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                    a
+                },
+            );
+        // The bucket holding the m-th key, and how many keys lie in the buckets below.
+        let pivot_bucket: [(usize, usize); D] = std::array::from_fn(|d| {
+            let mut below = 0;
+            for (j, &c) in counts[d * BUCKETS..(d + 1) * BUCKETS].iter().enumerate() {
+                if below + c > m {
+                    return (j, below);
+                }
+                below += c;
+            }
+            unreachable!("m is below the set's size")
+        });
+        // Keys of the pivot's bucket are at least one bucket above `lo`, less
+        // round-off far below a bucket's width: so from one bucket lower, less twice
+        // the reach, every key is gathered that may start a crossed edge.
+        let from: [f64; D] = std::array::from_fn(|d| match pivot_bucket[d].0 {
+            0 => f64::NEG_INFINITY,
+            j => lo[d] + (j - 1) as f64 / scale[d] - 2.0 * self.reach[d],
+        });
+        type Gathered = [(Vec<(f64, Idx)>, Vec<(f64, Idx)>); D];
+        let empty = || -> Gathered { std::array::from_fn(|_| (Vec::new(), Vec::new())) };
+        let mut gathered = chunks()
+            .fold(empty, |mut got, &v| {
+                for (d, k) in self.keys(v).into_iter().enumerate() {
+                    let b = bucket(d, k);
+                    if b == pivot_bucket[d].0 {
+                        got[d].0.push((k, v));
+                    }
+                    if b <= pivot_bucket[d].0 && k >= from[d] {
+                        got[d].1.push((k, v));
+                    }
+                }
+                got
+            })
+            .reduce(empty, |mut a, b| {
+                for (x, (mut members, mut near)) in a.iter_mut().zip(b) {
+                    x.0.append(&mut members);
+                    x.1.append(&mut near);
+                }
+                a
+            });
+        // The (key, index) order is total: the same pivot whatever order the members
+        // were gathered in.
+        std::array::from_fn(|d| {
+            let (members, near) = &mut gathered[d];
+            let (_, below) = pivot_bucket[d];
+            let (_, &mut pivot, _) =
+                members.select_nth_unstable_by(m - below, |a, b| order(*a, *b));
+            let line = Line(d, pivot);
+            let from = pivot.0 - 2.0 * self.reach[d];
+            let near: Vec<Idx> = (near.iter())
+                .filter(|&&(k, v)| k >= from && order((k, v), pivot) == Ordering::Less)
+                .map(|&(_, v)| v)
+                .collect();
+            self.crossings(set, line, &near)
+        })
+    }
+
+    /// `line` tried: the edges from `near` (vertices of set `set` on its near side,
+    /// all those within twice the reach of it) to vertices of the set beyond it.
+    fn crossings(&self, set: u64, line: Line, near: &[Idx]) -> Tried {
+        let count = |&v: &Idx| {
+            (self.graph.neighbours(v as usize).iter())
+                .filter(|&&u| self.across(set, &line, u))
+                .count()
         };
-        let near = &keys[..m];
-        let edges = match near.len() >= PARALLEL {
-            true => near.par_iter().map(crossed).sum(),
-            false => near.iter().map(crossed).sum(),
+        let counted: Vec<usize> = match near.len() >= PARALLEL {
+            true => near.par_iter().map(count).collect(),
+            false => near.iter().map(count).collect(),
         };
-        (edges, line)
+        Tried {
+            edges: counted.iter().sum(),
+            line,
+            band: (near.iter().zip(&counted))
+                .filter(|&(_, &c)| c > 0)
+                .map(|(&v, _)| v)
+                .collect(),
+        }
+    }
+
+    /// Whether `u` is in set `set` and beyond `line`.
+    fn across(&self, set: u64, line: &Line, u: Idx) -> bool {
+        self.label[u as usize].load(Atomic::Relaxed) == set && line.beyond(self, u)
+    }
+
+    /// Where vertex `v` lies along each direction.
+    fn keys(&self, v: Idx) -> [f64; DIRECTIONS.len()] {
+        keys(self.centroids[v as usize])
     }
 
     /// Where vertex `v` lies along direction `d`.
@@ -268,8 +465,8 @@ mod tests {
     fn a_long_strip_is_cut_across_its_width() {
         // 40 x 4 squares: the line between columns 19 and 20 crosses one edge per row.
         let (graph, centroids) = grid(40, 4);
-        let part = straight_cuts(&graph, &centroids, 2, 160, 10).expect("connected parts");
-        assert_eq!(cut_of(&graph, &part), 4);
+        let (part, cut) = straight_cuts(&graph, &centroids, 2, 160, 10).expect("connected parts");
+        assert_eq!((cut_of(&graph, &part), cut), (4, 4));
         let left = (0..part.len()).filter(|&v| part[v] == 0).count();
         assert_eq!(left, 160);
         // The part of x < 20 is one side.
@@ -288,29 +485,66 @@ mod tests {
             c[1] += (h % 991) as f64 * 7e-5;
         }
         let n = graph.num_vertices();
-        let cuts = Cuts {
-            graph: &graph,
-            centroids: &centroids,
-            label: (0..n).map(|_| AtomicU64::new(1)).collect(),
-            reach: reach(&graph, &centroids),
-        };
+        let cuts = Cuts::new(&graph, &centroids);
         let ids: Vec<Idx> = (0..n as Idx).collect();
         for m in [1, n / 3, n / 2, n - 1] {
             for d in 0..DIRECTIONS.len() {
-                let (edges, line) = cuts.try_line(&ids, 1, m, d);
+                let Tried { edges, line, band } = cuts.try_line(&ids, 1, m, d);
                 let beyond = |v: usize| line.beyond(&cuts, v as Idx);
                 assert_eq!((0..n).filter(|&v| !beyond(v)).count(), m);
-                let all: usize = (0..n)
-                    .filter(|&v| !beyond(v))
-                    .map(|v| {
-                        graph
-                            .neighbours(v)
-                            .iter()
-                            .filter(|&&u| beyond(u as usize))
-                            .count()
-                    })
-                    .sum();
+                let crossing = |v: usize| {
+                    (graph.neighbours(v).iter())
+                        .filter(|&&u| beyond(u as usize))
+                        .count()
+                };
+                let near = || (0..n).filter(|&v| !beyond(v));
+                let all: usize = near().map(crossing).sum();
                 assert_eq!(edges, all, "direction {d}, {m} on the near side");
+                let starts: Vec<Idx> = near()
+                    .filter(|&v| crossing(v) > 0)
+                    .map(|v| v as Idx)
+                    .collect();
+                assert_eq!(sorted(band), starts, "direction {d}, {m} on the near side");
+            }
+        }
+    }
+
+    #[test]
+    fn the_buckets_find_the_lines_and_counts_of_the_sort() {
+        // On the lattice (many equal keys, whole rows in one bucket) and off it.
+        for shift in [false, true] {
+            let (graph, mut centroids) = grid(61, 37);
+            if shift {
+                for (v, c) in centroids.iter_mut().enumerate() {
+                    let h = (v as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+                    c[0] += (h % 997) as f64 * 1e-3;
+                    c[1] -= (h % 991) as f64 * 3e-3;
+                }
+            }
+            let n = graph.num_vertices();
+            let cuts = Cuts::new(&graph, &centroids);
+            // In an order other than the vertices', as a set's ids are after a cut.
+            let ids: Vec<Idx> = (0..n as Idx).rev().collect();
+            for m in [1, 7, n / 3, n / 2, n - 1] {
+                let by_buckets = cuts.lines_by_buckets(&ids, 1, m);
+                for (d, tried) in by_buckets.into_iter().enumerate() {
+                    let by_sort = cuts.try_line(&ids, 1, m, d);
+                    assert_eq!(
+                        (
+                            tried.edges,
+                            tried.line.0,
+                            tried.line.1 .1,
+                            sorted(tried.band)
+                        ),
+                        (
+                            by_sort.edges,
+                            by_sort.line.0,
+                            by_sort.line.1 .1,
+                            sorted(by_sort.band)
+                        ),
+                        "shift {shift}, m {m}, direction {d}"
+                    );
+                }
             }
         }
     }
@@ -321,7 +555,8 @@ mod tests {
         let n = graph.num_vertices();
         for nparts in [2, 3, 5, 7, 16] {
             let max = (n as i64 * 1030) / (1000 * nparts as i64);
-            let part = straight_cuts(&graph, &centroids, nparts, max, 10).expect("connected");
+            let (part, counted) =
+                straight_cuts(&graph, &centroids, nparts, max, 10).expect("connected");
             let mut size = vec![0i64; nparts];
             for &p in &part {
                 size[p as usize] += 1;
@@ -334,7 +569,32 @@ mod tests {
             // stays within a small multiple of the parts' perimeters.
             let cut = cut_of(&graph, &part);
             assert!(cut <= 30 * nparts, "{nparts} parts: cut {cut}");
+            assert_eq!(counted, cut);
         }
+    }
+
+    #[test]
+    fn the_lines_find_every_vertex_on_a_boundary() {
+        // Large enough that the first line is found from buckets.
+        let (graph, mut centroids) = grid(160, 90);
+        for (v, c) in centroids.iter_mut().enumerate() {
+            let h = (v as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+            c[0] += (h % 997) as f64 * 2e-4;
+        }
+        for nparts in [2, 3, 7, 12] {
+            let (part, boundary) = lines(&graph, &centroids, nparts);
+            let expected: Vec<Idx> = (0..graph.num_vertices())
+                .filter(|&v| (graph.neighbours(v).iter()).any(|&u| part[u as usize] != part[v]))
+                .map(|v| v as Idx)
+                .collect();
+            assert!(expected.len() > 50 * (nparts - 1), "{nparts} parts");
+            assert_eq!(boundary, expected, "{nparts} parts");
+        }
+    }
+
+    fn sorted(mut v: Vec<Idx>) -> Vec<Idx> {
+        v.sort_unstable();
+        v
     }
 
     #[test]
