@@ -214,11 +214,16 @@ impl<'a> Cuts<'a> {
         let first = nparts / 2;
         let m = split_at(ids.len(), first, nparts);
         let large = ids.len() >= PARALLEL;
-        let tried: Vec<Tried> = match large {
-            true => self.lines_by_buckets(ids, set, m).into(),
-            false => (0..DIRECTIONS.len())
-                .map(|d| self.try_line(ids, set, m, d))
-                .collect(),
+        let try_direction = |d: usize| self.try_line(ids, set, m, d);
+        let tried: Vec<Tried> = if set == 1 && large {
+            self.lines_by_buckets(ids, set, m).into()
+        } else if large {
+            (0..DIRECTIONS.len())
+                .into_par_iter()
+                .map(try_direction)
+                .collect()
+        } else {
+            (0..DIRECTIONS.len()).map(try_direction).collect()
         };
         // The fewest edges crossed, the first direction on a tie: the same parts on any
         // number of threads.
@@ -292,18 +297,18 @@ impl<'a> Cuts<'a> {
         self.crossings(set, line, &near)
     }
 
-    /// [`Cuts::try_line`] across every direction at once, for large sets: the m-th key
-    /// is found from counts of the keys in buckets of equal width (a histogram), then
-    /// among the keys of its bucket alone, which are gathered with those near enough
-    /// below it to start an edge the line may cross. Two passes over the set, each
-    /// reading its positions once for all four directions, where sorting out the m-th
-    /// key of each direction on its own took a copy of the keys and several passes over
-    /// it.
+    /// [`Cuts::try_line`] across every direction at once: the m-th key is found from
+    /// counts of the keys in buckets of equal width over the whole graph's range (a
+    /// histogram), then among the keys of its bucket alone, which are gathered with
+    /// those near enough below it to start an edge the line may cross. Two passes, each
+    /// reading the positions once for all four directions, where sorting out the m-th
+    /// key of each direction on its own takes a copy of the keys and several passes
+    /// over it. For the first cut of a large graph only: the smaller sets after it were
+    /// slower so than with [`Cuts::try_line`] on a thread per direction (at 1M nodes,
+    /// into 4 to 64 parts), a set's keys filling few of the buckets.
     fn lines_by_buckets(&self, ids: &[Idx], set: u64, m: usize) -> [Tried; 4] {
         const D: usize = DIRECTIONS.len();
         let chunks = || ids.par_iter().with_min_len(CHUNK);
-        // The whole graph's range: a set's keys lie inside it, in fewer buckets the
-        // smaller the set.
         let lo: [f64; D] = std::array::from_fn(|d| self.range[d][0]);
         // Monotone in the key (a difference from one value, times one positive
         // factor, rounded down), so a bucket's keys all lie between those of the
