@@ -1598,7 +1598,7 @@ fn split_parts(
     let part = match parts {
         Parts::Graph(parts) => graph.finish(triangles, contact, nparts, parts),
         Parts::Elsewhere(parts, cut) => graph.finish_cut(triangles, contact, nparts, parts, cut),
-        Parts::Straight(parts) => graph.finish_straight(triangles, contact, nparts, parts),
+        Parts::Straight(parts) => graph.finish_straight(triangles, contact, parts),
     }
     .map_err(|e| cannot_partition(mesh_name, e))?;
     let (subs, map) = split(prob, &part, Problem::is_frictional(case))?;

@@ -3,7 +3,7 @@
 //! its way to METIS, and at half the memory traffic of `usize` arrays (which is what
 //! the large meshes are bound by).
 
-use crate::PartitionError;
+use crate::{triangle_fault, PartitionError};
 use metis::Idx;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -60,7 +60,12 @@ const STARS_PIECE_MIN: usize = 1 << 16;
 const STARS_PIECES_MAX: usize = 4;
 
 impl Stars {
-    /// Needs valid triangles (node ids `< num_nodes`).
+    /// The stars of `triangles`, checked on the way (a pass of its own over the
+    /// triangles cost as much as the count).
+    ///
+    /// # Errors
+    /// [`PartitionError::NodeOutOfRange`] or [`PartitionError::DegenerateTriangle`] for
+    /// the first invalid triangle; [`PartitionError::TooLarge`] beyond 2^31 entries.
     ///
     /// On one thread this pass was a run's longest one-thread step of the partition
     /// (about 30 ms at 1M nodes, the pool's other threads waiting). So each piece of
@@ -73,18 +78,24 @@ impl Stars {
             .min(rayon::current_num_threads())
             .clamp(1, STARS_PIECES_MAX);
         let len = triangles.len().div_ceil(pieces).max(1);
-        let mut next: Vec<Vec<Idx>> = triangles
+        let counted: Vec<Result<Vec<Idx>, PartitionError>> = triangles
             .par_chunks(len)
-            .map(|piece| {
+            .enumerate()
+            .map(|(k, piece)| {
                 let mut count = vec![0 as Idx; num_nodes];
-                for t in piece {
+                for (i, t) in piece.iter().enumerate() {
+                    if let Some(fault) = triangle_fault(num_nodes, k * len + i, t) {
+                        return Err(fault);
+                    }
                     for &n in t {
                         count[n] += 1;
                     }
                 }
-                count
+                Ok(count)
             })
             .collect();
+        // The first piece's fault is the first triangle's.
+        let mut next = counted.into_iter().collect::<Result<Vec<_>, _>>()?;
         let start = first_slots(&mut next, num_nodes);
         let mut tris = vec![0 as Idx; 3 * triangles.len()];
         let slots = atomic_view(&mut tris);

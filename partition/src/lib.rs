@@ -189,7 +189,6 @@ impl DualGraph {
 /// [`PartitionError::NodeOutOfRange`] or [`PartitionError::DegenerateTriangle`] for an
 /// invalid triangle; [`PartitionError::TooLarge`] beyond 2^31 graph entries.
 pub fn dual_graph(num_nodes: usize, triangles: &[[usize; 3]]) -> Result<DualGraph, PartitionError> {
-    validate_triangles(num_nodes, triangles)?;
     let stars = Stars::new(num_nodes, triangles)?;
     let graph = dual_from_stars(triangles, &stars)?;
     Ok(DualGraph {
@@ -198,24 +197,22 @@ pub fn dual_graph(num_nodes: usize, triangles: &[[usize; 3]]) -> Result<DualGrap
     })
 }
 
-/// The first invalid triangle's error, found on the pool (a pass over every triangle
-/// that the other threads would otherwise wait for).
-fn validate_triangles(num_nodes: usize, triangles: &[[usize; 3]]) -> Result<(), PartitionError> {
-    let fault = |(element, t): (usize, &[usize; 3])| {
-        if let Some(&node) = t.iter().find(|&&n| n >= num_nodes) {
-            return Some(PartitionError::NodeOutOfRange {
-                element,
-                node,
-                num_nodes,
-            });
-        }
-        (t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
-            .then_some(PartitionError::DegenerateTriangle { element })
-    };
-    match triangles.par_iter().enumerate().find_map_first(fault) {
-        Some(e) => Err(e),
-        None => Ok(()),
+/// What is wrong with triangle `element`, `t`, of a mesh of `num_nodes` nodes, if
+/// anything.
+pub(crate) fn triangle_fault(
+    num_nodes: usize,
+    element: usize,
+    t: &[usize; 3],
+) -> Option<PartitionError> {
+    if let Some(&node) = t.iter().find(|&&n| n >= num_nodes) {
+        return Some(PartitionError::NodeOutOfRange {
+            element,
+            node,
+            num_nodes,
+        });
     }
+    (t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+        .then_some(PartitionError::DegenerateTriangle { element })
 }
 
 /// One part (one MPI rank's share) of a partitioned mesh. All ids are global.
@@ -434,7 +431,7 @@ impl MeshGraph {
         ties: &[[usize; 2]],
         with_graph: bool,
     ) -> Result<Self, PartitionError> {
-        validate_triangles(num_nodes, triangles)?;
+        // The stars check the triangles (`Stars::new`).
         if !with_graph {
             let mesh = Connectivity::without_graph(num_nodes, triangles)?;
             return Ok(MeshGraph {
@@ -502,6 +499,7 @@ impl MeshGraph {
         let (part, edge_cut) =
             straight::straight_cuts(g, centroids, nparts, max_weight, REFINE_PASSES)?;
         Some(StraightParts {
+            nparts,
             element_part: part.into_iter().map(|p| p as u32).collect(),
             edge_cut,
         })
@@ -515,22 +513,21 @@ impl MeshGraph {
     /// As [`MeshGraph::finish`].
     ///
     /// # Panics
-    /// If the parts are not of `triangles`, or not in `nparts` parts.
+    /// If the parts are not of `triangles`.
     pub fn finish_straight(
         self,
         triangles: &[[usize; 3]],
         contact_nodes: &[usize],
-        nparts: usize,
         parts: StraightParts,
     ) -> Result<Partition, PartitionError> {
-        let counted = Counted::Connected(parts.edge_cut);
-        self.finish_with(
-            triangles,
-            contact_nodes,
+        let StraightParts {
             nparts,
-            parts.element_part,
-            counted,
-        )
+            element_part,
+            edge_cut,
+        } = parts;
+        // No part is empty: none is filled from another, which would undo the counts.
+        let counted = Counted::Connected(edge_cut);
+        self.finish_with(triangles, contact_nodes, nparts, element_part, counted)
     }
 
     /// The [`Partition`] of the triangles' parts `element_part`, cut by any
@@ -610,11 +607,17 @@ impl MeshGraph {
 /// The parts of [`MeshGraph::cut_straight`]: each in one piece, none empty.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct StraightParts {
+    nparts: usize,
     element_part: Vec<u32>,
     edge_cut: usize,
 }
 
 impl StraightParts {
+    /// How many parts.
+    pub fn nparts(&self) -> usize {
+        self.nparts
+    }
+
     /// Each triangle's part.
     pub fn element_part(&self) -> &[u32] {
         &self.element_part
@@ -652,7 +655,6 @@ pub fn partition_from_element_parts(
         "one part id per triangle"
     );
     check_part_ids(&element_part, nparts)?;
-    validate_triangles(num_nodes, triangles)?;
     let mesh = Connectivity::new(num_nodes, triangles)?;
     build_partition(
         triangles,
@@ -1253,7 +1255,10 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             ((seed >> 33) % (n as u64 - 1)) as usize
         };
-        let tris: Vec<[usize; 3]> = (0..150_000).map(|_| [next(), next(), next()]).collect();
+        let tris: Vec<[usize; 3]> = std::iter::repeat_with(|| [next(), next(), next()])
+            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .take(150_000)
+            .collect();
         let mut expect: Vec<Vec<Idx>> = vec![Vec::new(); n];
         for (e, t) in tris.iter().enumerate() {
             for &v in t {
@@ -1268,6 +1273,34 @@ mod tests {
                 assert_eq!(stars.of(v), &e[..], "node {v}, {threads} threads");
             }
         }
+    }
+
+    #[test]
+    fn stars_report_the_first_bad_triangle_on_any_number_of_threads() {
+        let n = 1000;
+        let good = |e: usize| [e % n, (e + 1) % n, (e + 2) % n];
+        let mut tris: Vec<[usize; 3]> = (0..300_000).map(good).collect();
+        tris[250_000] = [3, 3, 4];
+        tris[200_001] = [5, n, 6];
+        for threads in [1, 3, 4] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let got = pool.unwrap().install(|| Stars::new(n, &tris).err());
+            assert_eq!(
+                got,
+                Some(PartitionError::NodeOutOfRange {
+                    element: 200_001,
+                    node: n,
+                    num_nodes: n
+                }),
+                "{threads} threads"
+            );
+        }
+        tris[200_001] = good(200_001);
+        let got = Stars::new(n, &tris).err();
+        assert_eq!(
+            got,
+            Some(PartitionError::DegenerateTriangle { element: 250_000 })
+        );
     }
 
     #[test]

@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{irregular, rectangle, two_bodies};
+use common::{irregular, rectangle, rectangle_with, two_bodies};
 use partition::{
     dual_graph, partition_mesh, partition_mesh_with_ties, MeshGraph, Partition, PartitionError,
     NO_PART,
@@ -519,6 +519,45 @@ fn a_mesh_graph_cut_elsewhere_gets_the_same_ownership_rules() {
             nparts: 3
         })
     ));
+}
+
+/// Straight cuts count their pieces and cut as they make the parts: `finish_straight`
+/// gives what `finish` counts again from the graph for the same parts.
+#[test]
+fn straight_parts_finish_as_counted_again() {
+    let flipped = |i: usize, j: usize| (i * 7 + j * 13) % 5 < 2;
+    let (nx, ny) = (50, 30);
+    let meshes = [rectangle(nx, ny), rectangle_with(nx, ny, flipped)];
+    let node_at = |n: usize| [(n % (nx + 1)) as f64, (n / (nx + 1)) as f64];
+    let mut finished = 0;
+    for mesh in &meshes {
+        let centroids: Vec<[f64; 2]> = (mesh.1.iter())
+            .map(|t| {
+                let p = t.map(node_at);
+                [
+                    (p[0][0] + p[1][0] + p[2][0]) / 3.0,
+                    (p[0][1] + p[1][1] + p[2][1]) / 3.0,
+                ]
+            })
+            .collect();
+        for nparts in [2, 3, 5, 8] {
+            let g = MeshGraph::new(mesh.0, &mesh.1, &[], true).unwrap();
+            let parts = g
+                .cut_straight(&centroids, nparts)
+                .expect("a rectangle's parts are whole");
+            assert_eq!(parts.nparts(), nparts);
+            let element_part = parts.element_part().to_vec();
+            let edge_cut = parts.edge_cut();
+            let counted = g.finish_straight(&mesh.1, &mesh.2, parts).unwrap();
+            let g = MeshGraph::new(mesh.0, &mesh.1, &[], true).unwrap();
+            let again = g.finish(&mesh.1, &mesh.2, nparts, element_part).unwrap();
+            assert_eq!(counted, again, "{nparts} parts");
+            assert_eq!(counted.quality.edge_cut, edge_cut);
+            assert!(edge_cut > 0);
+            finished += 1;
+        }
+    }
+    assert_eq!(finished, 8);
 }
 
 /// Parts cut where the graph was too (on the ranks): `finish_cut`, from a connectivity
