@@ -459,6 +459,16 @@ mod tests {
         squares(nx, ny, |_, _| true)
     }
 
+    /// Moves each position off the lattice by its own amount, up to about a thousand
+    /// times `dx` and `dy`: keys then differ by odd amounts.
+    fn jitter(centroids: &mut [[f64; 2]], dx: f64, dy: f64) {
+        for (v, c) in centroids.iter_mut().enumerate() {
+            let h = (v as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+            c[0] += (h % 997) as f64 * dx;
+            c[1] += (h % 991) as f64 * dy;
+        }
+    }
+
     fn cut_of(graph: &Graph, part: &[Idx]) -> usize {
         pieces_and_cut(graph, 1 + *part.iter().max().unwrap() as usize, |v| {
             part[v] as u32
@@ -482,13 +492,8 @@ mod tests {
 
     #[test]
     fn the_edges_a_line_crosses_are_all_counted() {
-        // Positions moved off the grid's lattice, so that keys differ by odd amounts.
         let (graph, mut centroids) = grid(37, 23);
-        for (v, c) in centroids.iter_mut().enumerate() {
-            let h = (v as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
-            c[0] += (h % 997) as f64 * 1e-4;
-            c[1] += (h % 991) as f64 * 7e-5;
-        }
+        jitter(&mut centroids, 1e-4, 7e-5);
         let n = graph.num_vertices();
         let cuts = Cuts::new(&graph, &centroids);
         let ids: Vec<Idx> = (0..n as Idx).collect();
@@ -520,11 +525,7 @@ mod tests {
         for shift in [false, true] {
             let (graph, mut centroids) = grid(61, 37);
             if shift {
-                for (v, c) in centroids.iter_mut().enumerate() {
-                    let h = (v as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
-                    c[0] += (h % 997) as f64 * 1e-3;
-                    c[1] -= (h % 991) as f64 * 3e-3;
-                }
+                jitter(&mut centroids, 1e-3, -3e-3);
             }
             let n = graph.num_vertices();
             let cuts = Cuts::new(&graph, &centroids);
@@ -582,10 +583,7 @@ mod tests {
     fn the_lines_find_every_vertex_on_a_boundary() {
         // Large enough that the first line is found from buckets.
         let (graph, mut centroids) = grid(160, 90);
-        for (v, c) in centroids.iter_mut().enumerate() {
-            let h = (v as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
-            c[0] += (h % 997) as f64 * 2e-4;
-        }
+        jitter(&mut centroids, 2e-4, 0.0);
         for nparts in [2, 3, 7, 12] {
             let (part, boundary) = lines(&graph, &centroids, nparts);
             let expected: Vec<Idx> = (0..graph.num_vertices())
