@@ -179,12 +179,24 @@ struct Reach {
 
 /// Where position `p` lies along each direction.
 fn keys(p: [f64; 2]) -> [f64; DIRECTIONS.len()] {
+    std::array::from_fn(|d| along(p, d))
+}
+
+/// Where position `p` lies along direction `d`: the one definition of a key, so that
+/// every search and [`Line::beyond`] order the same values (a product by 0 would turn
+/// -0 into +0, which the total order tells apart).
+fn along(p: [f64; 2], d: usize) -> f64 {
     debug_assert_eq!(
         DIRECTIONS,
         [[1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, -1.0]]
     );
     let [x, y] = p;
-    [x, y, x + y, x - y]
+    match d {
+        0 => x,
+        1 => y,
+        2 => x + y,
+        _ => x - y,
+    }
 }
 
 impl<'a> Cuts<'a> {
@@ -429,8 +441,7 @@ impl<'a> Cuts<'a> {
 
     /// Where vertex `v` lies along direction `d`.
     fn key(&self, d: usize, v: Idx) -> f64 {
-        let p = self.centroids[v as usize];
-        p[0] * DIRECTIONS[d][0] + p[1] * DIRECTIONS[d][1]
+        along(self.centroids[v as usize], d)
     }
 }
 
