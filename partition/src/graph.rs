@@ -342,7 +342,7 @@ fn first_slots(counts: &mut [Vec<Idx>], num_nodes: usize) -> Vec<Idx> {
 }
 
 /// `v` as atomics, which threads may store to at once.
-fn atomic_view(v: &mut [Idx]) -> &[AtomicI32] {
+pub(crate) fn atomic_view(v: &mut [Idx]) -> &[AtomicI32] {
     // SAFETY: `AtomicI32` has the size, alignment and bit validity of `i32` (`Idx`), and
     // the exclusive borrow of `v` lasts as long as the view.
     unsafe { &*(v as *mut [Idx] as *const [AtomicI32]) }

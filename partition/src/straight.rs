@@ -16,11 +16,11 @@
 //! is for METIS.
 
 use crate::coarsen;
-use crate::graph::{pieces_and_cut, Graph};
+use crate::graph::{atomic_view, pieces_and_cut, Graph};
 use metis::Idx;
 use rayon::prelude::*;
 use std::cmp::Ordering;
-use std::sync::atomic::{AtomicU64, Ordering as Atomic};
+use std::sync::atomic::{AtomicI32, AtomicU64, Ordering as Atomic};
 use std::sync::Mutex;
 
 /// Directions a line is tried across (unnormalised: only the order of the projections
@@ -70,16 +70,9 @@ fn lines(graph: &Graph, centroids: &[[f64; 2]], nparts: usize) -> (Vec<Idx>, Vec
     let n = graph.num_vertices();
     let cuts = Cuts::new(graph, centroids);
     let mut ids: Vec<Idx> = (0..n as Idx).collect();
-    cuts.cut(&mut ids, 1, nparts);
-    // Each part is a run of `ids`, in part order, of the sizes the cuts gave it.
+    // Every vertex is in one part, whose cut writes it.
     let mut part = vec![0 as Idx; n];
-    let mut start = 0;
-    for (p, len) in run_lengths(n, nparts).into_iter().enumerate() {
-        for &v in &ids[start..start + len] {
-            part[v as usize] = p as Idx;
-        }
-        start += len;
-    }
+    cuts.cut(&mut ids, 1, nparts, 0, atomic_view(&mut part));
     drop(ids);
     // Every edge between two parts was crossed by the line that first set its ends
     // apart: the ends of those edges are the parts' boundary, found without a pass over
@@ -89,18 +82,6 @@ fn lines(graph: &Graph, centroids: &[[f64; 2]], nparts: usize) -> (Vec<Idx>, Vec
     boundary.par_sort_unstable();
     boundary.dedup();
     (part, boundary)
-}
-
-/// The sizes of the parts that [`Cuts::cut`] makes of `n` vertices, in part order.
-fn run_lengths(n: usize, nparts: usize) -> Vec<usize> {
-    if nparts == 1 {
-        return vec![n];
-    }
-    let first = nparts / 2;
-    let m = split_at(n, first, nparts);
-    let mut runs = run_lengths(m, first);
-    runs.extend(run_lengths(n - m, nparts - first));
-    runs
 }
 
 /// How many of `n` vertices go to the side of `first` of `nparts` parts.
@@ -215,17 +196,22 @@ impl<'a> Cuts<'a> {
         }
     }
 
-    /// Cuts `ids` (all labelled `set`) into `nparts` runs, in place; each side keeps the
-    /// order its vertices had, so that the runs keep the locality of the graph's
-    /// numbering.
-    fn cut(&self, ids: &mut [Idx], set: u64, nparts: usize) {
+    /// Cuts `ids` (all labelled `set`) into `nparts` parts, numbered from `first_part`
+    /// in `part`; where it cuts again, each side keeps the order its vertices had, so
+    /// that the sides keep the locality of the graph's numbering.
+    fn cut(&self, ids: &mut [Idx], set: u64, nparts: usize, first_part: usize, part: &[AtomicI32]) {
+        let large = ids.len() >= PARALLEL;
         // At most 2^31 vertices, so no chain of cuts is 63 deep: the heap numbers fit.
         if nparts == 1 {
+            let mark = |&v: &Idx| part[v as usize].store(first_part as Idx, Atomic::Relaxed);
+            match large {
+                true => ids.par_iter().for_each(mark),
+                false => ids.iter().for_each(mark),
+            }
             return;
         }
         let first = nparts / 2;
         let m = split_at(ids.len(), first, nparts);
-        let large = ids.len() >= PARALLEL;
         let try_direction = |d: usize| self.try_line(ids, set, m, d);
         let tried: Vec<Tried> = if set == 1 && large {
             self.lines_by_buckets(ids, set, m).into()
@@ -255,6 +241,23 @@ impl<'a> Cuts<'a> {
             .lock()
             .expect("no task panicked")
             .append(&mut ends);
+        if nparts == 2 {
+            debug_assert_eq!(
+                ids.iter().filter(|&&v| !line.beyond(self, v)).count(),
+                m,
+                "the pivot is the m-th of distinct keys"
+            );
+            // Both sides are parts: each vertex's part at once, with no sides to gather.
+            let mark = |&v: &Idx| {
+                let p = first_part + usize::from(line.beyond(self, v));
+                part[v as usize].store(p as Idx, Atomic::Relaxed);
+            };
+            match large {
+                true => ids.par_iter().for_each(mark),
+                false => ids.iter().for_each(mark),
+            }
+            return;
+        }
         let (near, far): (Vec<Idx>, Vec<Idx>) = match large {
             true => ids.par_iter().partition(|&&v| !line.beyond(self, v)),
             false => ids.iter().partition(|&&v| !line.beyond(self, v)),
@@ -272,20 +275,21 @@ impl<'a> Cuts<'a> {
                 }
             }
         };
+        let second = first_part + first;
         if large {
             rayon::join(
                 || relabel(a, 2 * set, first),
                 || relabel(b, 2 * set + 1, nparts - first),
             );
             rayon::join(
-                || self.cut(a, 2 * set, first),
-                || self.cut(b, 2 * set + 1, nparts - first),
+                || self.cut(a, 2 * set, first, first_part, part),
+                || self.cut(b, 2 * set + 1, nparts - first, second, part),
             );
         } else {
             relabel(a, 2 * set, first);
             relabel(b, 2 * set + 1, nparts - first);
-            self.cut(a, 2 * set, first);
-            self.cut(b, 2 * set + 1, nparts - first);
+            self.cut(a, 2 * set, first, first_part, part);
+            self.cut(b, 2 * set + 1, nparts - first, second, part);
         }
     }
 
