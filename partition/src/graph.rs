@@ -202,11 +202,7 @@ pub(crate) fn dual_from_stars(
             for slots in block.chunks_exact(3) {
                 let row_start = adjncy.len();
                 adjncy.extend(slots.iter().copied().filter(|&f| f >= 0));
-                // Two triangles with the same three nodes meet once per common edge, and
-                // METIS rejects multi-edges.
-                let kept = sort_and_dedup(&mut adjncy[row_start..]);
-                adjncy.truncate(row_start + kept);
-                row_len.push(kept as Idx);
+                close_row(&mut adjncy, row_start, &mut row_len);
             }
             (row_len, adjncy)
         })
@@ -243,16 +239,21 @@ pub(crate) fn dual_by_search(
                         }
                     }
                 }
-                // Two triangles with the same three nodes meet once per common edge, and
-                // METIS rejects multi-edges.
-                let kept = sort_and_dedup(&mut adjncy[row_start..]);
-                adjncy.truncate(row_start + kept);
-                row_len.push(kept as Idx);
+                close_row(&mut adjncy, row_start, &mut row_len);
             }
             (row_len, adjncy)
         })
         .collect();
     join_rows(ne, &blocks)
+}
+
+/// Ends the row that starts at `row_start` of `adjncy`: its entries sorted, each once
+/// (two triangles with the same three nodes meet once per common edge, and METIS
+/// rejects multi-edges), and its length recorded.
+fn close_row(adjncy: &mut Vec<Idx>, row_start: usize, row_len: &mut Vec<Idx>) {
+    let kept = sort_and_dedup(&mut adjncy[row_start..]);
+    adjncy.truncate(row_start + kept);
+    row_len.push(kept as Idx);
 }
 
 /// The CSR graph of `ne` rows given block by block (each block's row lengths and
