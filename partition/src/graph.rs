@@ -218,11 +218,10 @@ pub(crate) fn dual_by_search(
     triangles: &[[usize; 3]],
     stars: &Stars,
 ) -> Result<Graph, PartitionError> {
-    const BLOCK: usize = ROW_BLOCK;
     let ne = triangles.len();
     to_idx(ne)?;
     let blocks: Vec<(Vec<Idx>, Vec<Idx>)> = triangles
-        .par_chunks(BLOCK)
+        .par_chunks(ROW_BLOCK)
         .enumerate()
         .map(|(blk, block)| {
             let mut row_len = Vec::with_capacity(block.len());
@@ -230,7 +229,7 @@ pub(crate) fn dual_by_search(
             let mut adjncy: Vec<Idx> = Vec::with_capacity(3 * block.len());
             for (k, t) in block.iter().enumerate() {
                 let row_start = adjncy.len();
-                let e = (blk * BLOCK + k) as Idx;
+                let e = (blk * ROW_BLOCK + k) as Idx;
                 for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
                     for &f in stars.of(a) {
                         let tf = &triangles[f as usize];

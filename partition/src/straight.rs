@@ -84,6 +84,25 @@ fn lines(graph: &Graph, centroids: &[[f64; 2]], nparts: usize) -> (Vec<Idx>, Vec
     (part, boundary)
 }
 
+/// Writes `first_part`, plus one where `second(v)`, as the part of each vertex `v` of
+/// `ids` (on the pool's threads where `large`).
+fn mark_parts(
+    ids: &[Idx],
+    large: bool,
+    part: &[AtomicI32],
+    first_part: usize,
+    second: impl Fn(Idx) -> bool + Sync,
+) {
+    let mark = |&v: &Idx| {
+        let p = first_part + usize::from(second(v));
+        part[v as usize].store(p as Idx, Atomic::Relaxed);
+    };
+    match large {
+        true => ids.par_iter().for_each(mark),
+        false => ids.iter().for_each(mark),
+    }
+}
+
 /// How many of `n` vertices go to the side of `first` of `nparts` parts.
 fn split_at(n: usize, first: usize, nparts: usize) -> usize {
     ((n as u128 * first as u128) / nparts as u128) as usize
@@ -201,15 +220,11 @@ impl<'a> Cuts<'a> {
     /// that the sides keep the locality of the graph's numbering.
     fn cut(&self, ids: &mut [Idx], set: u64, nparts: usize, first_part: usize, part: &[AtomicI32]) {
         let large = ids.len() >= PARALLEL;
-        // At most 2^31 vertices, so no chain of cuts is 63 deep: the heap numbers fit.
         if nparts == 1 {
-            let mark = |&v: &Idx| part[v as usize].store(first_part as Idx, Atomic::Relaxed);
-            match large {
-                true => ids.par_iter().for_each(mark),
-                false => ids.iter().for_each(mark),
-            }
+            mark_parts(ids, large, part, first_part, |_| false);
             return;
         }
+        // At most 2^31 vertices, so no chain of cuts is 63 deep: the heap numbers fit.
         let first = nparts / 2;
         let m = split_at(ids.len(), first, nparts);
         let try_direction = |d: usize| self.try_line(ids, set, m, d);
@@ -248,14 +263,7 @@ impl<'a> Cuts<'a> {
                 "the pivot is the m-th of distinct keys"
             );
             // Both sides are parts: each vertex's part at once, with no sides to gather.
-            let mark = |&v: &Idx| {
-                let p = first_part + usize::from(line.beyond(self, v));
-                part[v as usize].store(p as Idx, Atomic::Relaxed);
-            };
-            match large {
-                true => ids.par_iter().for_each(mark),
-                false => ids.iter().for_each(mark),
-            }
+            mark_parts(ids, large, part, first_part, |v| line.beyond(self, v));
             return;
         }
         let (near, far): (Vec<Idx>, Vec<Idx>) = match large {
