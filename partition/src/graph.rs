@@ -142,7 +142,7 @@ pub(crate) fn dual_from_stars(
 ) -> Result<Graph, PartitionError> {
     let ne = triangles.len();
     to_idx(3 * ne)?;
-    // The keys below pack a node and a triangle below 2^31 each.
+    // The edge keys pack a node and a triangle below 2^31 each.
     if to_idx(stars.num_nodes()).is_err() {
         return dual_by_search(triangles, stars);
     }
@@ -166,23 +166,19 @@ pub(crate) fn dual_from_stars(
                     2
                 };
                 let (next, prev) = ((i + 1) % 3, (i + 2) % 3);
-                // One key sorts by the edge's other end.
-                let key =
-                    |other: usize, e: usize| (other as u64) << 33 | (f as u64) << 2 | e as u64;
                 if t[next] > a {
-                    ends.push(key(t[next], i));
+                    ends.push(edge_key(t[next], f as usize, i));
                 }
                 if t[prev] > a {
-                    ends.push(key(t[prev], prev));
+                    ends.push(edge_key(t[prev], f as usize, prev));
                 }
             }
             ends.sort_unstable();
-            for run in ends.chunk_by(|x, y| x >> 33 == y >> 33) {
+            for run in ends.chunk_by(|&x, &y| key_end(x) == key_end(y)) {
                 match run {
                     [_] => {}
                     &[x, y] => {
-                        let end = |k: u64| ((k >> 2 & 0x7fff_ffff) as usize, (k & 3) as usize);
-                        let ((f, e), (g, d)) = (end(x), end(y));
+                        let ((f, e), (g, d)) = (key_slot(x), key_slot(y));
                         // Each slot belongs to one edge, and so to one node's pass.
                         slots[3 * f + e].store(g as Idx, Relaxed);
                         slots[3 * g + d].store(f as Idx, Relaxed);
@@ -208,6 +204,23 @@ pub(crate) fn dual_from_stars(
         })
         .collect();
     join_rows(ne, &blocks)
+}
+
+/// The sort key of edge `e` of triangle `f` at the node it leaves for `other`: the
+/// other end first, so that the triangles of one edge sort next to each other (node and
+/// triangle each below 2^31).
+fn edge_key(other: usize, f: usize, e: usize) -> u64 {
+    (other as u64) << 33 | (f as u64) << 2 | e as u64
+}
+
+/// The other end of an [`edge_key`].
+fn key_end(k: u64) -> u64 {
+    k >> 33
+}
+
+/// The triangle and its edge, the slot of an [`edge_key`].
+fn key_slot(k: u64) -> (usize, usize) {
+    ((k >> 2 & 0x7fff_ffff) as usize, (k & 3) as usize)
 }
 
 /// [`dual_from_stars`] by a search: the triangles across edge `(a, b)` are the other
