@@ -9,8 +9,9 @@ use super::sweep::Sweep;
 pub struct Augmentation {
     pub r_n: Vec<f64>,
     pub r_t: Vec<f64>,
-    /// Whether this r was set once the statuses had settled ([`Retune::ToStatus`]): free
-    /// directions are then lowered further ([`SETTLED_FREE_FACTOR`]).
+    /// Whether this r was set once the statuses had settled ([`Retune::ToStatus`]), or by
+    /// a normals' retune after that ([`Retune::Normals`] from settled r): free directions
+    /// are then lowered further ([`SETTLED_FREE_FACTOR`]).
     #[serde(default)]
     pub settled: bool,
     /// Whether this r ended the retunes of a cycle ([`Retune::EndCycle`]): no retune
@@ -31,17 +32,40 @@ impl Augmentation {
     }
 
     /// The r of each direction that `kind` asks for, given whether each node's normal and
-    /// tangential directions are held (see [`tuned`]); `r` is the reference r and
-    /// `mesh_stiffness` the body's E_eff / h (0 when not known).
+    /// tangential directions are held (see [`tuned`]); `r` is the reference r,
+    /// `mesh_stiffness` the body's E_eff / h (0 when not known) and `from_settled`
+    /// whether the r being replaced was [`Augmentation::settled`].
+    ///
+    /// A normals' retune from settled r keeps the free directions (open normals, loose
+    /// tangents) at their settled, lowered r: the statuses had settled, so the change that
+    /// asks for it is the contact zone's edge moving by a node or a few, and returning
+    /// every free direction to the moving zone's r / 1000 made each such node cost three
+    /// sweeps (the normals' retune, two sweeps without a change, the settled retune)
+    /// where it now costs one or two. Measured (one thread, default options) on the
+    /// holed plate of `make_cases.py --heldout` at 7881 nodes, whose zone grows back
+    /// from 5 nodes to 27 after its landing: 96 -> 61 sweeps; the Coulomb bridge of
+    /// `--slender` at 6513 nodes 87 -> 74; over the 113 runs of the held-out, slender,
+    /// beam, Tresca and built-in cases, 14 787 -> 14 657 sweeps, the largest count
+    /// against the built-in block's at the same size 2.79 -> 2.37 times, the worst
+    /// losses the L-bracket 64 -> 71 and the half ring at 7k nodes 60 -> 75. The
+    /// tangents of pressed nodes still go to r / 10: kept settled too (sticking ones x
+    /// 10) on a small change, a slab on a slope whose stick/slip statuses then flipped
+    /// took 46 -> 928 sweeps, and with the stiff tangents kept only where no pressed
+    /// node flipped, the 2 m Coulomb beam 61 -> 77.
     pub fn for_statuses(
         kind: Retune,
         held: &[Held],
         frictional: bool,
         r: f64,
         mesh_stiffness: f64,
+        from_settled: bool,
     ) -> Self {
         let mut aug = Augmentation::uniform(held.len(), r);
-        aug.settled = kind == Retune::ToStatus;
+        aug.settled = match kind {
+            Retune::ToStatus => true,
+            Retune::Normals => from_settled,
+            Retune::ToReference | Retune::EndCycle { .. } => false,
+        };
         for (i, &h) in held.iter().enumerate() {
             let (r_n, r_t) = tuned(h, frictional, r, mesh_stiffness, aug.settled);
             match kind {
@@ -49,7 +73,10 @@ impl Augmentation {
                 Retune::Normals => {
                     aug.r_n[i] = r_n;
                     if frictional {
-                        aug.r_t[i] = r / TANGENT_FACTOR;
+                        aug.r_t[i] = match aug.settled && h.free_tangent() {
+                            true => r_t,
+                            false => r / TANGENT_FACTOR,
+                        };
                     }
                 }
                 Retune::ToReference | Retune::EndCycle { .. } => {}
@@ -114,8 +141,9 @@ pub(super) const NORMAL_FACTOR: f64 = 1000.0;
 /// at r / 10), the loop contracted by 0.9999 on one piece whose statuses no longer
 /// changed, and took 455 sweeps (2 threads; 837 on 1, 531 on 2 ranks, 1410 on 3, the
 /// path following round-off); with this factor 38 on each. 10^5: ring 24, but a Tresca
-/// strip 73 -> 87 (its statuses flip back and forth, 50 retunes). A status change
-/// returns the free directions to the factors of the moving zone ([`Retune::Normals`]).
+/// strip 73 -> 87 (its statuses flip back and forth, 50 retunes). Once lowered they stay
+/// so: a later normals' retune keeps them ([`Augmentation::for_statuses`]); only the
+/// pressed nodes' tangents return to the moving zone's r / 10.
 pub(super) const SETTLED_FREE_FACTOR: f64 = 1.0e4;
 /// The same for the tangents. Friction statuses are fragile (a sticking node flips to
 /// slip when a large r amplifies the remaining tangential motion): over the built-in
@@ -189,11 +217,12 @@ pub fn tuned(
     } else {
         r / NORMAL_FACTOR
     };
-    // An open node's slipping tangent is free as a loose one is: its force is the
-    // threshold, which no normal force sets (Tresca), and only its spring holds its
-    // motion. A pressed node's slipping tangent is not lowered: its threshold follows
-    // the normal force (Coulomb) and its stick/slip status flips with it.
-    let free_t = loose || (!held_n && !held_t);
+    let free_t = Held {
+        n: held_n,
+        t: held_t,
+        loose,
+    }
+    .free_tangent();
     let t = if frictional && free_t && settled {
         free
     } else if frictional {
@@ -232,6 +261,15 @@ impl Held {
     pub fn new(n: bool, t: bool) -> Self {
         Held { n, t, loose: false }
     }
+
+    /// Whether the tangent carries no force that a status sets, so that only its spring
+    /// holds its motion: a loose one, and an open node's slipping one, whose force is the
+    /// threshold, which no normal force sets (Tresca). A pressed node's slipping tangent
+    /// is not free: its threshold follows the normal force (Coulomb) and its stick/slip
+    /// status flips with it.
+    pub fn free_tangent(self) -> bool {
+        self.loose || (!self.n && !self.t)
+    }
 }
 
 /// What [`retuned`] asks for.
@@ -240,7 +278,8 @@ pub enum Retune {
     /// Each direction to the r its status asks for ([`tuned`]).
     ToStatus,
     /// Each normal to the r its status asks for, every tangent lowered (as if slipping)
-    /// while the contact zone is still moving.
+    /// while the contact zone is still moving; free directions already lowered once the
+    /// statuses settled stay so ([`Augmentation::for_statuses`]).
     Normals,
     /// Every direction back to the reference r.
     ToReference,
@@ -560,14 +599,37 @@ mod tests {
             tuned(Held::new(false, true), true, r, 0.0, true),
             (settled, r * TANGENT_FACTOR)
         );
-        // Settling is what the tangents' retune does; the normals' undoes it.
-        let held = [OPEN, Held::new(true, true)];
-        let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0);
-        assert_eq!(a.r_n, vec![r / NORMAL_FACTOR, r * NORMAL_FACTOR]);
+        // Settling is what the tangents' retune does; the normals' keeps it.
+        let held = [
+            OPEN,
+            Held::new(true, true),
+            open_tresca,
+            Held::new(true, false),
+        ];
+        let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0, false);
+        assert_eq!(a.r_n[..2], [r / NORMAL_FACTOR, r * NORMAL_FACTOR]);
+        assert_eq!(a.r_t, vec![r / TANGENT_FACTOR; 4]);
         assert!(!a.settled);
-        let a = Augmentation::for_statuses(Retune::ToStatus, &held, true, r, 0.0);
+        let a = Augmentation::for_statuses(Retune::ToStatus, &held, true, r, 0.0, false);
         assert!(a.settled);
-        assert_eq!(a.r_n, vec![settled, r * NORMAL_FACTOR]);
+        assert_eq!(a.r_n[..2], [settled, r * NORMAL_FACTOR]);
+        // From settled r, the normals' retune keeps the free directions lowered (the open
+        // nodes' normals and tangents) and lowers the pressed nodes' tangents, sticking
+        // or not, as while the zone moves.
+        let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0, true);
+        assert!(a.settled);
+        assert_eq!(
+            a.r_n,
+            vec![settled, r * NORMAL_FACTOR, settled, r * NORMAL_FACTOR]
+        );
+        let loose = r / TANGENT_FACTOR;
+        assert_eq!(a.r_t, vec![settled, loose, settled, loose]);
+        // What the sweep then counts as mistuned: only the sticking tangent.
+        for (i, &h) in held.iter().enumerate() {
+            let want = tuned(h, true, r, 0.0, a.settled);
+            assert_eq!(want.0, a.r_n[i], "node {i}");
+            assert_eq!(want.1 == a.r_t[i], i != 1, "node {i}");
+        }
     }
 
     #[test]
@@ -588,12 +650,12 @@ mod tests {
         );
         // Normals alone: tangents lowered with friction, kept without.
         let held = [Held::new(true, true), Held::new(false, true)];
-        let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0);
+        let a = Augmentation::for_statuses(Retune::Normals, &held, true, r, 0.0, false);
         assert_eq!(a.r_n, vec![r * NORMAL_FACTOR, r / NORMAL_FACTOR]);
         assert_eq!(a.r_t, vec![r / TANGENT_FACTOR; 2]);
-        let a = Augmentation::for_statuses(Retune::Normals, &held, false, r, 0.0);
+        let a = Augmentation::for_statuses(Retune::Normals, &held, false, r, 0.0, false);
         assert_eq!(a.r_t, vec![r; 2]);
-        let a = Augmentation::for_statuses(Retune::ToReference, &held, true, r, 0.0);
+        let a = Augmentation::for_statuses(Retune::ToReference, &held, true, r, 0.0, false);
         assert_eq!(a, Augmentation::uniform(2, r));
     }
 

@@ -731,7 +731,10 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
                     self.sweeper.changed_at.iter().map(|&c| c > since).collect();
                 Augmentation::after_cycle(&held, &cycled, frictional, r, stiffness)
             }
-            _ => Augmentation::for_statuses(kind, &held, frictional, r, stiffness),
+            _ => {
+                let from_settled = self.sweeper.aug.settled;
+                Augmentation::for_statuses(kind, &held, frictional, r, stiffness, from_settled)
+            }
         };
         if !self.sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
             self.can_retune = false;
