@@ -42,12 +42,12 @@ impl Augmentation {
     /// every free direction to the moving zone's r / 1000 made each such node cost three
     /// sweeps (the normals' retune, two sweeps without a change, the settled retune)
     /// where it now costs one or two. Measured (one thread, default options) on the
-    /// holed plate of `make_cases.py --heldout` at 7881 nodes, whose zone grows back
+    /// holed plate of `make_cases.py --heldout --scale 0.5` (7881 nodes), whose zone grows back
     /// from 5 nodes to 27 after its landing: 96 -> 61 sweeps; the Coulomb bridge of
-    /// `--slender` at 6513 nodes 87 -> 74; over the 113 runs of the held-out, slender,
+    /// `--slender --scale 0.5` (6513 nodes) 87 -> 74; over the 113 runs of the held-out, slender,
     /// beam, Tresca and built-in cases, 14 787 -> 14 657 sweeps, the largest count
     /// against the built-in block's at the same size 2.79 -> 2.37 times, the worst
-    /// losses the L-bracket 64 -> 71 and the half ring at 7k nodes 60 -> 75. The
+    /// losses the L-bracket 64 -> 71 and the half ring at 6636 nodes 60 -> 75. The
     /// tangents of pressed nodes still go to r / 10: kept settled too (sticking ones x
     /// 10) on a small change, a slab on a slope whose stick/slip statuses then flipped
     /// took 46 -> 928 sweeps, and with the stiff tangents kept only where no pressed
@@ -195,11 +195,7 @@ pub const MAX_RETUNES: usize = 100;
 /// ([`SETTLED_FREE_FACTOR`]). Without friction the tangent is not part of the method
 /// and keeps r.
 pub fn tuned(
-    Held {
-        n: held_n,
-        t: held_t,
-        loose,
-    }: Held,
+    status: Held,
     frictional: bool,
     r: f64,
     mesh_stiffness: f64,
@@ -217,20 +213,14 @@ pub fn tuned(
     } else {
         r / NORMAL_FACTOR
     };
-    let free_t = Held {
-        n: held_n,
-        t: held_t,
-        loose,
-    }
-    .free_tangent();
-    let t = if frictional && free_t && settled {
+    let t = if frictional && status.free_tangent() && settled {
         free
     } else if frictional {
-        pick(held_t, TANGENT_FACTOR, HELD_TANGENT_FLOOR)
+        pick(status.t, TANGENT_FACTOR, HELD_TANGENT_FLOOR)
     } else {
         r
     };
-    let n = if held_n {
+    let n = if status.n {
         pick(true, NORMAL_FACTOR, HELD_NORMAL_FLOOR)
     } else {
         free
