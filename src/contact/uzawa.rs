@@ -643,6 +643,21 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// refusal: there the plain step often crosses into a closer piece than the cut
     /// point (beams meshed finely: 19 and 29 sweeps with the plain step, 28 and 35 with
     /// the cut at every refusal).
+    ///
+    /// **The first touch.** Where no node is pressed yet, the cut point is the body's
+    /// first touch, and it is kept whatever its residual, as [`Run::glide`] keeps its
+    /// point: its image presses the nodes the body sinks onto, so its residual exceeds
+    /// that of a body still in the air, and the safeguard would send the body back up to
+    /// creep down again. Measured on a held-out Tresca bridge (`make_cases.py --slender
+    /// --scale 0.6`, threshold 0.3 times the Coulomb answer's coefficient times its mean
+    /// pressure): the cut point pressed 155 nodes and was refused, 25 plain sweeps
+    /// followed in the air with a refusal every four, and the run took 122 sweeps; with
+    /// the cut point kept, 84 (at `--scale 0.65`, 86 -> 76: tests/tolerance.rs). Nothing
+    /// else changed among the 113 runs of docs/performance-history.md and the 48 cases of
+    /// `make_cases.py` at scales 0.7 and 0.6; of the 60 Tresca variants of the latter one
+    /// more, 69 -> 71. What follows the touch moves either way: at `--scale 0.9` the
+    /// bounce that the kept point saves is one sweep in the air, and the stick/slip
+    /// statuses then took another path, 65 -> 75 sweeps.
     fn safeguard(
         &mut self,
         law: Law,
@@ -670,7 +685,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             if t[0] > 0.0 && t[0] < 1.0 {
                 let cut: Vec<f64> = x.iter().zip(&y).map(|(a, b)| a + t[0] * (b - a)).collect();
                 let next = self.evaluate(law, &cut, Some(aa))?;
-                if next.res <= cur.res || next.worst <= self.stop_tol() {
+                if cur.active == 0 || next.res <= cur.res || next.worst <= self.stop_tol() {
                     *x = cut;
                     return Ok(next);
                 }
