@@ -158,6 +158,16 @@ fn slow_plain_alg2_with_a_poor_r() {
     );
 }
 
+/// Runs `file` (in tests/data/tolerance) on `np` ranks in `dir` with `--out out --quiet`,
+/// which must succeed; returns its stdout and stderr.
+fn run_quietly(dir: &std::path::Path, file: &str, np: usize) -> (String, String) {
+    let path = case(file);
+    let args = [path.as_str(), "--out", "out", "--quiet"];
+    let (code, stdout, stderr) = run_on_ranks(dir, np, &args);
+    assert_eq!(code, 0, "{file}, {np} ranks: {stderr}");
+    (stdout, stderr)
+}
+
 /// The sweeps of a run's summary.
 fn sweeps(run: &Run) -> u64 {
     run.expect_code(0);
@@ -322,11 +332,8 @@ fn a_tube_on_one_node_under_tresca_friction_settles() {
 #[test]
 fn round_off_that_bounds_the_accuracy_is_reported() {
     let dir = tempfile::TempDir::new().unwrap();
-    let path = case("cantilever.toml");
     for np in [1, 3] {
-        let args = [path.as_str(), "--out", "out", "--quiet"];
-        let (code, stdout, stderr) = run_on_ranks(dir.path(), np, &args);
-        assert_eq!(code, 0, "{np} ranks: {stderr}");
+        let (stdout, stderr) = run_quietly(dir.path(), "cantilever.toml", np);
         assert!(stdout.is_empty(), "{np} ranks printed {stdout}");
         let lines: Vec<&str> = stderr.lines().filter(|l| l.contains("round-off")).collect();
         assert_eq!(lines.len(), 1, "{np} ranks: {stderr}");
@@ -351,7 +358,7 @@ fn round_off_that_bounds_the_accuracy_is_reported() {
             .unwrap()
             .contains(&format!("{floor:.1e}")));
     }
-    let quiet = run_args(&[&path, "--tol", "1e-6"]);
+    let quiet = run_args(&[&case("cantilever.toml"), "--tol", "1e-6"]);
     quiet.expect_code(0);
     assert_eq!(quiet.summary()["warnings"], serde_json::json!([]));
     assert!(!quiet.stderr.contains("warning"), "{}", quiet.stderr);
@@ -370,11 +377,8 @@ fn round_off_that_bounds_the_accuracy_is_reported() {
 fn a_creeping_body_keeps_its_first_touch() {
     check("bridge.toml", &[], "bridge");
     let dir = tempfile::TempDir::new().unwrap();
-    let path = case("bridge.toml");
     for np in [1, 3] {
-        let args = [path.as_str(), "--out", "out", "--quiet"];
-        let (code, _, stderr) = run_on_ranks(dir.path(), np, &args);
-        assert_eq!(code, 0, "{np} ranks: {stderr}");
+        run_quietly(dir.path(), "bridge.toml", np);
         let history = std::fs::read_to_string(dir.path().join("out/history.csv")).unwrap();
         let mut lines = history.lines();
         let header: Vec<&str> = lines.next().unwrap().split(',').collect();
