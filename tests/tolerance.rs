@@ -387,7 +387,11 @@ fn a_creeping_body_keeps_its_first_touch() {
             .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
             .collect();
         let first = active.iter().position(|&a| a > 0).expect("a touch");
-        let aloft: Vec<usize> = (first..active.len()).filter(|&k| active[k] == 0).collect();
+        // Sweeps count from 1.
+        let aloft: Vec<usize> = (first..active.len())
+            .filter(|&k| active[k] == 0)
+            .map(|k| k + 1)
+            .collect();
         assert!(
             aloft.is_empty(),
             "{np} ranks: back in the air at sweeps {aloft:?} after touching at {}",
