@@ -91,25 +91,6 @@ impl Picture {
     }
 }
 
-/// The rows of history.csv by column name.
-fn history(out: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let text = std::fs::read_to_string(out.join("history.csv")).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
-    let rows = lines
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
-    (header, rows)
-}
-
-fn column(header: &[String], rows: &[Vec<f64>], name: &str) -> Vec<f64> {
-    let k = header
-        .iter()
-        .position(|h| h == name)
-        .unwrap_or_else(|| panic!("no {name}"));
-    rows.iter().map(|r| r[k]).collect()
-}
-
 /// The sweeps at which a cumulative count of history.csv grew.
 fn grew(counts: &[f64], sweeps: &[f64]) -> Vec<f64> {
     let mut before = 0.0;
@@ -137,9 +118,9 @@ fn check_convergence(out: &Path, frictional: bool) -> (usize, usize) {
         "{:?}",
         f.series
     );
-    let (header, rows) = history(out);
-    let sweeps = column(&header, &rows, "iteration");
-    let error = column(&header, &rows, "error_estimate");
+    let (header, rows) = read_history(out);
+    let sweeps = history_column(&header, &rows, "iteration");
+    let error = history_column(&header, &rows, "error_estimate");
     let points: Vec<(f64, f64)> = sweeps
         .iter()
         .zip(&error)
@@ -148,7 +129,7 @@ fn check_convergence(out: &Path, frictional: bool) -> (usize, usize) {
         .collect();
     assert_eq!(f.colour("error estimate"), Some(ERROR_COLOUR));
     pic.assert_drawn("convergence", &points, ERROR_COLOUR);
-    let retunes = grew(&column(&header, &rows, "retunes"), &sweeps);
+    let retunes = grew(&history_column(&header, &rows, "retunes"), &sweeps);
     for &k in &retunes {
         // Dashed: 6 pixels on, 5 off, down the panel.
         let hits = (0..50)
@@ -159,7 +140,10 @@ fn check_convergence(out: &Path, frictional: bool) -> (usize, usize) {
             .count();
         assert!(hits >= 15, "retune before sweep {k}: {hits} of 50 pixels");
     }
-    let refused = grew(&column(&header, &rows, "refused_accelerations"), &sweeps);
+    let refused = grew(
+        &history_column(&header, &rows, "refused_accelerations"),
+        &sweeps,
+    );
     for &k in &refused {
         let at = f.pixel(k, error[k as usize - 1]);
         // A cross of arms 6 pixels long, under the error's dot.

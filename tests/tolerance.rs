@@ -379,17 +379,12 @@ fn a_creeping_body_keeps_its_first_touch() {
     let dir = tempfile::TempDir::new().unwrap();
     for np in [1, 3] {
         run_quietly(dir.path(), "bridge.toml", np);
-        let history = std::fs::read_to_string(dir.path().join("out/history.csv")).unwrap();
-        let mut lines = history.lines();
-        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-        let col = header.iter().position(|h| *h == "active_nodes").unwrap();
-        let active: Vec<u64> = lines
-            .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
-            .collect();
-        let first = active.iter().position(|&a| a > 0).expect("a touch");
+        let (header, rows) = read_history(&dir.path().join("out"));
+        let active = history_column(&header, &rows, "active_nodes");
+        let first = active.iter().position(|&a| a > 0.0).expect("a touch");
         // Sweeps count from 1.
         let aloft: Vec<usize> = (first..active.len())
-            .filter(|&k| active[k] == 0)
+            .filter(|&k| active[k] == 0.0)
             .map(|k| k + 1)
             .collect();
         assert!(

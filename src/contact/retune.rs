@@ -73,9 +73,10 @@ impl Augmentation {
                 Retune::Normals => {
                     aug.r_n[i] = r_n;
                     if frictional {
-                        aug.r_t[i] = match aug.settled && h.free_tangent() {
-                            true => r_t,
-                            false => r / TANGENT_FACTOR,
+                        aug.r_t[i] = if aug.settled && h.free_tangent() {
+                            r_t
+                        } else {
+                            r / TANGENT_FACTOR
                         };
                     }
                 }

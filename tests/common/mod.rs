@@ -251,6 +251,26 @@ pub fn read_nodes(path: &Path) -> Vec<[f64; 4]> {
         .collect()
 }
 
+/// The rows of `out/history.csv` by column name: the header and each row's values.
+pub fn read_history(out: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(out.join("history.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    (header, rows)
+}
+
+/// The column `name` of [`read_history`]'s rows.
+pub fn history_column(header: &[String], rows: &[Vec<f64>], name: &str) -> Vec<f64> {
+    let k = header
+        .iter()
+        .position(|h| h == name)
+        .unwrap_or_else(|| panic!("no {name}"));
+    rows.iter().map(|r| r[k]).collect()
+}
+
 pub fn read_summary(path: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path)
         .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
