@@ -316,6 +316,7 @@ mod tests {
             r_t: vec![r / 10.0, 10.0 * r],
             settled: false,
             ended: false,
+            follow_tangents: false,
         };
         let omega = metric(&w, &aug, r, true);
         let dx = [1e-3, 1e3, 10.0, 0.1];

@@ -3,7 +3,7 @@
 //! sums that the sweep's one all-reduce turns into its line of the history.
 
 use super::kernels::{coulomb_threshold, project_normal, shrink, state, update_multiplier};
-use super::retune::{largest_tuned, tuned, Augmentation, Held};
+use super::retune::{largest_tuned, tuned, Augmentation, Held, Rules};
 use super::{ContactNodes, LinearStep, Reduce};
 use crate::error::Result;
 
@@ -38,7 +38,8 @@ pub struct Sweep {
     pub soft: usize,
     /// Directions whose r differs from what their status in the image asks for.
     pub mistuned: usize,
-    /// Normal directions among them.
+    /// Nodes whose normal is among them, or whose tangent is while the tangents follow
+    /// their statuses (`Augmentation::follow_tangents`): what a normals' retune answers.
     pub mistuned_n: usize,
     /// Directions whose r differs from what the retune of settled statuses would give
     /// them: the mistuned ones, and the free ones not yet lowered further.
@@ -587,7 +588,7 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             if before.unwrap_or_else(|| inp.held(i, frictional)) != held {
                 s.changed += 1.0;
             }
-            let (want_n, want_t) = tuned(held, frictional, r, self.mesh_stiffness, aug.settled);
+            let (want_n, want_t) = aug.tuned(held, frictional, r, self.mesh_stiffness);
             for (have, want) in [(aug.r_n[i], want_n), (aug.r_t[i], want_t)] {
                 if have > r {
                     s.stiff += 1.0;
@@ -598,10 +599,14 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
                     s.mistuned += 1.0;
                 }
             }
-            if aug.r_n[i] != want_n {
+            if aug.r_n[i] != want_n || (aug.follow_tangents && aug.r_t[i] != want_t) {
                 s.mistuned_n += 1.0;
             }
-            let settled = tuned(held, frictional, r, self.mesh_stiffness, true);
+            let rules = Rules {
+                settled: true,
+                follow_tangents: aug.follow_tangents,
+            };
+            let settled = tuned(held, frictional, r, self.mesh_stiffness, rules);
             s.unsettled += f64::from(u8::from(aug.r_n[i] != settled.0))
                 + f64::from(u8::from(aug.r_t[i] != settled.1));
             s.pattern += status_tag(self.keys[i], held);

@@ -41,7 +41,7 @@
 
 use super::anderson::{dot, metric, span_secant, Anderson, FLAT_SECANT};
 use super::kernels::{coulomb_threshold, first_crossing, state};
-use super::retune::{retuned, Augmentation, Held, Retune};
+use super::retune::{retuned, tangents_follow, Augmentation, Held, Retune};
 use super::sweep::{
     error_estimate, project_and_update, relative, Derived, Law, Reduced, Sweep, Sweeper, ROUNDOFF,
 };
@@ -139,6 +139,9 @@ pub struct Snapshot {
     /// The sweep of each of this rank's contact nodes' last status change.
     #[serde(default)]
     pub changed_at: Vec<usize>,
+    /// The sweep count when the retunes cycled with the tangents following their statuses.
+    #[serde(default)]
+    pub tangents_cycled_at: Option<usize>,
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -398,6 +401,9 @@ struct Run<'r, 'a, S: LinearStep, C: Reduce> {
     /// The piece (active and slipping nodes of the last accepted image, retunes) on which
     /// the safeguard last refused a mixed point (see [`Run::safeguard`]).
     refused_on: Option<(usize, usize, usize)>,
+    /// The sweep count when the retunes cycled with the tangents following their
+    /// statuses ([`tangents_follow`]): from there they no longer follow.
+    tangents_cycled_at: Option<usize>,
 }
 
 /// An evaluation of G after the global reduction.
@@ -450,6 +456,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             anchor: None,
             min_secant: f64::INFINITY,
             refused_on: None,
+            tangents_cycled_at: None,
         }
     }
 
@@ -734,9 +741,21 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         if self.sweeper.aug.ended {
             return Ok(false);
         }
-        let Some(kind) = retuned(&self.history, frictional, self.n_contact) else {
+        // The sweeps of the tangents' own cycle no longer count towards one.
+        let since = self.tangents_cycled_at.unwrap_or(0).min(self.history.len());
+        let Some(mut kind) = retuned(&self.history[since..], frictional, self.n_contact) else {
             return Ok(false);
         };
+        let fixed_thresholds = matches!(law, Law::Fixed(_));
+        if fixed_thresholds
+            && self.tangents_cycled_at.is_none()
+            && matches!(kind, Retune::EndCycle { .. })
+        {
+            self.tangents_cycled_at = Some(self.history.len());
+            kind = Retune::ToStatus;
+        }
+        let pressed = self.history.last().map_or(0, |s| s.active);
+        let follow = tangents_follow(fixed_thresholds, pressed, self.tangents_cycled_at.is_some());
         let n = last.p.len();
         let held: Vec<Held> = (0..n).map(|i| last.held(i, frictional)).collect();
         let (r, stiffness) = (self.sweeper.r_ref, self.sweeper.mesh_stiffness);
@@ -748,7 +767,14 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             }
             _ => {
                 let from_settled = self.sweeper.aug.settled;
-                Augmentation::for_statuses(kind, &held, frictional, r, stiffness, from_settled)
+                Augmentation::for_statuses(
+                    kind,
+                    &held,
+                    frictional,
+                    (r, stiffness),
+                    from_settled,
+                    follow,
+                )
             }
         };
         if !self.sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
@@ -840,6 +866,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         let out = project_and_update(&snap.gx, sweeper.nodes, law, &sweeper.aug);
         let (active, slip) = snap.history.last().map_or((0, 0), |s| (s.active, s.slip));
         self.refused_on = snap.refused_on;
+        self.tangents_cycled_at = snap.tangents_cycled_at;
         sweeper.remember_statuses(&out, law.frictional(), 0);
         if snap.changed_at.len() == sweeper.changed_at.len() {
             sweeper.changed_at = snap.changed_at;
@@ -894,6 +921,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             r_ref: self.sweeper.r_ref,
             applied: self.applied.clone(),
             refused_on: self.refused_on,
+            tangents_cycled_at: self.tangents_cycled_at,
             changed_at: self.sweeper.changed_at.clone(),
         };
         (self.ckpt.save)(&snap)
