@@ -384,10 +384,12 @@ pub enum Retune {
 ///
 /// **Tangents, once settled.** When the last [`SETTLED_SWEEPS`] + 1 sweeps (all with the
 /// current r) changed no status and some tangent's r is not the one its stick or slip
-/// status asks for, every direction goes to its status ([`Retune::ToStatus`]). The
-/// stick/slip statuses are not retuned eagerly: with r x 10 and / 10 they cycle (block
-/// level 1 did not converge in 10000 sweeps; with a node's tangent kept at the reference
-/// r after its second flip, the slender Coulomb cases took 300-1000 sweeps).
+/// status asks for, every direction goes to its status ([`Retune::ToStatus`]). Under
+/// Coulomb the stick/slip statuses are not retuned eagerly: with r x 10 and / 10 they
+/// cycle (block level 1 did not converge in 10000 sweeps; with a node's tangent kept at
+/// the reference r after its second flip, the slender Coulomb cases took 300-1000
+/// sweeps). Under Tresca they are, as part of the normals' retune, while
+/// [`tangents_follow`] says so (`Sweep::mistuned_n` then counts the tangents too).
 ///
 /// **Budget.** [`MAX_RETUNES`] - 1 retunes of these kinds; after them, if some direction
 /// is still off the reference r, every direction returns to it (the last retune).
