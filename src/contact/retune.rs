@@ -98,14 +98,17 @@ impl Augmentation {
         aug
     }
 
-    /// The r that a node of statuses `status` asks for under this augmentation's rules
-    /// ([`tuned`] with its `settled` and `follow_tangents`).
-    pub fn tuned(&self, status: Held, frictional: bool, r: f64, mesh_stiffness: f64) -> (f64, f64) {
-        let rules = Rules {
+    /// The rules of [`tuned`] this augmentation was made by.
+    pub fn rules(&self) -> Rules {
+        Rules {
             settled: self.settled,
             follow_tangents: self.follow_tangents,
-        };
-        tuned(status, frictional, r, mesh_stiffness, rules)
+        }
+    }
+
+    /// The r that a node of statuses `status` asks for under this augmentation's rules.
+    pub fn tuned(&self, status: Held, frictional: bool, r: f64, mesh_stiffness: f64) -> (f64, f64) {
+        tuned(status, frictional, r, mesh_stiffness, self.rules())
     }
 
     /// The last retune, when the statuses cycle ([`Retune::EndCycle`]): the nodes that
@@ -258,7 +261,7 @@ pub fn tuned(
 
 /// Which of [`tuned`]'s rules apply: the settled ones (free directions lowered further),
 /// and whether the tangents follow their stick/slip statuses ([`tangents_follow`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Rules {
     pub settled: bool,
     pub follow_tangents: bool,

@@ -604,7 +604,7 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
             }
             let rules = Rules {
                 settled: true,
-                follow_tangents: aug.follow_tangents,
+                ..aug.rules()
             };
             let settled = tuned(held, frictional, r, self.mesh_stiffness, rules);
             s.unsettled += f64::from(u8::from(aug.r_n[i] != settled.0))

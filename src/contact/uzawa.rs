@@ -742,7 +742,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             return Ok(false);
         }
         // The sweeps of the tangents' own cycle no longer count towards one.
-        let since = self.tangents_cycled_at.unwrap_or(0).min(self.history.len());
+        let since = self.tangents_cycled_at.unwrap_or(0);
         let Some(mut kind) = retuned(&self.history[since..], frictional, self.n_contact) else {
             return Ok(false);
         };
