@@ -317,6 +317,7 @@ mod tests {
             settled: false,
             ended: false,
             follow_tangents: false,
+            tail: false,
         };
         let omega = metric(&w, &aug, r, true);
         let dx = [1e-3, 1e3, 10.0, 0.1];

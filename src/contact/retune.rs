@@ -23,6 +23,10 @@ pub struct Augmentation {
     /// (Tresca), while at least two nodes are pressed ([`tangents_follow`]).
     #[serde(default)]
     pub follow_tangents: bool,
+    /// Whether this r is the slow tail's ([`Retune::Tail`]): sticking tangents and free
+    /// directions a further [`TAIL_FACTOR`] from the reference r, until a status changes.
+    #[serde(default)]
+    pub tail: bool,
 }
 
 impl Augmentation {
@@ -34,6 +38,7 @@ impl Augmentation {
             settled: false,
             ended: false,
             follow_tangents: false,
+            tail: false,
         }
     }
 
@@ -73,15 +78,16 @@ impl Augmentation {
     ) -> Self {
         let mut aug = Augmentation::uniform(held.len(), r);
         aug.settled = match kind {
-            Retune::ToStatus => true,
+            Retune::ToStatus | Retune::Tail => true,
             Retune::Normals => from_settled,
             Retune::ToReference | Retune::EndCycle { .. } => false,
         };
         aug.follow_tangents = follow_tangents && frictional;
+        aug.tail = kind == Retune::Tail;
         for (i, &h) in held.iter().enumerate() {
             let (r_n, r_t) = aug.tuned(h, frictional, r, mesh_stiffness);
             match kind {
-                Retune::ToStatus => (aug.r_n[i], aug.r_t[i]) = (r_n, r_t),
+                Retune::ToStatus | Retune::Tail => (aug.r_n[i], aug.r_t[i]) = (r_n, r_t),
                 Retune::Normals => {
                     aug.r_n[i] = r_n;
                     if frictional {
@@ -103,6 +109,7 @@ impl Augmentation {
         Rules {
             settled: self.settled,
             follow_tangents: self.follow_tangents,
+            tail: self.tail,
         }
     }
 
@@ -206,6 +213,65 @@ pub(super) const HELD_NORMAL_FLOOR: f64 = 0.3;
 /// cantilever meshed finely 118 and 178; 3: the 1 and 2 m beams spent the retune budget
 /// (396, 655). 0.2 is half the lowest floor where a case cycled.
 pub(super) const HELD_TANGENT_FLOOR: f64 = 0.2;
+/// How much further from the reference r the slow tail's retune ([`tail`]) sets the
+/// tangents and the free directions: a sticking tangent x 10 more (its floor too, but at
+/// most the held normals' r), a free direction (open normal, loose tangent) / 10 more. A
+/// pressed node's slipping tangent keeps r / 10. The held normals keep r x 1000: their r
+/// sets the sweep's round-off ([`largest_tuned`]), which the tail leaves as it was. x 10
+/// more made it ten times larger (the Coulomb cantilever of tests/data/tolerance, whose
+/// floor is 2e-8, then stopped 1.1e-8 apart in p_n on 1 and 2 ranks, 1.3e-9 without)
+/// and saved no sweep on the cases measured; the sticking tangents' floor x 10 above
+/// the normals' r (2 E_eff / h against 0.3) saved sweeps on slender bodies (a held-out
+/// Tresca arch 60 -> 47, a Coulomb plank 30 -> 24), but their round-off with it: 8 of 232
+/// held-out runs more warned that round-off bounds their accuracy above tol.
+pub(super) const TAIL_FACTOR: f64 = 10.0;
+/// Sweeps that changed no status with the settled r before [`tail`] may retune.
+const TAIL_SWEEPS: usize = 2;
+/// The plain map's contraction (estimated from secants) from which a tail counts as
+/// slow ([`tail`]).
+const TAIL_CONTRACTION: f64 = 0.6;
+/// Tail retunes allowed in one run ([`tail`]).
+pub const MAX_TAIL_RETUNES: usize = 3;
+
+/// Whether to retune r for the slow tail ([`Retune::Tail`]) when [`retuned`] asks for
+/// nothing: `aug` is the r in force, settled and not already the tail's, not the end of a
+/// cycle; `tails` the tail retunes so far (at most [`MAX_TAIL_RETUNES`]); the last
+/// [`TAIL_SWEEPS`] sweeps changed no status and were made with this r, which is the one
+/// their statuses ask for; and the plain map contracts by [`TAIL_CONTRACTION`] or more.
+/// The tail's r holds until a status changes: the retune that follows is made by the
+/// other rules ([`Augmentation::for_statuses`]), which are not the tail's.
+///
+/// Why: the settled factors (sticking tangents x 10, free directions / 10^4) are as far
+/// as r can go while statuses still move, a stiffer sticking tangent amplifying the
+/// motion left and flipping its node ([`HELD_TANGENT_FLOOR`]). Once the statuses hold,
+/// what is left is a linear tail, slow in the modes that the sticking tangents pin too
+/// loosely or the free directions too tightly: the Coulomb cantilever of
+/// tests/data/tolerance, its 65 slipping and 56 sticking nodes settled by sweep 39, had
+/// a plain map contracting by 0.89 for its last 26 sweeps (67 in all); with the tail's r
+/// from sweep 45, by 0.39-0.47, 55 in all. The half ring of `make_cases.py --heldout
+/// --scale 0.5` 75 -> 44, a Tresca arch of `--heldout` 65 -> 60 (docs/
+/// performance-history.md has the sets measured). Kept for the rest of the run (not
+/// undone at a status change), and a second one allowed on top, a Tresca cantilever did
+/// not converge in 10^4 sweeps; sticking tangents x 100 in the tail, the Coulomb one did
+/// not either; a pressed node's slipping tangent / 10 more too, the 2 m Coulomb beam 61
+/// -> 193.
+pub fn tail(history: &[Sweep], aug: &Augmentation, tails: usize) -> bool {
+    let Some(last) = history.last() else {
+        return false;
+    };
+    if !aug.settled || aug.tail || aug.ended || tails >= MAX_TAIL_RETUNES {
+        return false;
+    }
+    // The last retune of the budget is the return to the reference r.
+    if last.retunes + 2 > MAX_RETUNES || last.mistuned > 0 || history.len() < TAIL_SWEEPS {
+        return false;
+    }
+    let quiet = history[history.len() - TAIL_SWEEPS..]
+        .iter()
+        .all(|s| s.changed == 0 && s.retunes == last.retunes);
+    quiet && last.contraction >= TAIL_CONTRACTION
+}
+
 /// Retunes allowed in one run, all kinds together. The normals follow their statuses at
 /// every sweep that changes one, so a run that finds its contact zone node by node
 /// retunes as often (measured: at most 47 on the slender cases of
@@ -219,8 +285,9 @@ pub const MAX_RETUNES: usize = 100;
 /// (E_eff / h, 0 when not known); lowered where free (open, slipping), further once
 /// `rules.settled` for the directions that nothing but their spring holds
 /// ([`SETTLED_FREE_FACTOR`]); with `rules.follow_tangents`, an open node's slipping
-/// tangent counts as free at once, settled or not. Without friction the tangent is not
-/// part of the method and keeps r.
+/// tangent counts as free at once, settled or not; with `rules.tail` (and settled),
+/// sticking tangents and free directions a further [`TAIL_FACTOR`] away. Without
+/// friction the tangent is not part of the method and keeps r.
 pub fn tuned(
     status: Held,
     frictional: bool,
@@ -231,7 +298,9 @@ pub fn tuned(
     let Rules {
         settled,
         follow_tangents,
+        tail,
     } = rules;
+    let further = if settled && tail { TAIL_FACTOR } else { 1.0 };
     let pick = |held: bool, factor: f64, floor: f64| {
         if held {
             (r * factor).max(floor * mesh_stiffness)
@@ -240,14 +309,19 @@ pub fn tuned(
         }
     };
     let free = if settled {
-        r / SETTLED_FREE_FACTOR
+        r / (SETTLED_FREE_FACTOR * further)
     } else {
         r / NORMAL_FACTOR
     };
     let t = if frictional && status.free_tangent() && (settled || (follow_tangents && !status.n)) {
         free
+    } else if frictional && status.t {
+        // The tail's sticking tangent stays at most at the held normals' r, which sets
+        // the sweep's round-off (`largest_tuned`).
+        let held = pick(true, TANGENT_FACTOR, HELD_TANGENT_FLOOR);
+        (held * further).min(largest_tuned(r, mesh_stiffness).max(held))
     } else if frictional {
-        pick(status.t, TANGENT_FACTOR, HELD_TANGENT_FLOOR)
+        pick(false, TANGENT_FACTOR, HELD_TANGENT_FLOOR)
     } else {
         r
     };
@@ -265,6 +339,9 @@ pub fn tuned(
 pub struct Rules {
     pub settled: bool,
     pub follow_tangents: bool,
+    /// The slow tail's further factor for sticking tangents and free directions
+    /// ([`TAIL_FACTOR`]; only with `settled`).
+    pub tail: bool,
 }
 
 impl Rules {
@@ -272,11 +349,13 @@ impl Rules {
     pub const SETTLED: Rules = Rules {
         settled: true,
         follow_tangents: false,
+        tail: false,
     };
     /// The moving zone's rules, tangents not following.
     pub const MOVING: Rules = Rules {
         settled: false,
         follow_tangents: false,
+        tail: false,
     };
 }
 
@@ -358,6 +437,10 @@ pub enum Retune {
     /// did not change since keep their settled r, every other direction returns to the
     /// reference r ([`Augmentation::after_cycle`]); the last retune.
     EndCycle { since: usize },
+    /// The settled statuses held and the loop contracts slowly: each direction to the r
+    /// its status asks for, sticking tangents and free directions a further
+    /// [`TAIL_FACTOR`] from the reference r ([`tail`]).
+    Tail,
 }
 
 /// Whether to retune r now, from the history alone (global counts: every rank decides
@@ -810,5 +893,102 @@ mod tests {
             (a.r_n[1], a.r_t[1]),
             tuned(OPEN, true, r, 0.0, Rules::SETTLED)
         );
+    }
+
+    #[test]
+    fn the_slow_tail_widens_the_tangents_and_free_factors_until_a_status_changes() {
+        let r = 10.0;
+        let tail_rules = Rules {
+            tail: true,
+            ..Rules::SETTLED
+        };
+        let pressed_sticking = Held::new(true, true);
+        let (n, t) = tuned(pressed_sticking, true, r, 0.0, Rules::SETTLED);
+        assert_eq!(
+            tuned(pressed_sticking, true, r, 0.0, tail_rules),
+            (n, t * TAIL_FACTOR),
+            "the held normal keeps its r: it sets the round-off"
+        );
+        // The tangent's floor is widened too, up to the held normals' r, which sets the
+        // round-off.
+        let stiff = 1e3;
+        let (_, t) = tuned(pressed_sticking, true, r, stiff, Rules::SETTLED);
+        assert_eq!(t, HELD_TANGENT_FLOOR * stiff);
+        assert_eq!(
+            tuned(pressed_sticking, true, r, stiff, tail_rules).1,
+            t * TAIL_FACTOR
+        );
+        let very_stiff = 1e6;
+        assert_eq!(
+            tuned(pressed_sticking, true, r, very_stiff, tail_rules),
+            (largest_tuned(r, very_stiff), largest_tuned(r, very_stiff))
+        );
+        let settled = r / SETTLED_FREE_FACTOR;
+        assert_eq!(
+            tuned(OPEN, true, r, 0.0, tail_rules),
+            (settled / TAIL_FACTOR, settled / TAIL_FACTOR)
+        );
+        // A pressed node's slipping tangent keeps r / 10: its threshold follows the
+        // pressure.
+        let pressed_slipping = Held::new(true, false);
+        assert_eq!(
+            tuned(pressed_slipping, true, r, 0.0, tail_rules).1,
+            r / TANGENT_FACTOR
+        );
+        // Not while the zone moves.
+        let moving_tail = Rules {
+            tail: true,
+            ..Rules::MOVING
+        };
+        assert_eq!(
+            tuned(OPEN, true, r, 0.0, moving_tail),
+            tuned(OPEN, true, r, 0.0, Rules::MOVING)
+        );
+
+        let held = [pressed_sticking, OPEN];
+        let settled_aug =
+            Augmentation::for_statuses(Retune::ToStatus, &held, true, (r, 0.0), false, false);
+        let slow = |changed: usize, retunes: usize| Sweep {
+            contraction: 0.9,
+            ..sweep(changed, 0, retunes)
+        };
+        let quiet = [slow(3, 4), slow(0, 5), slow(0, 5)];
+        assert!(tail(&quiet, &settled_aug, 0));
+        assert!(
+            !tail(&quiet, &settled_aug, MAX_TAIL_RETUNES),
+            "the allowance spent"
+        );
+        assert!(!tail(&quiet[..2], &settled_aug, 0), "one quiet sweep only");
+        assert!(
+            !tail(&[slow(0, 4), slow(0, 5), slow(0, 5)][..2], &settled_aug, 0),
+            "the sweep before was made with another r"
+        );
+        let fast = [slow(3, 4), sweep(0, 0, 5), sweep(0, 0, 5)];
+        assert!(!tail(&fast, &settled_aug, 0), "contracting by 0.5");
+        let mistuned = [
+            slow(3, 4),
+            slow(0, 5),
+            Sweep {
+                mistuned: 2,
+                ..slow(0, 5)
+            },
+        ];
+        assert!(!tail(&mistuned, &settled_aug, 0));
+        let moving =
+            Augmentation::for_statuses(Retune::Normals, &held, true, (r, 0.0), false, false);
+        assert!(!tail(&quiet, &moving, 0), "not settled");
+        let in_tail = Augmentation::for_statuses(Retune::Tail, &held, true, (r, 0.0), true, false);
+        assert!(in_tail.tail && in_tail.settled);
+        assert!(!tail(&quiet, &in_tail, 1), "already the tail's r");
+        assert_eq!(in_tail.r_n[0], settled_aug.r_n[0]);
+        assert_eq!(in_tail.r_t[0], settled_aug.r_t[0] * TAIL_FACTOR);
+        assert_eq!(in_tail.r_n[1], settled_aug.r_n[1] / TAIL_FACTOR);
+        // A status change: the normals' retune that follows is not the tail's.
+        let after = Augmentation::for_statuses(Retune::Normals, &held, true, (r, 0.0), true, false);
+        assert!(!after.tail);
+        assert_eq!(after.r_n[1], settled_aug.r_n[1]);
+        // The budget's last retune stays the return to the reference r.
+        let late = [slow(0, MAX_RETUNES - 1), slow(0, MAX_RETUNES - 1)];
+        assert!(!tail(&late, &settled_aug, 0));
     }
 }

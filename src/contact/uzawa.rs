@@ -41,7 +41,7 @@
 
 use super::anderson::{dot, metric, span_secant, Anderson, FLAT_SECANT};
 use super::kernels::{coulomb_threshold, first_crossing, state};
-use super::retune::{retuned, tangents_follow, Augmentation, Held, Retune};
+use super::retune::{retuned, tail, tangents_follow, Augmentation, Held, Retune};
 use super::sweep::{
     error_estimate, project_and_update, relative, Derived, Law, Reduced, Sweep, Sweeper, ROUNDOFF,
 };
@@ -142,6 +142,9 @@ pub struct Snapshot {
     /// The sweep count when the retunes cycled with the tangents following their statuses.
     #[serde(default)]
     pub tangents_cycled_at: Option<usize>,
+    /// The slow tail's retunes so far ([`tail`]).
+    #[serde(default)]
+    pub tail_retunes: usize,
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -404,6 +407,8 @@ struct Run<'r, 'a, S: LinearStep, C: Reduce> {
     /// The sweep count when the retunes cycled with the tangents following their
     /// statuses ([`tangents_follow`]): from there they no longer follow.
     tangents_cycled_at: Option<usize>,
+    /// The slow tail's retunes so far ([`tail`]).
+    tail_retunes: usize,
 }
 
 /// An evaluation of G after the global reduction.
@@ -457,6 +462,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             min_secant: f64::INFINITY,
             refused_on: None,
             tangents_cycled_at: None,
+            tail_retunes: 0,
         }
     }
 
@@ -743,8 +749,13 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         }
         // The sweeps of the tangents' own cycle no longer count towards one.
         let since = self.tangents_cycled_at.unwrap_or(0);
-        let Some(mut kind) = retuned(&self.history[since..], frictional, self.n_contact) else {
-            return Ok(false);
+        let mut kind = match retuned(&self.history[since..], frictional, self.n_contact) {
+            Some(kind) => kind,
+            None if tail(&self.history, &self.sweeper.aug, self.tail_retunes) => {
+                self.tail_retunes += 1;
+                Retune::Tail
+            }
+            None => return Ok(false),
         };
         let fixed_thresholds = matches!(law, Law::Fixed(_));
         if fixed_thresholds
@@ -867,6 +878,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         let (active, slip) = snap.history.last().map_or((0, 0), |s| (s.active, s.slip));
         self.refused_on = snap.refused_on;
         self.tangents_cycled_at = snap.tangents_cycled_at;
+        self.tail_retunes = snap.tail_retunes;
         sweeper.remember_statuses(&out, law.frictional(), 0);
         if snap.changed_at.len() == sweeper.changed_at.len() {
             sweeper.changed_at = snap.changed_at;
@@ -922,6 +934,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             applied: self.applied.clone(),
             refused_on: self.refused_on,
             tangents_cycled_at: self.tangents_cycled_at,
+            tail_retunes: self.tail_retunes,
             changed_at: self.sweeper.changed_at.clone(),
         };
         (self.ckpt.save)(&snap)
