@@ -220,10 +220,10 @@ pub(super) const HELD_TANGENT_FLOOR: f64 = 0.2;
 /// sets the sweep's round-off ([`largest_tuned`]), which the tail leaves as it was. x 10
 /// more made it ten times larger (the Coulomb cantilever of tests/data/tolerance, whose
 /// floor is 2e-8, then stopped 1.1e-8 apart in p_n on 1 and 2 ranks, 1.3e-9 without)
-/// and saved no sweep on the cases measured; the sticking tangents' floor x 10 above
+/// and saved no sweep on the six slowest cases; the sticking tangents' floor x 10 above
 /// the normals' r (2 E_eff / h against 0.3) saved sweeps on slender bodies (a held-out
-/// Tresca arch 60 -> 47, a Coulomb plank 30 -> 24), but their round-off with it: 8 of 232
-/// held-out runs more warned that round-off bounds their accuracy above tol.
+/// Tresca arch 60 -> 47, a Coulomb plank 30 -> 24), but raised their round-off with it:
+/// of 232 held-out runs, 8 more warned that round-off bounds their accuracy above tol.
 pub(super) const TAIL_FACTOR: f64 = 10.0;
 /// Sweeps that changed no status with the settled r before [`tail`] may retune.
 const TAIL_SWEEPS: usize = 2;
