@@ -317,9 +317,9 @@ pub fn tuned(
         free
     } else if frictional && status.t {
         // The tail's sticking tangent stays at most at the held normals' r, which sets
-        // the sweep's round-off (`largest_tuned`).
-        let held = pick(true, TANGENT_FACTOR, HELD_TANGENT_FLOOR);
-        (held * further).min(largest_tuned(r, mesh_stiffness).max(held))
+        // the sweep's round-off (`largest_tuned`, never below a sticking tangent's r).
+        (pick(true, TANGENT_FACTOR, HELD_TANGENT_FLOOR) * further)
+            .min(largest_tuned(r, mesh_stiffness))
     } else if frictional {
         pick(false, TANGENT_FACTOR, HELD_TANGENT_FLOOR)
     } else {

@@ -142,9 +142,6 @@ pub struct Snapshot {
     /// The sweep count when the retunes cycled with the tangents following their statuses.
     #[serde(default)]
     pub tangents_cycled_at: Option<usize>,
-    /// The slow tail's retunes so far ([`tail`]).
-    #[serde(default)]
-    pub tail_retunes: usize,
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -407,8 +404,6 @@ struct Run<'r, 'a, S: LinearStep, C: Reduce> {
     /// The sweep count when the retunes cycled with the tangents following their
     /// statuses ([`tangents_follow`]): from there they no longer follow.
     tangents_cycled_at: Option<usize>,
-    /// The slow tail's retunes so far ([`tail`]).
-    tail_retunes: usize,
 }
 
 /// An evaluation of G after the global reduction.
@@ -462,7 +457,6 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             min_secant: f64::INFINITY,
             refused_on: None,
             tangents_cycled_at: None,
-            tail_retunes: 0,
         }
     }
 
@@ -749,12 +743,11 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         }
         // The sweeps of the tangents' own cycle no longer count towards one.
         let since = self.tangents_cycled_at.unwrap_or(0);
+        // The tail's retunes so far are among those applied.
+        let tails = self.applied.iter().filter(|a| a.tail).count();
         let mut kind = match retuned(&self.history[since..], frictional, self.n_contact) {
             Some(kind) => kind,
-            None if tail(&self.history, &self.sweeper.aug, self.tail_retunes) => {
-                self.tail_retunes += 1;
-                Retune::Tail
-            }
+            None if tail(&self.history, &self.sweeper.aug, tails) => Retune::Tail,
             None => return Ok(false),
         };
         let fixed_thresholds = matches!(law, Law::Fixed(_));
@@ -878,7 +871,6 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         let (active, slip) = snap.history.last().map_or((0, 0), |s| (s.active, s.slip));
         self.refused_on = snap.refused_on;
         self.tangents_cycled_at = snap.tangents_cycled_at;
-        self.tail_retunes = snap.tail_retunes;
         sweeper.remember_statuses(&out, law.frictional(), 0);
         if snap.changed_at.len() == sweeper.changed_at.len() {
             sweeper.changed_at = snap.changed_at;
@@ -934,7 +926,6 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             applied: self.applied.clone(),
             refused_on: self.refused_on,
             tangents_cycled_at: self.tangents_cycled_at,
-            tail_retunes: self.tail_retunes,
             changed_at: self.sweeper.changed_at.clone(),
         };
         (self.ckpt.save)(&snap)
