@@ -651,6 +651,16 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// point (beams meshed finely: 19 and 29 sweeps with the plain step, 28 and 35 with
     /// the cut at every refusal).
     ///
+    /// **A body held aloft by thresholds.** Where open nodes carry a slip threshold
+    /// (Tresca, mixed laws), nothing pressed yet, the cut comes at the first refusal
+    /// too: those thresholds hold the body along the foundation, it creeps down through
+    /// the air with no glide ([`Run::glide`] needs zero thresholds), and the plain step
+    /// after a refused point was a step back up. Measured on held-out Tresca strips
+    /// (`make_cases.py --slender` at scales 1, 0.7 and 0.6): 55 -> 51, 61 -> 48 and 72
+    /// -> 57 sweeps, no other of the 232 runs of docs/performance-history.md changed.
+    /// With zero thresholds (frictionless, Coulomb) the first refusal keeps its plain
+    /// step: the cut there took a 2 m frictionless beam from 25 to 34 sweeps.
+    ///
     /// **The first touch.** Where no node is pressed yet, the cut point is the body's
     /// first touch, and it is kept whatever its residual, as [`Run::glide`] keeps its
     /// point: its image presses the nodes the body sinks onto, so its residual exceeds
@@ -685,7 +695,8 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         }
         aa.clear();
         let piece = (cur.active, cur.slip, self.retunes);
-        if self.refused_on.replace(piece) == Some(piece) {
+        let held_aloft = cur.active == 0 && matches!(law, Law::Fixed(_) | Law::Mixed { .. });
+        if self.refused_on.replace(piece) == Some(piece) || held_aloft {
             let n = self.sweeper.nodes.len();
             let mut t = [first_crossing(&x[..n], &y[..n], &self.sweeper.nodes.g)];
             self.comm.min_in_place(&mut t);
