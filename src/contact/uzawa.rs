@@ -651,16 +651,6 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// point (beams meshed finely: 19 and 29 sweeps with the plain step, 28 and 35 with
     /// the cut at every refusal).
     ///
-    /// **A body held aloft by thresholds.** Where open nodes carry a slip threshold
-    /// (Tresca, mixed laws), nothing pressed yet, the cut comes at the first refusal
-    /// too: those thresholds hold the body along the foundation, it creeps down through
-    /// the air with no glide ([`Run::glide`] needs zero thresholds), and the plain step
-    /// after a refused point was a step back up. Measured on held-out Tresca strips
-    /// (`make_cases.py --slender` at scales 1, 0.7 and 0.6): 55 -> 51, 61 -> 48 and 72
-    /// -> 57 sweeps, no other of the 232 runs of docs/performance-history.md changed.
-    /// With zero thresholds (frictionless, Coulomb) the first refusal keeps its plain
-    /// step: the cut there took a 2 m frictionless beam from 25 to 34 sweeps.
-    ///
     /// **The first touch.** Where no node is pressed yet, the cut point is the body's
     /// first touch, and it is kept whatever its residual, as [`Run::glide`] keeps its
     /// point: its image presses the nodes the body sinks onto, so its residual exceeds
@@ -675,6 +665,16 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// more, 69 -> 71. What follows the touch moves either way: at `--scale 0.9` the
     /// bounce that the kept point saves is one sweep in the air, and the stick/slip
     /// statuses then took another path, 65 -> 75 sweeps.
+    ///
+    /// **A body held aloft by thresholds.** Where open nodes carry a slip threshold
+    /// (Tresca, mixed laws), nothing pressed yet, the cut comes at the first refusal
+    /// too: those thresholds hold the body along the foundation, it creeps down through
+    /// the air with no glide ([`Run::glide`] needs zero thresholds), and the plain step
+    /// after a refused point was a step back up. Measured on held-out Tresca strips
+    /// (`make_cases.py --slender` at scales 1, 0.7 and 0.6): 55 -> 51, 61 -> 48 and 72
+    /// -> 57 sweeps, no other of the 232 runs of docs/performance-history.md changed.
+    /// With zero thresholds (frictionless, Coulomb) the first refusal keeps its plain
+    /// step: the cut there took a 2 m frictionless beam from 25 to 34 sweeps.
     fn safeguard(
         &mut self,
         law: Law,
