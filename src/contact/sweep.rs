@@ -86,6 +86,12 @@ impl Law<'_> {
         !matches!(self, Law::Frictionless)
     }
 
+    /// Whether an open node may carry a slip threshold (Tresca, mixed): such thresholds
+    /// hold a body along the foundation before it touches, so no glide crosses the air.
+    pub(super) fn holds_open_nodes(&self) -> bool {
+        matches!(self, Law::Fixed(_) | Law::Mixed { .. })
+    }
+
     fn threshold(&self, i: usize, lambda: f64) -> f64 {
         match *self {
             Law::Frictionless => 0.0,

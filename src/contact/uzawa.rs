@@ -695,7 +695,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         }
         aa.clear();
         let piece = (cur.active, cur.slip, self.retunes);
-        let held_aloft = cur.active == 0 && matches!(law, Law::Fixed(_) | Law::Mixed { .. });
+        let held_aloft = cur.active == 0 && law.holds_open_nodes();
         if self.refused_on.replace(piece) == Some(piece) || held_aloft {
             let n = self.sweeper.nodes.len();
             let mut t = [first_crossing(&x[..n], &y[..n], &self.sweeper.nodes.g)];
@@ -721,11 +721,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// whose image presses no node, with a zero slip threshold at every open node (no
     /// stick/slip status can change on the way), and further than the plain step.
     fn glide(&self, law: Law, cur: &Evaluated, x: &[f64], accelerating: bool) -> Option<Vec<f64>> {
-        if !accelerating
-            || cur.active > 0
-            || cur.secant >= FLAT_SECANT
-            || matches!(law, Law::Fixed(_) | Law::Mixed { .. })
-        {
+        if !accelerating || cur.active > 0 || cur.secant >= FLAT_SECANT || law.holds_open_nodes() {
             return None;
         }
         let g = &self.sweeper.nodes.g;
