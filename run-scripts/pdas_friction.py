@@ -3,8 +3,8 @@ case files: how many steps an established active-set method needs on a case, to 
 beside the loop's sweeps (issue 24's yardstick: are a case's extra sweeps the loop's, or
 the problem's own?).
 
-    python3 -m venv venv && venv/bin/pip install numpy scipy gmsh
-    venv/bin/python run-scripts/pdas_friction.py CASE.toml [--start active] [--ct 0.01] [--csv FILE]
+    apt-get install python3-scipy python3-gmsh    # Debian (or pip install numpy scipy gmsh)
+    python3 run-scripts/pdas_friction.py CASE.toml [--start active] [--ct 0.01] [--csv FILE]
 
 The problem is the one contact-par solves: P1 plane elasticity (the stiffness, loads and
 prescribed dofs of run-scripts/plain_alg2.py), one straight rigid foundation of any
@@ -35,8 +35,9 @@ are never pressed or sticking here: their reaction is the support's.
 
 It prints one JSON line: case, nodes, steps (linear solves), converged, active and slip
 counts (or the step where a cycle began). `--trace` prints each step's counts; `--csv`
-writes x,y,u_n,u_t,p_n,p_t of the contact nodes (p_t with the sign of the slip, the
-opposite of contact-par's contact.csv).
+writes the contact nodes' answer in the columns of contact-par's contact.csv (x,y,u_n,u_t,
+p_n,p_t,gap,contact, sorted by x then y; p_t the force on the body, against the slip):
+tests/tolerance.rs compares contact-par's answers with it.
 """
 
 import argparse
@@ -177,10 +178,10 @@ def main():
             if args.csv:
                 pts = nodes[cn]
                 with open(args.csv, "w") as fh:
-                    fh.write("x,y,u_n,u_t,p_n,p_t\n")
+                    fh.write("x,y,u_n,u_t,p_n,p_t,gap,contact\n")
                     for i in np.lexsort((pts[:, 1], pts[:, 0])):
-                        vals = (pts[i, 0], pts[i, 1], un[i], ut[i], lam[i], mu[i])
-                        fh.write(",".join(repr(float(v)) for v in vals) + "\n")
+                        vals = (pts[i, 0], pts[i, 1], un[i], ut[i], lam[i], -mu[i], g[i])
+                        fh.write(",".join(repr(float(v)) for v in vals) + ",0\n")
             return
         if new_key in seen:
             out.update(converged=False, cycle_from=seen[new_key])

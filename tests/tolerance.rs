@@ -2,7 +2,8 @@
 //! built-in ones (tests/data/tolerance, made with Gmsh by make_cases.py), a run at
 //! tol = 1e-6 lands within tol of a run converged to 1e-11, for p_n, p_t and u at the
 //! contact nodes, each against its own size; runs on 1 and 3 ranks land within tol of
-//! each other.
+//! each other; and both meet the answer of an independent exact method (semismooth
+//! Newton, run-scripts/pdas_friction.py).
 //!
 //! Each case fails the old test (residuals relative to max(|lambda|, r |u|), no
 //! contraction factor): the cantilever stopped 0.9 from the answer in p_n at tol 1e-6,
@@ -131,6 +132,56 @@ fn check(file: &str, args: &[&str], what: &str) {
         MULTIPLE * TOL,
         &format!("{what}, 3 vs 1 rank"),
     );
+}
+
+/// The answers are the exact discrete answers, not only the loop's own fixed point: an
+/// independent method, exact semismooth Newton in its primal-dual active-set form with a
+/// sparse LU per step (run-scripts/pdas_friction.py, SciPy), gives the answer that runs at
+/// tol 1e-11 land within 1e-7 of (their round-off floors, 2e-11 to 2e-8, times a few) and
+/// runs at tol 1e-6 within tol of. Coulomb (the self-weight cantilever; the Newton
+/// method's stick/slip weight 0.1, at which it does not cycle there), Tresca (the wall)
+/// and frictionless (the disc).
+#[test]
+fn answers_agree_with_an_exact_semismooth_newton_method() {
+    let script: PathBuf = [env!("CARGO_MANIFEST_DIR"), "run-scripts/pdas_friction.py"]
+        .iter()
+        .collect();
+    let dir = tempfile::TempDir::new().unwrap();
+    for (file, ct) in [
+        ("cantilever.toml", "0.1"),
+        ("wall.toml", "0.01"),
+        ("disc.toml", "0.01"),
+    ] {
+        let csv = dir.path().join(format!("{file}.csv"));
+        let python = python_with("import scipy.sparse, gmsh").expect(
+            "no Python with scipy and gmsh for run-scripts/pdas_friction.py (Debian: apt-get install python3-scipy python3-gmsh; run-scripts/setup.sh --deps installs them)",
+        );
+        let out = std::process::Command::new(python)
+            .arg(&script)
+            .args([&case(file), "--ct", ct, "--csv"])
+            .arg(&csv)
+            .output()
+            .expect("python3 runs");
+        assert!(
+            out.status.success(),
+            "{file}: run-scripts/pdas_friction.py failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(stdout.contains("\"converged\": true"), "{file}: {stdout}");
+        let newton = read_contact(&csv);
+        assert!(newton.iter().any(|r| r.p_n > 0.0), "{file}: no contact");
+        for (tol, bound) in [(TIGHT, 1e-7), ("1e-6", MULTIPLE * TOL)] {
+            let run = run_args(&[&case(file), "--tol", tol]);
+            run.expect_code(0);
+            assert_close(
+                &run.contact(),
+                &newton,
+                bound,
+                &format!("{file} at tol {tol}"),
+            );
+        }
+    }
 }
 
 /// A slender steel beam closing a 5e-5 m gap under its own weight: r |u| is 1e5 times

@@ -8,7 +8,9 @@
 
 mod common;
 
-use common::{mpirun, read_contact, read_nodes, read_summary, run_builtin, session_dir};
+use common::{
+    mpirun, python_with, read_contact, read_nodes, read_summary, run_builtin, session_dir,
+};
 use serde_json::Value;
 use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
@@ -17,22 +19,10 @@ use std::process::Command;
 /// tests/vtk/read_solution.py: prints what VTK reads from a run's files as JSON.
 const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/vtk/read_solution.py");
 
-/// The first Python that imports VTK's XML readers: `python3` on the PATH, else the
-/// system's (a user's own Python, e.g. pyenv, may shadow the one Debian's package
-/// installs into).
-fn python_with_vtk() -> Option<&'static str> {
-    ["python3", "/usr/bin/python3"].into_iter().find(|py| {
-        Command::new(py)
-            .args(["-c", "import vtkmodules.vtkIOXML"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
-}
-
 /// What VTK reads from `out`'s solution.pvtu and its pieces, or `None` (after a note) on a
 /// developer's machine without the `vtk` package.
 fn read_with_vtk(out: &Path) -> Option<Value> {
-    let Some(python) = python_with_vtk() else {
+    let Some(python) = python_with("import vtkmodules.vtkIOXML") else {
         let note = "no Python with the vtk package (Debian: apt-get install python3-vtk9)";
         if std::env::var("CI").is_ok_and(|v| v == "true") {
             panic!("{note}: CI must read the VTU files with VTK's own readers");

@@ -39,6 +39,18 @@ pub fn mpirun_with(np: usize, options: &[&str], dir: &Path) -> Command {
 /// parent when it ends: a run starting meanwhile then fails in orte_init ("unable to create
 /// the desired directory"), as one test did in CI. Not the run's own directory, whose
 /// contents some tests check.
+/// The first Python that runs `import_line`: `python3` on the PATH, else the system's (a
+/// user's own Python, e.g. pyenv, may shadow the one Debian's packages install into).
+#[allow(dead_code)]
+pub fn python_with(import_line: &str) -> Option<&'static str> {
+    ["python3", "/usr/bin/python3"].into_iter().find(|py| {
+        Command::new(py)
+            .args(["-c", import_line])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    })
+}
+
 pub fn session_dir() -> TempDir {
     TempDir::new().expect("cannot make a session directory")
 }
