@@ -51,7 +51,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plain_alg2 import loads_and_prescribed, read_mesh, stiffness  # noqa: E402
+from plain_alg2 import foundation, loads_and_prescribed, read_mesh, stiffness  # noqa: E402
 
 
 def main():
@@ -70,32 +70,16 @@ def main():
     mat = case["material"]
     hyp = mat.get("hypothesis", "plane_strain")
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
-    n = 2 * len(nodes)
     f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
     con = case["contact"]
     law = con.get("friction", "none")
     coef = con.get("coefficient", 0.0)
     threshold = con.get("threshold", 0.0)
-    segs = groups[con["group"]][1]
-    cn = np.unique(segs.ravel())
+    cn, w, length, g, nmat, tmat = foundation(con, nodes, groups)
     nc = len(cn)
-    where = {v: i for i, v in enumerate(cn)}
-    length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
-    w = np.zeros(nc)
-    np.add.at(w, [where[v] for v in segs[:, 0]], length / 2)
-    np.add.at(w, [where[v] for v in segs[:, 1]], length / 2)
-    m = np.array(con["obstacle_normal"], dtype=float)
-    m /= np.linalg.norm(m)
-    tv = np.array([m[1], -m[0]])
-    g = (nodes[cn] - np.array(con["obstacle_point"])) @ m
     e_eff = mat["young"] / (1 - mat["poisson"] ** 2) if hyp == "plane_strain" else mat["young"]
     c = e_eff / length.mean()
 
-    # u_n = N u (towards the foundation, at most g), u_t = T u, as plain_alg2.py has them.
-    rows = np.repeat(np.arange(nc), 2)
-    cols = np.stack([2 * cn, 2 * cn + 1], axis=1).ravel()
-    nmat = sp.csr_matrix((np.tile(-m, nc), (rows, cols)), shape=(nc, n))
-    tmat = sp.csr_matrix((np.tile(tv, nc), (rows, cols)), shape=(nc, n))
     free = np.isnan(fixed)
     ub = np.where(free, 0.0, fixed)
     rhs0 = (f - k @ ub)[free]

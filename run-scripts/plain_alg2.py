@@ -130,6 +130,30 @@ def loads_and_prescribed(case, nodes, tri, groups, area):
     return f, fixed
 
 
+def foundation(con, nodes, groups):
+    """A straight foundation's contact nodes (`con`, the case's [contact] table): their
+    node numbers, weights (half the lengths of their segments), the segments' lengths, the
+    gaps g = (x - p0).m, and the rows N and T (contact nodes x dofs) of u_n = N u = -m.u
+    (towards the foundation, at most g) and u_t = T u."""
+    segs = groups[con["group"]][1]
+    cn = np.unique(segs.ravel())
+    where = {v: i for i, v in enumerate(cn)}
+    length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
+    w = np.zeros(len(cn))
+    np.add.at(w, [where[v] for v in segs[:, 0]], length / 2)
+    np.add.at(w, [where[v] for v in segs[:, 1]], length / 2)
+    m = np.array(con["obstacle_normal"], dtype=float)
+    m /= np.linalg.norm(m)
+    tv = np.array([m[1], -m[0]])
+    g = (nodes[cn] - np.array(con["obstacle_point"])) @ m
+    n = 2 * len(nodes)
+    rows = np.repeat(np.arange(len(cn)), 2)
+    cols = np.stack([2 * cn, 2 * cn + 1], axis=1).ravel()
+    nmat = sp.csr_matrix((np.tile(-m, len(cn)), (rows, cols)), shape=(len(cn), n))
+    tmat = sp.csr_matrix((np.tile(tv, len(cn)), (rows, cols)), shape=(len(cn), n))
+    return cn, w, length, g, nmat, tmat
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("case")
@@ -149,20 +173,9 @@ def main():
     mat = case["material"]
     hyp = mat.get("hypothesis", "plane_strain")
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
-    n = 2 * len(nodes)
     f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
     con = case["contact"]
-    segs = groups[con["group"]][1]
-    cn = np.unique(segs.ravel())
-    where = {v: i for i, v in enumerate(cn)}
-    length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
-    w = np.zeros(len(cn))
-    np.add.at(w, [where[v] for v in segs[:, 0]], length / 2)
-    np.add.at(w, [where[v] for v in segs[:, 1]], length / 2)
-    p0 = np.array(con["obstacle_point"])
-    m = np.array(con["obstacle_normal"])
-    tv = np.array([m[1], -m[0]])
-    g = (nodes[cn] - p0) @ m
+    cn, w, length, g, nmat, tmat = foundation(con, nodes, groups)
     law = con.get("friction", "none")
     frictional = law != "none"
     # contact-par's automatic r: E_eff / sqrt(h L).
@@ -171,11 +184,6 @@ def main():
     span = nodes.max(axis=0) - nodes.min(axis=0)
     r = case.get("solver", {}).get("r", e_eff / math.sqrt(h * span.min()))
     tol = args.tol if args.tol is not None else case.get("solver", {}).get("tol", 1e-8)
-    # N, T: contact nodes x dofs.
-    rows = np.repeat(np.arange(len(cn)), 2)
-    colsn = np.stack([2 * cn, 2 * cn + 1], axis=1).ravel()
-    nmat = sp.csr_matrix((np.tile(-m, len(cn)), (rows, colsn)), shape=(len(cn), n))
-    tmat = sp.csr_matrix((np.tile(tv, len(cn)), (rows, colsn)), shape=(len(cn), n))
     wd = sp.diags(w)
     a = k + r * (nmat.T @ wd @ nmat)
     if frictional:
