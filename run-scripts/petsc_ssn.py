@@ -45,7 +45,7 @@ from mpi4py import MPI  # noqa: F401  (petsc4py needs MPI initialised through it
 from petsc4py import PETSc
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plain_alg2 import loads_and_prescribed, read_mesh, stiffness  # noqa: E402
+from plain_alg2 import foundation, loads_and_prescribed, read_mesh, stiffness  # noqa: E402
 
 
 def main():
@@ -85,14 +85,7 @@ def main():
     if abs(abs(m[axis]) - 1.0) > 1e-12:
         sys.exit("petsc_ssn.py: the foundation's normal must be a coordinate axis")
     sign = m[axis]
-    segs = groups[con["group"]][1]
-    cn = np.unique(segs.ravel())
-    where = {v: i for i, v in enumerate(cn)}
-    length = np.linalg.norm(nodes[segs[:, 1]] - nodes[segs[:, 0]], axis=1)
-    w = np.zeros(len(cn))
-    np.add.at(w, [where[v] for v in segs[:, 0]], length / 2)
-    np.add.at(w, [where[v] for v in segs[:, 1]], length / 2)
-    g = (nodes[cn] - np.array(con["obstacle_point"])) @ m
+    cn, w, _, g, _, _ = foundation(con, nodes, groups)
 
     # Prescribed dofs kept as rows of the identity (their columns moved to the right-hand
     # side), so that the dofs stay in pairs and GAMG can be given the rigid-body modes.
