@@ -146,6 +146,9 @@ fn answers_agree_with_an_exact_semismooth_newton_method() {
     let script: PathBuf = [env!("CARGO_MANIFEST_DIR"), "run-scripts/pdas_friction.py"]
         .iter()
         .collect();
+    let python = python_with("import scipy.sparse, gmsh").expect(
+        "no Python with scipy and gmsh for run-scripts/pdas_friction.py (Debian: apt-get install python3-scipy python3-gmsh; run-scripts/setup.sh --deps installs them)",
+    );
     let dir = tempfile::TempDir::new().unwrap();
     for (file, ct) in [
         ("cantilever.toml", "0.1"),
@@ -153,15 +156,12 @@ fn answers_agree_with_an_exact_semismooth_newton_method() {
         ("disc.toml", "0.01"),
     ] {
         let csv = dir.path().join(format!("{file}.csv"));
-        let python = python_with("import scipy.sparse, gmsh").expect(
-            "no Python with scipy and gmsh for run-scripts/pdas_friction.py (Debian: apt-get install python3-scipy python3-gmsh; run-scripts/setup.sh --deps installs them)",
-        );
         let out = std::process::Command::new(python)
             .arg(&script)
             .args([&case(file), "--ct", ct, "--csv"])
             .arg(&csv)
             .output()
-            .expect("python3 runs");
+            .expect("the Python found runs");
         assert!(
             out.status.success(),
             "{file}: run-scripts/pdas_friction.py failed: {}",

@@ -34,11 +34,6 @@ pub fn mpirun_with(np: usize, options: &[&str], dir: &Path) -> Command {
     c
 }
 
-/// A `TMPDIR` of its own for a run started without mpirun. As a singleton, Open MPI still
-/// makes its session directory `$TMPDIR/ompi.HOST.UID/pid.PID`, and removes the shared
-/// parent when it ends: a run starting meanwhile then fails in orte_init ("unable to create
-/// the desired directory"), as one test did in CI. Not the run's own directory, whose
-/// contents some tests check.
 /// The first Python that runs `import_line`: `python3` on the PATH, else the system's (a
 /// user's own Python, e.g. pyenv, may shadow the one Debian's packages install into).
 #[allow(dead_code)]
@@ -51,6 +46,11 @@ pub fn python_with(import_line: &str) -> Option<&'static str> {
     })
 }
 
+/// A `TMPDIR` of its own for a run started without mpirun. As a singleton, Open MPI still
+/// makes its session directory `$TMPDIR/ompi.HOST.UID/pid.PID`, and removes the shared
+/// parent when it ends: a run starting meanwhile then fails in orte_init ("unable to create
+/// the desired directory"), as one test did in CI. Not the run's own directory, whose
+/// contents some tests check.
 pub fn session_dir() -> TempDir {
     TempDir::new().expect("cannot make a session directory")
 }
