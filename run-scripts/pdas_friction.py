@@ -95,6 +95,12 @@ def main():
     wc = sp.diags(w * c)
     zero = sp.csr_matrix((nc, nc))
     diag = lambda v: sp.diags(v.astype(float))  # noqa: E731
+    # The equilibrium rows do not depend on the sets.
+    top = [kff, nf.T @ wc] + ([tf.T @ wc] if frictional else [])
+
+    def singular(step, detail=""):
+        sys.exit(f"pdas_friction.py: step {step}: the linear system is singular{detail}: a body "
+                 "that only its contact holds needs --start active")
 
     start = args.start == "active"
     act = np.full(nc, start) & ~held_n
@@ -103,7 +109,6 @@ def main():
     seen = {}
     for step in range(1, args.max_steps + 1):
         key = (act.tobytes(), stick.tobytes(), sgn.tobytes())
-        top = [kff, nf.T @ wc] + ([tf.T @ wc] if frictional else [])
         lam_rows = [diag(act) @ nf, diag(~act)] + ([zero] if frictional else [])
         blocks = [top, lam_rows]
         rhs = [rhs0, np.where(act, g - nb, 0.0)]
@@ -124,15 +129,13 @@ def main():
         try:
             lu = splu(mat_, permc_spec="COLAMD", diag_pivot_thresh=1.0)
         except RuntimeError:
-            sys.exit(f"pdas_friction.py: step {step}: the linear system is singular: a body that "
-                     "only its contact holds needs --start active")
+            singular(step)
         x = lu.solve(b)
         for _ in range(2):
             x += lu.solve(b - mat_ @ x)
         residual = np.linalg.norm(b - mat_ @ x) / np.linalg.norm(b)
         if not residual < 1e-6:
-            sys.exit(f"pdas_friction.py: step {step}: the linear system is singular (relative "
-                     f"residual {residual:.1e}): a body that only its contact holds needs --start active")
+            singular(step, f" (relative residual {residual:.1e})")
         u = x[:nfree]
         lam = c * x[nfree:nfree + nc]
         mu = c * x[nfree + nc:] if frictional else np.zeros(nc)
