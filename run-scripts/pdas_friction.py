@@ -7,8 +7,9 @@ the problem's own?).
     python3 run-scripts/pdas_friction.py CASE.toml [--start active] [--ct 0.01] [--csv FILE]
 
 The problem is the one contact-par solves: P1 plane elasticity (the stiffness, loads and
-prescribed dofs of run-scripts/plain_alg2.py), one straight rigid foundation of any
-inclination, frictionless, Tresca or Coulomb friction (the slip threshold is the
+prescribed dofs of run-scripts/plain_alg2.py), one rigid obstacle (a line of any
+inclination, a circle or a polyline; each node's normal and gap as contact-par's README
+defines them), frictionless, Tresca or Coulomb friction (the slip threshold is the
 coefficient times the normal force, one load step, u_t the slip). The method is the
 primal-dual active-set form of semismooth Newton (Hintermueller, Ito and Kunisch 2002;
 with friction, Hueber, Stadler and Wohlmuth 2008), in 2D: each contact node is open,
@@ -51,7 +52,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plain_alg2 import foundation, loads_and_prescribed, read_mesh, stiffness  # noqa: E402
+from plain_alg2 import foundation, loads_and_prescribed, one_contact, read_mesh, stiffness  # noqa: E402
 
 
 def main():
@@ -71,7 +72,7 @@ def main():
     hyp = mat.get("hypothesis", "plane_strain")
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
     f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
-    con = case["contact"]
+    con = one_contact(case, "pdas_friction.py")
     law = con.get("friction", "none")
     coef = con.get("coefficient", 0.0)
     threshold = con.get("threshold", 0.0)

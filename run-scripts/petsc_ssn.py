@@ -45,7 +45,7 @@ from mpi4py import MPI  # noqa: F401  (petsc4py needs MPI initialised through it
 from petsc4py import PETSc
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plain_alg2 import foundation, loads_and_prescribed, read_mesh, stiffness  # noqa: E402
+from plain_alg2 import foundation, loads_and_prescribed, one_contact, read_mesh, stiffness  # noqa: E402
 
 
 def main():
@@ -77,10 +77,10 @@ def main():
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], mat.get("hypothesis", "plane_strain"))
     n = 2 * len(nodes)
     f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
-    con = case["contact"]
-    if con.get("friction", "none") != "none":
-        sys.exit("petsc_ssn.py: frictionless contact only")
-    m = np.array(con["obstacle_normal"], dtype=float)
+    con = one_contact(case, "petsc_ssn.py")
+    if con.get("friction", "none") != "none" or con["obstacle"]["type"] != "line":
+        sys.exit("petsc_ssn.py: frictionless contact with a line only")
+    m = np.array(con["obstacle"]["normal"], dtype=float)
     axis = int(np.argmax(np.abs(m)))
     if abs(abs(m[axis]) - 1.0) > 1e-12:
         sys.exit("petsc_ssn.py: the foundation's normal must be a coordinate axis")

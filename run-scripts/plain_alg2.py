@@ -17,8 +17,9 @@ the contact displacement over one sweep are all below tol. No retune of r per di
 no subdomains, no contraction estimate: the textbook loop.
 
 It reads the case files contact-par reads, for the subset it needs: [mesh] file, one
-[material], [[dirichlet]], [[traction]], [body_force], [contact] with a straight
-foundation and friction none, tresca or coulomb (inner). It writes DIR/contact.csv in
+[material], [[dirichlet]], [[traction]], [body_force], one contact against a rigid
+obstacle ([contact], or one [[contact]] with a line, circle or polyline) and friction
+none, tresca or coulomb (inner). It writes DIR/contact.csv in
 contact-par's columns (x,y,u_n,u_t,p_n,p_t,gap,contact, sorted by x then y; one contact) and DIR/plain.json
 (sweeps, converged, seconds per phase).
 """
@@ -27,6 +28,7 @@ import argparse
 import json
 import math
 import os
+import sys
 import time
 import tomllib
 
@@ -130,11 +132,76 @@ def loads_and_prescribed(case, nodes, tri, groups, area):
     return f, fixed
 
 
+def one_contact(case, script):
+    """The case's one contact against a rigid obstacle, as a dict with its group, its law's
+    keys and its obstacle ({type, ...} as [[contact]] gives it): the single-foundation
+    [contact] table or a lone [[contact]] entry. Anything else ends the script with one line."""
+    con = case.get("contact")
+    if isinstance(con, list) and len(con) == 1 and "obstacle" in con[0]:
+        return dict(con[0], group=con[0]["slave"])
+    if isinstance(con, dict):
+        line = {"type": "line", "point": con["obstacle_point"], "normal": con["obstacle_normal"]}
+        return dict(con, obstacle=line)
+    sys.exit(f"{script}: {len(con) if isinstance(con, list) else 0} contacts: the case must have "
+             "one contact against a rigid obstacle ([contact], or one [[contact]] with an obstacle)")
+
+
+def frames(obstacle, pts):
+    """Each point's unit normal m (obstacle -> body) and signed gap g from the closest
+    point of the obstacle, as contact-par's README defines them: a line's normal; a
+    circle's radius through the point (outwards, or inwards for a body inside the hole);
+    a polyline's (end segments run on as half-lines, the body on the left walking from the
+    first point, or on the right) segment normal, or at a corner the direction from the
+    corner to the point, on the side of the two normals' sum."""
+    kind = obstacle["type"]
+    if kind == "line":
+        m = np.array(obstacle["normal"], dtype=float)
+        return np.tile(m, (len(pts), 1)), (pts - np.array(obstacle["point"])) @ m
+    if kind == "circle":
+        d = pts - np.array(obstacle["centre"], dtype=float)
+        dist = np.linalg.norm(d, axis=1)
+        radial = d / dist[:, None]
+        if obstacle.get("body", "outside") == "inside":
+            return -radial, obstacle["radius"] - dist
+        return radial, dist - obstacle["radius"]
+    if kind != "polyline":
+        sys.exit(f"unknown obstacle type {kind}")
+    v = np.array(obstacle["points"], dtype=float)
+    if obstacle.get("body", "left") == "right":
+        v = v[::-1]
+    ms, gs = [], []
+    for x in pts:
+        best = None
+        for k in range(len(v) - 1):
+            a, b = v[k], v[k + 1]
+            u = (b - a) / np.linalg.norm(b - a)
+            tau = (x - a) @ u
+            lo = -np.inf if k == 0 else 0.0
+            hi = np.inf if k == len(v) - 2 else np.linalg.norm(b - a)
+            t = min(max(tau, lo), hi)
+            corner = k if t == 0.0 and k > 0 else k + 1 if t == hi and k < len(v) - 2 else None
+            dist = np.linalg.norm(x - (a + t * u))
+            if best is None or dist < best[0]:
+                best = (dist, np.array([-u[1], u[0]]), a, corner)
+        dist, n, a, corner = best
+        if corner is None:
+            ms.append(n)
+            gs.append((x - a) @ n)
+            continue
+        c = v[corner]
+        n1, n2 = (np.array([-(q - p)[1], (q - p)[0]]) / np.linalg.norm(q - p)
+                  for p, q in ((v[corner - 1], c), (c, v[corner + 1])))
+        sign = 1.0 if (x - c) @ (n1 + n2) >= 0 else -1.0
+        ms.append(sign * (x - c) / dist)
+        gs.append(sign * dist)
+    return np.array(ms), np.array(gs)
+
+
 def foundation(con, nodes, groups):
-    """A straight foundation's contact nodes (`con`, the case's [contact] table): their
-    node numbers, weights (half the lengths of their segments), the segments' lengths, the
-    gaps g = (x - p0).m, and the rows N and T (contact nodes x dofs) of u_n = N u = -m.u
-    (towards the foundation, at most g) and u_t = T u."""
+    """A contact's nodes (`con` from one_contact): their node numbers, weights (half the
+    lengths of their segments), the segments' lengths, the gaps g, and the rows N and T
+    (contact nodes x dofs) of u_n = N u = -m.u (towards the obstacle, at most g) and
+    u_t = T u, t = (m_y, -m_x), with each node's own normal m."""
     segs = groups[con["group"]][1]
     cn = np.unique(segs.ravel())
     where = {v: i for i, v in enumerate(cn)}
@@ -142,15 +209,14 @@ def foundation(con, nodes, groups):
     w = np.zeros(len(cn))
     np.add.at(w, [where[v] for v in segs[:, 0]], length / 2)
     np.add.at(w, [where[v] for v in segs[:, 1]], length / 2)
-    m = np.array(con["obstacle_normal"], dtype=float)
-    m /= np.linalg.norm(m)
-    tv = np.array([m[1], -m[0]])
-    g = (nodes[cn] - np.array(con["obstacle_point"])) @ m
+    m, g = frames(con["obstacle"], nodes[cn])
+    m = m / np.linalg.norm(m, axis=1)[:, None]
+    tv = np.stack([m[:, 1], -m[:, 0]], axis=1)
     n = 2 * len(nodes)
     rows = np.repeat(np.arange(len(cn)), 2)
     cols = np.stack([2 * cn, 2 * cn + 1], axis=1).ravel()
-    nmat = sp.csr_matrix((np.tile(-m, len(cn)), (rows, cols)), shape=(len(cn), n))
-    tmat = sp.csr_matrix((np.tile(tv, len(cn)), (rows, cols)), shape=(len(cn), n))
+    nmat = sp.csr_matrix(((-m).ravel(), (rows, cols)), shape=(len(cn), n))
+    tmat = sp.csr_matrix((tv.ravel(), (rows, cols)), shape=(len(cn), n))
     return cn, w, length, g, nmat, tmat
 
 
@@ -174,7 +240,7 @@ def main():
     hyp = mat.get("hypothesis", "plane_strain")
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
     f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
-    con = case["contact"]
+    con = one_contact(case, "plain_alg2.py")
     cn, w, length, g, nmat, tmat = foundation(con, nodes, groups)
     law = con.get("friction", "none")
     frictional = law != "none"

@@ -1,5 +1,6 @@
 //! `tol` is the relative accuracy of what the run reports: on unstructured cases unlike the
-//! built-in ones (tests/data/tolerance, made with Gmsh by make_cases.py), a run at
+//! built-in ones (tests/data/tolerance, made with Gmsh by make_cases.py; straight
+//! foundations, a circle, two bodies), a run at
 //! tol = 1e-6 lands within tol of a run converged to 1e-11, for p_n, p_t and u at the
 //! contact nodes, each against its own size; runs on 1 and 3 ranks land within tol of
 //! each other; and both meet the answer of an independent exact method (semismooth
@@ -139,8 +140,8 @@ fn check(file: &str, args: &[&str], what: &str) {
 /// sparse LU per step (run-scripts/pdas_friction.py, SciPy), gives the answer that runs at
 /// tol 1e-11 land within 1e-7 of (their round-off floors, 2e-11 to 2e-8, times a few) and
 /// runs at tol 1e-6 within tol of. Coulomb (the self-weight cantilever; the Newton
-/// method's stick/slip weight 0.1, at which it does not cycle there), Tresca (the wall)
-/// and frictionless (the disc).
+/// method's stick/slip weight 0.1, at which it does not cycle there), Tresca (the wall),
+/// frictionless (the disc), and Coulomb against a circle, the body inside it (the pin).
 #[test]
 fn answers_agree_with_an_exact_semismooth_newton_method() {
     let script: PathBuf = [env!("CARGO_MANIFEST_DIR"), "run-scripts/pdas_friction.py"]
@@ -154,6 +155,7 @@ fn answers_agree_with_an_exact_semismooth_newton_method() {
         ("cantilever.toml", "0.1"),
         ("wall.toml", "0.01"),
         ("disc.toml", "0.01"),
+        ("pin.toml", "0.01"),
     ] {
         let csv = dir.path().join(format!("{file}.csv"));
         let out = std::process::Command::new(python)
@@ -207,6 +209,21 @@ fn slow_plain_alg2_with_a_poor_r() {
         &["--acceleration", "none", "--r", "4691884"],
         "slow disc",
     );
+}
+
+/// A steel pin driven into the side of a hole 0.01 mm wider (a circle obstacle, the body
+/// inside it): a wide conforming contact under Coulomb friction. Held out
+/// (make_cases.py --obstacles, made after every rule of the loop was chosen).
+#[test]
+fn a_pin_in_its_hole_coulomb() {
+    check("pin.toml", &[], "pin");
+}
+
+/// A steel block on a concrete slab, pressed and pushed sideways: two bodies of different
+/// materials, Coulomb between them (mortar rows). Held out, as the pin.
+#[test]
+fn a_block_on_a_slab_coulomb_between_two_bodies() {
+    check("stack.toml", &[], "stack");
 }
 
 /// Runs `file` (in tests/data/tolerance) on `np` ranks in `dir` with `--out out --quiet`,

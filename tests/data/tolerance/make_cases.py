@@ -8,6 +8,7 @@ Documentation of how the committed files were made; CI does not run it. Needs th
     python3 tests/data/tolerance/make_cases.py --beams --out DIR        # clamped beams 0.2-2 m
     python3 tests/data/tolerance/make_cases.py --slender --out DIR      # held-out slender bodies
     python3 tests/data/tolerance/make_cases.py --heldout --out DIR      # block on a slope, ring, slab, ..., tube, arch, plate
+    python3 tests/data/tolerance/make_cases.py --obstacles --out DIR    # circles, a polyline, two bodies
 `--scale` multiplies every mesh size; the case files are written next to the meshes.
 
 The cases, each with its own units, group names and foundation:
@@ -482,6 +483,254 @@ obstacle_normal = [{nx:.12f}, {ny:.12f}]
 """
 
 
+def obstacles(scale, out):
+    """Held-out cases made after every rule of the loop was chosen, on the contact kinds
+    the cases above leave out: circles, a polyline and two elastic bodies. Each case file
+    is written whole here; the tests use the pin and the stack of `--scale 2`.
+    - roller: a steel half disc (SI) on a rigid roller (circle), pressed and moved along x
+      at its lid; Coulomb 0.3; it stands on one node.
+    - pin: a steel annulus (mm) in a hole 0.01 mm wider (circle, body inside), its bore
+      driven down and sideways: a wide conforming contact; Coulomb 0.2.
+    - groove: an aluminium disc (mm, plane stress) in a V groove (polyline, walls at 40
+      degrees), under its own weight and a load on its upper rim; Coulomb 0.25.
+    - kink: a steel beam (SI, plane stress, 1 m x 30 mm) clamped at one end, sagging under
+      its own weight and a load onto a foundation that is flat and then rises by 15 um
+      over 0.6 m (polyline); Tresca.
+    - stack: a steel block 0.001 mm above a concrete slab clamped at its base (mm; two
+      bodies), pressed down and pushed sideways; Coulomb 0.5 between them.
+    - hertz2: an aluminium half disc on a steel block (two bodies), pressed and moved along
+      x at its lid; Coulomb 0.3.
+    - pad: a pad of E = 5 MPa pressed 0.5 mm into a steel plate (two bodies, E ratio
+      42000); frictionless."""
+    geo = gmsh.model.geo
+
+    def half_disc(cx, cy, radius, lc):
+        o = geo.addPoint(cx, cy, 0, lc)
+        a, b, c = (geo.addPoint(cx + x, cy + y, 0, lc) for x, y in [(-radius, 0), (0, -radius), (radius, 0)])
+        arcs = [geo.addCircleArc(a, o, b), geo.addCircleArc(b, o, c)]
+        lid = geo.addLine(c, a)
+        return arcs, lid, geo.addPlaneSurface([geo.addCurveLoop(arcs + [lid])])
+
+    def circle(o, cy, radius, lc):
+        q = [geo.addPoint(radius * math.cos(k * math.pi / 2), cy + radius * math.sin(k * math.pi / 2), 0, lc)
+             for k in range(4)]
+        return [geo.addCircleArc(q[k], o, q[(k + 1) % 4]) for k in range(4)]
+
+    def mesh(name, lines, surfaces):
+        geo.synchronize()
+        for group, entities in lines.items():
+            gmsh.model.addPhysicalGroup(1, entities, name=group)
+        for group, entities in surfaces.items():
+            gmsh.model.addPhysicalGroup(2, entities, name=group)
+        gmsh.model.mesh.generate(2)
+        write(out, name + ".msh")
+        gmsh.model.remove()
+
+    def case(name, title, body):
+        with open(os.path.join(out, name + ".toml"), "w") as f:
+            f.write(f'# Made by make_cases.py --obstacles (held out: not used to choose any rule of the loop).\n'
+                    f'title = "{title}"\n\n[mesh]\nfile = "{name}.msh"\n\n{body}')
+
+    gmsh.model.add("roller")
+    arcs, lid, s = half_disc(0.0, 0.05 + 1e-5, 0.05, 0.0012 * scale)
+    mesh("roller", {"rim": arcs, "lid": [lid]}, {"disc": [s]})
+    case("roller", "A steel half disc on a rigid roller", """[material]
+young = 2.1e11
+poisson = 0.3
+
+[[dirichlet]]
+group = "lid"
+ux = 1e-6
+
+[[traction]]
+group = "lid"
+t = [0.0, -2.0e6]
+
+[[contact]]
+slave = "rim"
+obstacle = { type = "circle", centre = [0.0, -0.1], radius = 0.1 }
+friction = "coulomb"
+coefficient = 0.3
+""")
+
+    gmsh.model.add("pin")
+    lc = 0.35 * scale
+    o = geo.addPoint(0, 0, 0, lc)
+    skin, bore = circle(o, 0.0, 10.0, lc), circle(o, 0.0, 4.0, lc)
+    s = geo.addPlaneSurface([geo.addCurveLoop(skin), geo.addCurveLoop(bore)])
+    mesh("pin", {"skin": skin, "bore": bore}, {"pin": [s]})
+    case("pin", "A pin driven into the side of its hole", """[material]
+young = 200000.0
+poisson = 0.29
+
+[[dirichlet]]
+group = "bore"
+ux = 0.004
+uy = -0.02
+
+[[contact]]
+slave = "skin"
+obstacle = { type = "circle", centre = [0.0, 0.0], radius = 10.01, body = "inside" }
+friction = "coulomb"
+coefficient = 0.2
+""")
+
+    gmsh.model.add("groove")
+    radius, wall, reach = 20.0, math.radians(40.0), 60.0
+    cy = (radius + 0.005) / math.cos(wall)
+    lc = 0.7 * scale
+    arcs = circle(geo.addPoint(0, cy, 0, lc), cy, radius, lc)
+    s = geo.addPlaneSurface([geo.addCurveLoop(arcs)])
+    mesh("groove", {"lower_rim": arcs[2:], "upper_rim": arcs[:2]}, {"disc": [s]})
+    rise = reach * math.tan(wall)
+    case("groove", "An aluminium disc in a V groove", f"""[material]
+young = 70000.0
+poisson = 0.33
+hypothesis = "plane_stress"
+
+[[traction]]
+group = "upper_rim"
+t = [0.3, -1.5]
+
+[body_force]
+f = [0.0, -2.7e-5]
+
+[[contact]]
+slave = "lower_rim"
+obstacle = {{ type = "polyline", points = [[{-reach}, {rise!r}], [0.0, 0.0], [{reach}, {rise!r}]] }}
+friction = "coulomb"
+coefficient = 0.25
+""")
+
+    gmsh.model.add("kink")
+    lines, s = polygon([(0, 0), (1.0, 0), (1.0, 0.03), (0, 0.03)], 0.004 * scale)[1:]
+    mesh("kink", {"sole": [lines[0]], "root": [lines[3]]}, {"beam": [s]})
+    case("kink", "A steel beam sagging onto a kinked foundation", """[material]
+young = 2.1e11
+poisson = 0.3
+hypothesis = "plane_stress"
+
+[[dirichlet]]
+group = "root"
+ux = 0.0
+uy = 0.0
+
+[[traction]]
+group = "sole"
+t = [0.0, -800.0]
+
+[body_force]
+f = [0.0, -77000.0]
+
+[[contact]]
+slave = "sole"
+obstacle = { type = "polyline", points = [[-0.1, -2e-5], [0.6, -2e-5], [1.2, -5e-6]] }
+friction = "tresca"
+threshold = 40.0
+""")
+
+    gmsh.model.add("stack")
+    slab, s1 = polygon([(0, 0), (60, 0), (60, 20), (0, 20)], 1.0 * scale)[1:]
+    block, s2 = polygon([(15, 20.001), (45, 20.001), (45, 35.001), (15, 35.001)], 0.7 * scale)[1:]
+    mesh("stack", {"base": [slab[0]], "deck": [slab[2]], "foot": [block[0]], "crown": [block[2]],
+                   "flank": [block[3]]}, {"slab": [s1], "block": [s2]})
+    case("stack", "A steel block on a concrete slab, pushed sideways", """[[material]]
+group = "slab"
+young = 30000.0
+poisson = 0.2
+
+[[material]]
+group = "block"
+young = 210000.0
+poisson = 0.3
+
+[[dirichlet]]
+group = "base"
+ux = 0.0
+uy = 0.0
+
+[[traction]]
+group = "crown"
+t = [0.0, -20.0]
+
+[[traction]]
+group = "flank"
+t = [6.0, 0.0]
+
+[[contact]]
+slave = "foot"
+master = "deck"
+friction = "coulomb"
+coefficient = 0.5
+""")
+
+    gmsh.model.add("hertz2")
+    arcs, lid, s2 = half_disc(0.0, 50.002, 20.0, 0.6 * scale)
+    block, s1 = polygon([(-40, 0), (40, 0), (40, 30), (-40, 30)], 1.2 * scale)[1:]
+    mesh("hertz2", {"rim": arcs, "lid": [lid], "ground": [block[0]], "face": [block[2]]},
+         {"block": [s1], "disc": [s2]})
+    case("hertz2", "An aluminium half disc on a steel block", """[[material]]
+group = "block"
+young = 210000.0
+poisson = 0.3
+
+[[material]]
+group = "disc"
+young = 70000.0
+poisson = 0.33
+
+[[dirichlet]]
+group = "ground"
+ux = 0.0
+uy = 0.0
+
+[[dirichlet]]
+group = "lid"
+ux = 0.002
+
+[[traction]]
+group = "lid"
+t = [0.0, -60.0]
+
+[[contact]]
+slave = "rim"
+master = "face"
+friction = "coulomb"
+coefficient = 0.3
+""")
+
+    gmsh.model.add("pad")
+    plate, s1 = polygon([(0, 0), (50, 0), (50, 5), (0, 5)], 0.6 * scale)[1:]
+    pad, s2 = polygon([(10, 5.0005), (40, 5.0005), (40, 15.0005), (10, 15.0005)], 0.5 * scale)[1:]
+    mesh("pad", {"base": [plate[0]], "plate_top": [plate[2]], "pad_sole": [pad[0]], "pad_top": [pad[2]]},
+         {"plate": [s1], "pad": [s2]})
+    case("pad", "A soft pad pressed into a steel plate", """[[material]]
+group = "plate"
+young = 210000.0
+poisson = 0.3
+
+[[material]]
+group = "pad"
+young = 5.0
+poisson = 0.45
+
+[[dirichlet]]
+group = "base"
+ux = 0.0
+uy = 0.0
+
+[[dirichlet]]
+group = "pad_top"
+ux = 0.0
+uy = -0.5
+
+[[contact]]
+slave = "pad_sole"
+master = "plate_top"
+friction = "none"
+""")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--scale", type=float, default=1.0)
@@ -492,13 +741,16 @@ def main():
                     help="write the held-out slender bodies instead")
     ap.add_argument("--heldout", action="store_true",
                     help="write the held-out cases (block on a slope, half ring, slab, sheet, bracket, tube, arch, holed plate) instead")
+    ap.add_argument("--obstacles", action="store_true",
+                    help="write the held-out cases against circles, a polyline and another body instead")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
-    if args.beams or args.slender or args.heldout:
+    if args.beams or args.slender or args.heldout or args.obstacles:
         gmsh.initialize()
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("Mesh.Algorithm", 6)
-        make = beams if args.beams else slender if args.slender else heldout
+        make = (beams if args.beams else slender if args.slender else heldout if args.heldout
+                else obstacles)
         make(args.scale, args.out)
         gmsh.finalize()
         return
