@@ -118,22 +118,32 @@ impl Augmentation {
         tuned(status, frictional, r, mesh_stiffness, self.rules())
     }
 
-    /// The last retune, when the statuses cycle ([`Retune::EndCycle`]): the nodes that
-    /// stayed open through the cycle keep the r their settled status asks for (lowered);
-    /// every other direction returns to the reference r, where ALG2 converges whatever
-    /// the statuses. Why not the open ones too (what the loop did before): their springs
-    /// at the reference r hold the smooth modes of a body that the contact holds at few
-    /// nodes. Measured on the held-out shallow arch, which ends standing on one slipping
-    /// node of 253, its statuses cycling at two: the loop contracted by 0.998-0.9995 for 45
-    /// sweeps, 74 in all; 53 with this, the same answer. Why not the pressed nodes too:
-    /// with their held directions raised, the two Coulomb blocks of tests/bodies.rs
-    /// (corners moved apart, 17 pressed nodes) converged to another answer, one more node
-    /// sticking, which every fixed r misses (a discrete Coulomb problem need not have a
-    /// unique answer); and keeping the nodes that cycled tuned as well never converged on
-    /// the arch (10^4 sweeps): their r is what cycled.
+    /// The last retune, when the statuses cycle ([`Retune::EndCycle`]). `cycled`: each
+    /// node's (any status, its normal's) change since the cycle began.
+    /// - A node that stayed open through the cycle keeps the r its settled status asks
+    ///   for (lowered): at the reference r, the springs of the open nodes hold the smooth
+    ///   modes of a body that the contact holds at few nodes (the held-out shallow arch,
+    ///   standing on one slipping node of 253, its statuses cycling at two: 74 sweeps,
+    ///   53 with this, the same answer).
+    /// - A pressed node whose normal stayed pressed keeps its normal held (raised): at
+    ///   the reference r a body that only its contact holds sinks through the foundation
+    ///   onto the lowered open nodes, which then carry it at r / 10^4 and let it creep
+    ///   (a strip balanced on a ridge on two nodes, make_cases.py --obstacles: not
+    ///   converged in 10^4 sweeps; 118 with this and the floor below).
+    /// - A pressed node's tangent returns to the reference r, but not below the held
+    ///   tangents' floor: with friction, the reference r of a slender body lies far below
+    ///   the mesh's stiffness (r_loop), where a sticking tangent that a stiff path holds
+    ///   (the ridge's, along the strip to its end held along x) creeps by 1e-4 a sweep.
+    /// - Every other direction (the normals that cycled) returns to the reference r,
+    ///   where ALG2 converges whatever the statuses; keeping the directions that cycled
+    ///   tuned never converged on the arch (10^4 sweeps): their r is what cycled. The
+    ///   sticking tangents are not raised above the floor: with their held directions
+    ///   raised, the two Coulomb blocks of tests/bodies.rs (corners moved apart, 17
+    ///   pressed nodes) converged to another answer, one more node sticking, which every
+    ///   fixed r misses (a discrete Coulomb problem need not have a unique answer).
     pub fn after_cycle(
         held: &[Held],
-        cycled: &[bool],
+        cycled: &[(bool, bool)],
         frictional: bool,
         r: f64,
         mesh_stiffness: f64,
@@ -141,9 +151,19 @@ impl Augmentation {
         let mut aug = Augmentation::uniform(held.len(), r);
         aug.settled = true;
         aug.ended = true;
-        for (i, (&h, &c)) in held.iter().zip(cycled).enumerate() {
-            if !c && !h.n {
-                (aug.r_n[i], aug.r_t[i]) = tuned(h, frictional, r, mesh_stiffness, Rules::SETTLED);
+        for (i, (&h, &(any, normal))) in held.iter().zip(cycled).enumerate() {
+            let settled = tuned(h, frictional, r, mesh_stiffness, Rules::SETTLED);
+            if !h.n {
+                if !any {
+                    (aug.r_n[i], aug.r_t[i]) = settled;
+                }
+                continue;
+            }
+            if !normal {
+                aug.r_n[i] = settled.0;
+            }
+            if frictional {
+                aug.r_t[i] = r.max(HELD_TANGENT_FLOOR * mesh_stiffness);
             }
         }
         aug
@@ -875,24 +895,45 @@ mod tests {
     }
 
     #[test]
-    fn a_cycle_returns_only_its_nodes_to_the_reference() {
-        let r = 10.0;
-        let held = [Held::new(true, true), OPEN, Held::new(true, false), OPEN];
-        let cycled = [false, false, true, true];
-        let a = Augmentation::after_cycle(&held, &cycled, true, r, 0.0);
+    fn a_cycle_returns_its_changing_normals_to_the_reference_and_keeps_the_rest() {
+        let (r, stiffness) = (10.0, 1000.0);
+        let held = [
+            Held::new(true, true),
+            OPEN,
+            Held::new(true, false),
+            OPEN,
+            Held::new(true, false),
+        ];
+        // (any status, the normal) changed since the cycle began.
+        let cycled = [
+            (false, false),
+            (false, false),
+            (true, false),
+            (true, true),
+            (true, true),
+        ];
+        let a = Augmentation::after_cycle(&held, &cycled, true, r, stiffness);
         assert!(a.ended && a.settled);
-        // The nodes that cycled, whatever their status, and the pressed ones at the
-        // reference r.
-        for i in [0, 2, 3] {
-            assert_eq!((a.r_n[i], a.r_t[i]), (r, r), "node {i}");
-        }
-        // An open node that stayed open at its settled r.
-        let settled = r / SETTLED_FREE_FACTOR;
-        assert_eq!((a.r_n[1], a.r_t[1]), (settled, settled));
+        let floor = HELD_TANGENT_FLOOR * stiffness;
+        let held_normal = tuned(held[2], true, r, stiffness, Rules::SETTLED).0;
+        assert!(held_normal > r && floor > r);
+        // Pressed nodes whose normal stayed pressed: held normal, tangent at the floor.
+        assert_eq!((a.r_n[0], a.r_t[0]), (held_normal, floor));
+        assert_eq!((a.r_n[2], a.r_t[2]), (held_normal, floor));
+        // A node open through the cycle at its settled r.
         assert_eq!(
             (a.r_n[1], a.r_t[1]),
-            tuned(OPEN, true, r, 0.0, Rules::SETTLED)
+            tuned(OPEN, true, r, stiffness, Rules::SETTLED)
         );
+        assert_eq!(a.r_n[1], r / SETTLED_FREE_FACTOR);
+        // Normals that cycled at the reference r; an open node that cycled entirely so.
+        assert_eq!((a.r_n[3], a.r_t[3]), (r, r));
+        assert_eq!((a.r_n[4], a.r_t[4]), (r, floor));
+        // Without friction the tangents are not used; below the floor's scale the
+        // reference r stands.
+        let b = Augmentation::after_cycle(&held, &cycled, false, r, 0.0);
+        assert_eq!(b.r_t, vec![r; 5]);
+        assert_eq!(b.r_n[0], tuned(held[0], false, r, 0.0, Rules::SETTLED).0);
     }
 
     #[test]

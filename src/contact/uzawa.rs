@@ -136,9 +136,12 @@ pub struct Snapshot {
     /// The piece of the last refusal (see [`Run::safeguard`]).
     #[serde(default)]
     pub refused_on: Option<(usize, usize, usize)>,
-    /// The sweep of each of this rank's contact nodes' last status change.
+    /// The sweep of each of this rank's contact nodes' last status change, and of its
+    /// normal's.
     #[serde(default)]
     pub changed_at: Vec<usize>,
+    #[serde(default)]
+    pub normal_changed_at: Vec<usize>,
     /// The sweep count when the retunes cycled with the tangents following their statuses.
     #[serde(default)]
     pub tangents_cycled_at: Option<usize>,
@@ -772,8 +775,10 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         let (r, stiffness) = (self.sweeper.r_ref, self.sweeper.mesh_stiffness);
         let aug = match kind {
             Retune::EndCycle { since } => {
-                let cycled: Vec<bool> =
-                    self.sweeper.changed_at.iter().map(|&c| c > since).collect();
+                let sw = &self.sweeper;
+                let cycled: Vec<(bool, bool)> = (sw.changed_at.iter().zip(&sw.normal_changed_at))
+                    .map(|(&any, &normal)| (any > since, normal > since))
+                    .collect();
                 Augmentation::after_cycle(&held, &cycled, frictional, r, stiffness)
             }
             _ => {
@@ -880,6 +885,13 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         self.tangents_cycled_at = snap.tangents_cycled_at;
         sweeper.remember_statuses(&out, law.frictional(), 0);
         if snap.changed_at.len() == sweeper.changed_at.len() {
+            // A checkpoint from before the normals' own record: their last change taken
+            // as the node's (a normal then counts as cycling where its node did).
+            sweeper.normal_changed_at = if snap.normal_changed_at.len() == snap.changed_at.len() {
+                snap.normal_changed_at
+            } else {
+                snap.changed_at.clone()
+            };
             sweeper.changed_at = snap.changed_at;
         }
         self.retunes = snap.retunes;
@@ -934,6 +946,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             refused_on: self.refused_on,
             tangents_cycled_at: self.tangents_cycled_at,
             changed_at: self.sweeper.changed_at.clone(),
+            normal_changed_at: self.sweeper.normal_changed_at.clone(),
         };
         (self.ckpt.save)(&snap)
     }

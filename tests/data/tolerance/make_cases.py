@@ -501,7 +501,17 @@ def obstacles(scale, out):
     - hertz2: an aluminium half disc on a steel block (two bodies), pressed and moved along
       x at its lid; Coulomb 0.3.
     - pad: a pad of E = 5 MPa pressed 0.5 mm into a steel plate (two bodies, E ratio
-      42000); frictionless."""
+      42000); frictionless.
+    Made after those, with the same aim:
+    - corner: an aluminium block (mm) pushed into a corner: a floor (Coulomb 0.3) and a
+      wall (Tresca), two contacts that share the corner node.
+    - ridge: a steel strip (SI, plane stress, 0.4 m x 4 mm) pressed onto a ridge (a
+      polyline falling 0.5 degrees to each side), held along x at its left end face only:
+      balanced on the ridge, the contact alone holds it up; Coulomb 0.4. The tests use it
+      at `--scale 1`.
+    - pinplate: a steel disc in a hole 0.02 mm wider of an aluminium plate clamped at its
+      base (two bodies, curved and conforming), the disc's centre moved down 0.05 mm;
+      Coulomb 0.2."""
     geo = gmsh.model.geo
 
     def half_disc(cx, cy, radius, lc):
@@ -730,6 +740,99 @@ master = "plate_top"
 friction = "none"
 """)
 
+    gmsh.model.add("corner")
+    sides, s = polygon([(0.003, 0.002), (40, 0.002), (40, 25), (0.003, 25)], 0.5 * scale)[1:]
+    mesh("corner", dict(zip(["bottom", "right", "top", "left"], ([x] for x in sides))), {"block": [s]})
+    case("corner", "An aluminium block pushed into a corner", """[material]
+young = 70000.0
+poisson = 0.33
+
+[[traction]]
+group = "right"
+t = [-3.0, 0.0]
+
+[[traction]]
+group = "top"
+t = [0.0, -5.0]
+
+[[contact]]
+slave = "bottom"
+obstacle = { type = "line", point = [0.0, 0.0], normal = [0.0, 1.0] }
+friction = "coulomb"
+coefficient = 0.3
+
+[[contact]]
+slave = "left"
+obstacle = { type = "line", point = [0.0, 0.0], normal = [1.0, 0.0] }
+friction = "tresca"
+threshold = 0.5
+""")
+
+    gmsh.model.add("ridge")
+    sides, s = polygon([(-0.2, 2e-5), (0.2, 2e-5), (0.2, 2e-5 + 0.004), (-0.2, 2e-5 + 0.004)],
+                       0.0008 * scale)[1:]
+    mesh("ridge", dict(zip(["under", "rend", "top", "lend"], ([x] for x in sides))), {"strip": [s]})
+    drop = -0.3 * math.tan(math.radians(0.5))
+    case("ridge", "A steel strip balanced on a ridge", f"""[material]
+young = 2.1e11
+poisson = 0.3
+hypothesis = "plane_stress"
+
+[[dirichlet]]
+group = "lend"
+ux = 0.0
+
+[[traction]]
+group = "top"
+t = [0.0, -15000.0]
+
+[[contact]]
+slave = "under"
+obstacle = {{ type = "polyline", points = [[-0.3, {drop!r}], [0.0, 0.0], [0.3, {drop!r}]] }}
+friction = "coulomb"
+coefficient = 0.4
+""")
+
+    gmsh.model.add("pinplate")
+    lc = 0.5 * scale
+    o = geo.addPoint(0, 0, 0, lc)
+    disc, hole = circle(o, 0.0, 8.0, lc), circle(o, 0.0, 8.02, 0.8 * lc)
+    plate = polygon([(-30, -30), (30, -30), (30, 30), (-30, 30)], 2.5 * lc)
+    gmsh.model.geo.remove([(2, plate[2])])
+    s1 = geo.addPlaneSurface([geo.addCurveLoop(plate[1]), geo.addCurveLoop(hole)])
+    s2 = geo.addPlaneSurface([geo.addCurveLoop(disc)])
+    geo.synchronize()
+    gmsh.model.mesh.embed(0, [o], 2, s2)
+    gmsh.model.addPhysicalGroup(0, [o], name="centre")
+    mesh("pinplate", {"disc_rim": disc, "hole_rim": hole, "plate_bottom": [plate[1][0]]},
+         {"plate": [s1], "disc": [s2]})
+    case("pinplate", "A steel disc pulled down in an aluminium plate's hole", """[[material]]
+group = "plate"
+young = 70000.0
+poisson = 0.33
+
+[[material]]
+group = "disc"
+young = 210000.0
+poisson = 0.3
+
+[[dirichlet]]
+group = "plate_bottom"
+ux = 0.0
+uy = 0.0
+
+[[dirichlet]]
+group = "centre"
+ux = 0.0
+uy = -0.05
+
+[[contact]]
+slave = "hole_rim"
+master = "disc_rim"
+friction = "coulomb"
+coefficient = 0.2
+""")
+
 
 def main():
     ap = argparse.ArgumentParser()
@@ -742,7 +845,7 @@ def main():
     ap.add_argument("--heldout", action="store_true",
                     help="write the held-out cases (block on a slope, half ring, slab, sheet, bracket, tube, arch, holed plate) instead")
     ap.add_argument("--obstacles", action="store_true",
-                    help="write the held-out cases against circles, a polyline and another body instead")
+                    help="write the held-out cases against circles, polylines, two contacts and another body instead")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
     if args.beams or args.slender or args.heldout or args.obstacles:
