@@ -670,6 +670,16 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_sweep_without_change_is_at_its_fixed_point_whatever_the_contraction() {
+        assert_eq!(error_estimate(1e-6, 0.9), 1e-6 / (1.0 - 0.9));
+        assert_eq!(error_estimate(1e-6, -0.5), 1e-6);
+        assert_eq!(error_estimate(1e-6, 1.0), f64::INFINITY);
+        for rho in [0.0, 0.5, 1.0] {
+            assert_eq!(error_estimate(0.0, rho), 0.0, "rho {rho}");
+        }
+    }
+
+    #[test]
     fn a_tangent_without_threshold_is_loose() {
         // Node 0 open under Coulomb (threshold 0), node 1 open under Tresca and stuck,
         // node 2 pressed and slipping.
