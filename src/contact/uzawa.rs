@@ -774,7 +774,13 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         let held: Vec<Held> = (0..n).map(|i| last.held(i, frictional)).collect();
         let (r, stiffness) = (self.sweeper.r_ref, self.sweeper.mesh_stiffness);
         let aug = match kind {
-            Retune::EndCycle { since } => {
+            // The last retune, of a cycle or of the spent budget (whose statuses still
+            // moving are those the last sweep changed).
+            Retune::EndCycle { .. } | Retune::BudgetSpent => {
+                let since = match kind {
+                    Retune::EndCycle { since } => since,
+                    _ => self.history.len().saturating_sub(1),
+                };
                 let sw = &self.sweeper;
                 let cycled: Vec<(bool, bool)> = (sw.changed_at.iter().zip(&sw.normal_changed_at))
                     .map(|(&any, &normal)| (any > since, normal > since))
