@@ -52,7 +52,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plain_alg2 import foundation, loads_and_prescribed, one_contact, read_mesh, stiffness  # noqa: E402
+from plain_alg2 import foundation, loads_and_prescribed, one_contact, one_material, read_mesh, stiffness  # noqa: E402
 
 
 def main():
@@ -68,7 +68,7 @@ def main():
     case = tomllib.load(open(args.case, "rb"))
     here = os.path.dirname(os.path.abspath(args.case))
     nodes, tri, groups = read_mesh(os.path.join(here, case["mesh"]["file"]))
-    mat = case["material"]
+    mat = one_material(case, "pdas_friction.py")
     hyp = mat.get("hypothesis", "plane_strain")
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
     f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)

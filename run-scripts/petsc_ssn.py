@@ -45,7 +45,7 @@ from mpi4py import MPI  # noqa: F401  (petsc4py needs MPI initialised through it
 from petsc4py import PETSc
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plain_alg2 import foundation, loads_and_prescribed, one_contact, read_mesh, stiffness  # noqa: E402
+from plain_alg2 import foundation, loads_and_prescribed, one_contact, one_material, read_mesh, stiffness  # noqa: E402
 
 
 def main():
@@ -73,7 +73,7 @@ def main():
     times["read"] = time.perf_counter() - t0
 
     t = time.perf_counter()
-    mat = case["material"]
+    mat = one_material(case, "petsc_ssn.py")
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], mat.get("hypothesis", "plane_strain"))
     n = 2 * len(nodes)
     f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)

@@ -132,6 +132,15 @@ def loads_and_prescribed(case, nodes, tri, groups, area):
     return f, fixed
 
 
+def one_material(case, script):
+    """The case's one [material]; several bodies ([[material]]) end the script with one line."""
+    mat = case.get("material")
+    if not isinstance(mat, dict):
+        sys.exit(f"{script}: the case has {len(mat) if isinstance(mat, list) else 0} [[material]] "
+                 "bodies; this script solves one body with one [material]")
+    return mat
+
+
 def one_contact(case, script):
     """The case's one contact against a rigid obstacle, as a dict with its group, its law's
     keys and its obstacle ({type, ...} as [[contact]] gives it): the single-foundation
@@ -142,8 +151,9 @@ def one_contact(case, script):
     if isinstance(con, dict):
         line = {"type": "line", "point": con["obstacle_point"], "normal": con["obstacle_normal"]}
         return dict(con, obstacle=line)
-    sys.exit(f"{script}: {len(con) if isinstance(con, list) else 0} contacts: the case must have "
-             "one contact against a rigid obstacle ([contact], or one [[contact]] with an obstacle)")
+    kinds = [("obstacle" if "obstacle" in c else "master") for c in con] if isinstance(con, list) else []
+    sys.exit(f"{script}: the case's contacts ({', '.join(kinds) or 'none'}) are not one contact against "
+             "a rigid obstacle ([contact], or one [[contact]] with an obstacle), which is all this script solves")
 
 
 def frames(obstacle, pts):
@@ -165,7 +175,7 @@ def frames(obstacle, pts):
             return -radial, obstacle["radius"] - dist
         return radial, dist - obstacle["radius"]
     if kind != "polyline":
-        sys.exit(f"unknown obstacle type {kind}")
+        sys.exit(f"plain_alg2.py: unknown obstacle type {kind!r} (line, circle or polyline)")
     v = np.array(obstacle["points"], dtype=float)
     if obstacle.get("body", "left") == "right":
         v = v[::-1]
@@ -236,7 +246,7 @@ def main():
     times["read"] = time.perf_counter() - t0
 
     t = time.perf_counter()
-    mat = case["material"]
+    mat = one_material(case, "plain_alg2.py")
     hyp = mat.get("hypothesis", "plane_strain")
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
     f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
