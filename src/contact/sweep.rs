@@ -517,6 +517,13 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
         Ok(Eval { gx, f, out, sums })
     }
 
+    /// Each node's (any status, its normal's) change after sweep `since`.
+    pub(super) fn changed_since(&self, since: usize) -> Vec<(bool, bool)> {
+        (self.changed_at.iter().zip(&self.normal_changed_at))
+            .map(|(&any, &normal)| (any > since, normal > since))
+            .collect()
+    }
+
     /// Keeps the statuses of an image, which the next evaluation's `changed` compares with.
     pub(super) fn remember_statuses(&mut self, image: &Derived, frictional: bool, sweep: usize) {
         let now = image.statuses(frictional);

@@ -774,17 +774,15 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         let held: Vec<Held> = (0..n).map(|i| last.held(i, frictional)).collect();
         let (r, stiffness) = (self.sweeper.r_ref, self.sweeper.mesh_stiffness);
         let aug = match kind {
-            // The last retune, of a cycle or of the spent budget (whose statuses still
-            // moving are those the last sweep changed).
-            Retune::EndCycle { .. } | Retune::BudgetSpent => {
-                let since = match kind {
-                    Retune::EndCycle { since } => since,
-                    _ => self.history.len().saturating_sub(1),
-                };
-                let sw = &self.sweeper;
-                let cycled: Vec<(bool, bool)> = (sw.changed_at.iter().zip(&sw.normal_changed_at))
-                    .map(|(&any, &normal)| (any > since, normal > since))
-                    .collect();
+            Retune::EndCycle { since } => {
+                let cycled = self.sweeper.changed_since(since);
+                Augmentation::after_cycle(&held, &cycled, frictional, r, stiffness)
+            }
+            // The spent budget's statuses still moving: those the last sweep changed.
+            Retune::BudgetSpent => {
+                let cycled = self
+                    .sweeper
+                    .changed_since(self.history.len().saturating_sub(1));
                 Augmentation::after_cycle(&held, &cycled, frictional, r, stiffness)
             }
             _ => {
