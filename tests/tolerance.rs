@@ -479,16 +479,26 @@ fn a_slow_loop_that_round_off_stops_says_how_far_it_may_be() {
         "fixed r: p_n {:.2e}  p_t {:.2e}  u {:.2e}; {warned:?}",
         d[0], d[1], d[2]
     );
-    if worst <= tol {
-        return;
-    }
-    assert_eq!(warned.len(), 1, "{worst:e} off at tol {tol:e}, no warning");
     let (header, rows) = read_history(&fixed.out);
+    // The case is what the test is about only while the fixed-r loop contracts slowly.
+    let rho = *history_column(&header, &rows, "contraction")
+        .last()
+        .unwrap();
+    assert!(
+        rho > 0.999,
+        "rho {rho}: the fixed-r loop is no longer slow here"
+    );
     let floor = *history_column(&header, &rows, "roundoff_floor")
         .last()
         .unwrap();
-    assert!(warned[0].contains(&format!("{floor:.1e}")), "{}", warned[0]);
-    assert!(worst <= floor, "{worst:e} off, beyond the floor {floor:e}");
+    assert!(
+        worst <= tol.max(floor),
+        "{worst:e} off at tol {tol:e}, beyond the floor {floor:e}"
+    );
+    if worst > tol {
+        assert_eq!(warned.len(), 1, "{worst:e} off at tol {tol:e}, no warning");
+        assert!(warned[0].contains(&format!("{floor:.1e}")), "{}", warned[0]);
+    }
 }
 
 /// A body that creeps down onto its foundation is not sent back into the air once it
