@@ -370,10 +370,11 @@ impl SweepSums {
 /// cantilever at 1e-12 on 1 and 3 ranks differ by 4e-9, of the 2 m beam by 7e-8). Those
 /// floors were the round-off alone; counting the contraction only raises them.
 pub fn roundoff_warning(last: Option<&Sweep>, tol: f64) -> Option<String> {
-    let floor = last?.roundoff;
+    let last = last?;
+    let (floor, rho) = (last.roundoff, last.contraction);
     (floor > tol).then(|| {
         format!(
-            "round-off bounds the accuracy of this run to about {floor:.1e} (relative), above tol = {tol:e}: its last changes were below that and count as noise, so the run cannot confirm tol; p_n, p_t and u may be up to a few times {floor:.1e} from the exact discrete answer (a tol of {:.0e} or more is within its reach)",
+            "round-off bounds the accuracy of this run to about {floor:.1e} (relative), above tol = {tol:e}: its last changes were below the sweep's round-off and count as noise, so the run cannot confirm tol; from that round-off and the loop's contraction (rho = {rho:.6}), p_n, p_t and u may be up to a few times {floor:.1e} from the exact discrete answer, a bound that can lie far above the actual error where rho is close to 1 (a tol of {:.0e} or more is within its reach)",
             4.0 * floor
         )
     })
