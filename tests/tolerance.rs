@@ -471,10 +471,7 @@ fn a_slow_loop_that_round_off_stops_says_how_far_it_may_be() {
     let d = distances(&fixed.contact(), &reference.contact());
     let worst = d.iter().cloned().fold(0.0, f64::max);
     let tol = num(&summary, "tol");
-    let warned: Vec<&str> = (summary["warnings"].as_array().unwrap().iter())
-        .filter_map(|w| w.as_str())
-        .filter(|w| w.contains("round-off"))
-        .collect();
+    let warned = roundoff_warnings(&summary);
     println!(
         "fixed r: p_n {:.2e}  p_t {:.2e}  u {:.2e}; {warned:?}",
         d[0], d[1], d[2]

@@ -590,17 +590,28 @@ tol = 1e-10
     )
 }
 
-/// The warnings of `summary` that say the answer is not unique (`warnings` in
-/// summary.json), leaving out the one that says round-off bounds the accuracy.
-#[allow(dead_code)]
-pub fn not_unique_warnings(summary: &serde_json::Value) -> Vec<String> {
+/// The warnings of `summary` (`warnings` in summary.json), split into the one that says
+/// round-off bounds the accuracy and the others.
+fn warnings_by_round_off(summary: &serde_json::Value) -> (Vec<String>, Vec<String>) {
     summary["warnings"]
         .as_array()
         .expect("warnings")
         .iter()
         .map(|w| w.as_str().expect("a warning").to_string())
-        .filter(|w| !w.starts_with("round-off"))
-        .collect()
+        .partition(|w| w.starts_with("round-off"))
+}
+
+/// The warnings of `summary` that say the answer is not unique, leaving out the one
+/// that says round-off bounds the accuracy.
+#[allow(dead_code)]
+pub fn not_unique_warnings(summary: &serde_json::Value) -> Vec<String> {
+    warnings_by_round_off(summary).1
+}
+
+/// The warning of `summary` that says round-off bounds the accuracy, if any.
+#[allow(dead_code)]
+pub fn roundoff_warnings(summary: &serde_json::Value) -> Vec<String> {
+    warnings_by_round_off(summary).0
 }
 
 /// A copy of an MSH 4.1 ASCII file with its node tags permuted and the nodes and
