@@ -32,7 +32,8 @@ slipping nodes flip their direction back and forth on the cases measured, so ct 
 default, and `--ct` to try others. `--start active` starts with every contact node
 pressed and sticking, for a body that only its contact holds (whose first solve is
 singular otherwise). Contact nodes whose normal or tangent a Dirichlet condition holds
-are never pressed or sticking here: their reaction is the support's.
+are never pressed or sticking here, nor sticking where a Dirichlet condition holds one of
+their two dofs: their reaction is the support's.
 
 It prints one JSON line: case, nodes, steps (linear solves), converged, active and slip
 counts (or the step where a cycle began). `--trace` prints each step's counts; `--csv`
@@ -90,6 +91,10 @@ def main():
     nfree = kff.shape[0]
     held_n = np.asarray(abs(nf).sum(axis=1)).ravel() == 0
     held_t = np.asarray(abs(tf).sum(axis=1)).ravel() == 0
+    # A node with one free dof (the other held): pressed, its normal row fixes that dof,
+    # and a sticking row would constrain it twice (a singular system); its tangential
+    # reaction is the support's.
+    held_t |= np.asarray((abs(nf) + abs(tf) > 0).sum(axis=1)).ravel() < 2
     frictional = law != "none"
     # The unknowns are lambda / c and mu / c (displacement units), so that the blocks
     # coupling them to u are of the stiffness' size.

@@ -141,7 +141,9 @@ fn check(file: &str, args: &[&str], what: &str) {
 /// tol 1e-11 land within 1e-7 of (their round-off floors, 2e-11 to 2e-8, times a few) and
 /// runs at tol 1e-6 within tol of. Coulomb (the self-weight cantilever; the Newton
 /// method's stick/slip weight 0.1, at which it does not cycle there), Tresca (the wall),
-/// frictionless (the disc), and Coulomb against a circle, the body inside it (the pin).
+/// frictionless (the disc), Coulomb against a circle, the body inside it (the pin), and
+/// Coulomb on a polyline's apex, a strip that only the contact holds up (the ridge; the
+/// Newton method starts from every node pressed, its open start being singular).
 #[test]
 fn answers_agree_with_an_exact_semismooth_newton_method() {
     let script: PathBuf = [env!("CARGO_MANIFEST_DIR"), "run-scripts/pdas_friction.py"]
@@ -151,16 +153,17 @@ fn answers_agree_with_an_exact_semismooth_newton_method() {
         "no Python with scipy and gmsh for run-scripts/pdas_friction.py (Debian: apt-get install python3-scipy python3-gmsh; run-scripts/setup.sh --deps installs them)",
     );
     let dir = tempfile::TempDir::new().unwrap();
-    for (file, ct) in [
-        ("cantilever.toml", "0.1"),
-        ("wall.toml", "0.01"),
-        ("disc.toml", "0.01"),
-        ("pin.toml", "0.01"),
+    for (file, ct, start) in [
+        ("cantilever.toml", "0.1", "inactive"),
+        ("wall.toml", "0.01", "inactive"),
+        ("disc.toml", "0.01", "inactive"),
+        ("pin.toml", "0.01", "inactive"),
+        ("ridge.toml", "0.1", "active"),
     ] {
         let csv = dir.path().join(format!("{file}.csv"));
         let out = std::process::Command::new(python)
             .arg(&script)
-            .args([&case(file), "--ct", ct, "--csv"])
+            .args([&case(file), "--ct", ct, "--start", start, "--csv"])
             .arg(&csv)
             .output()
             .expect("the Python found runs");
