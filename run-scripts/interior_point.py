@@ -25,13 +25,12 @@ import argparse
 import json
 import os
 import sys
-import tomllib
 
 import numpy as np
 import scipy.sparse as sp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plain_alg2 import foundation, loads_and_prescribed, one_contact, one_material, read_mesh, stiffness  # noqa: E402
+from plain_alg2 import one_body_problem, write_contact_csv  # noqa: E402
 
 
 def main():
@@ -44,19 +43,14 @@ def main():
         import clarabel
     except ImportError:
         sys.exit("interior_point.py: Clarabel is missing: pip install clarabel")
-    case = tomllib.load(open(args.case, "rb"))
-    here = os.path.dirname(os.path.abspath(args.case))
-    nodes, tri, groups = read_mesh(os.path.join(here, case["mesh"]["file"]))
-    mat = one_material(case, "interior_point.py")
-    k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], mat.get("hypothesis", "plane_strain"))
-    f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
-    con = one_contact(case, "interior_point.py")
+    prob = one_body_problem(args.case, "interior_point.py")
+    nodes, k, f, fixed, con = prob.nodes, prob.k, prob.f, prob.fixed, prob.con
     law = con.get("friction", "none")
     if law not in ("none", "tresca"):
         sys.exit(f"interior_point.py: {args.case}: friction \"{law}\" is not a convex program; "
                  "use friction = \"none\" or \"tresca\"")
     threshold = con.get("threshold", 0.0)
-    cn, w, _, g, nmat, tmat = foundation(con, nodes, groups)
+    cn, w, _, g, nmat, tmat = prob.foundation
     nc = len(cn)
 
     free = np.isnan(fixed)
@@ -105,12 +99,7 @@ def main():
         # The multipliers of t >= u_t and t >= -u_t: the tangential force on the body
         # opposes the slip.
         pt = -(z[nc:2 * nc] - z[2 * nc:]) / w if law == "tresca" else np.zeros(nc)
-        pts = nodes[cn]
-        with open(args.csv, "w") as fh:
-            fh.write("x,y,u_n,u_t,p_n,p_t,gap,contact\n")
-            for i in np.lexsort((pts[:, 1], pts[:, 0])):
-                vals = (pts[i, 0], pts[i, 1], un[i], ut[i], lam[i], pt[i], g[i])
-                fh.write(",".join(repr(float(v)) for v in vals) + ",0\n")
+        write_contact_csv(args.csv, nodes[cn], un, ut, lam, pt, g)
     if "Solved" not in str(sol.status):
         sys.exit(1)
 

@@ -46,14 +46,13 @@ import argparse
 import json
 import os
 import sys
-import tomllib
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plain_alg2 import foundation, loads_and_prescribed, one_contact, one_material, read_mesh, stiffness  # noqa: E402
+from plain_alg2 import one_body_problem, write_contact_csv  # noqa: E402
 
 
 def main():
@@ -66,18 +65,12 @@ def main():
     ap.add_argument("--trace", action="store_true")
     ap.add_argument("--csv")
     args = ap.parse_args()
-    case = tomllib.load(open(args.case, "rb"))
-    here = os.path.dirname(os.path.abspath(args.case))
-    nodes, tri, groups = read_mesh(os.path.join(here, case["mesh"]["file"]))
-    mat = one_material(case, "pdas_friction.py")
-    hyp = mat.get("hypothesis", "plane_strain")
-    k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
-    f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
-    con = one_contact(case, "pdas_friction.py")
+    prob = one_body_problem(args.case, "pdas_friction.py")
+    nodes, mat, hyp, k, f, fixed, con = prob.nodes, prob.mat, prob.hyp, prob.k, prob.f, prob.fixed, prob.con
     law = con.get("friction", "none")
     coef = con.get("coefficient", 0.0)
     threshold = con.get("threshold", 0.0)
-    cn, w, length, g, nmat, tmat = foundation(con, nodes, groups)
+    cn, w, length, g, nmat, tmat = prob.foundation
     nc = len(cn)
     e_eff = mat["young"] / (1 - mat["poisson"] ** 2) if hyp == "plane_strain" else mat["young"]
     c = e_eff / length.mean()
@@ -169,12 +162,7 @@ def main():
                        slip=int((act & ~stick).sum()) if frictional else 0)
             print(json.dumps(out))
             if args.csv:
-                pts = nodes[cn]
-                with open(args.csv, "w") as fh:
-                    fh.write("x,y,u_n,u_t,p_n,p_t,gap,contact\n")
-                    for i in np.lexsort((pts[:, 1], pts[:, 0])):
-                        vals = (pts[i, 0], pts[i, 1], un[i], ut[i], lam[i], -mu[i], g[i])
-                        fh.write(",".join(repr(float(v)) for v in vals) + ",0\n")
+                write_contact_csv(args.csv, nodes[cn], un, ut, lam, -mu, g)
             return
         if new_key in seen:
             out.update(converged=False, cycle_from=seen[new_key])

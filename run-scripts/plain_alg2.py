@@ -31,6 +31,7 @@ import os
 import sys
 import time
 import tomllib
+import types
 
 import numpy as np
 import scipy.sparse as sp
@@ -154,6 +155,34 @@ def one_contact(case, script):
     kinds = [("obstacle" if "obstacle" in c else "master") for c in con] if isinstance(con, list) else []
     sys.exit(f"{script}: the case's contacts ({', '.join(kinds) or 'none'}) are not one contact against "
              "a rigid obstacle ([contact], or one [[contact]] with an obstacle), which is all this script solves")
+
+
+def one_body_problem(path, script):
+    """The case file at `path` as the reference scripts solve it: its case table, mesh,
+    one material and hypothesis, stiffness K, loads f and prescribed dofs (NaN where free),
+    and its one contact against a rigid obstacle with that contact's foundation
+    (node numbers, weights, segment lengths, gaps, rows N and T)."""
+    case = tomllib.load(open(path, "rb"))
+    here = os.path.dirname(os.path.abspath(path))
+    nodes, tri, groups = read_mesh(os.path.join(here, case["mesh"]["file"]))
+    mat = one_material(case, script)
+    hyp = mat.get("hypothesis", "plane_strain")
+    k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
+    f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
+    con = one_contact(case, script)
+    return types.SimpleNamespace(case=case, nodes=nodes, tri=tri, groups=groups, mat=mat, hyp=hyp,
+                                 k=k, area=area, f=f, fixed=fixed, con=con,
+                                 foundation=foundation(con, nodes, groups))
+
+
+def write_contact_csv(path, pts, u_n, u_t, p_n, p_t, g):
+    """The contact nodes' answer in the columns of contact-par's contact.csv, sorted by x
+    then y, every number as repr prints it (round trip)."""
+    with open(path, "w") as fh:
+        fh.write("x,y,u_n,u_t,p_n,p_t,gap,contact\n")
+        for i in np.lexsort((pts[:, 1], pts[:, 0])):
+            vals = (pts[i, 0], pts[i, 1], u_n[i], u_t[i], p_n[i], p_t[i], g[i])
+            fh.write(",".join(repr(float(v)) for v in vals) + ",0\n")
 
 
 def frames(obstacle, pts):
@@ -368,11 +397,7 @@ def main():
     un, ut, u = out
     _, lam, _, mu = derived(gx)
     os.makedirs(args.out, exist_ok=True)
-    order = np.lexsort((nodes[cn, 1], nodes[cn, 0]))
-    with open(os.path.join(args.out, "contact.csv"), "w") as fh:
-        fh.write("x,y,u_n,u_t,p_n,p_t,gap,contact\n")
-        for i in order:
-            fh.write(",".join(repr(float(v)) for v in [nodes[cn[i], 0], nodes[cn[i], 1], un[i], ut[i], lam[i], -mu[i], g[i]]) + ",0\n")
+    write_contact_csv(os.path.join(args.out, "contact.csv"), nodes[cn], un, ut, lam, -mu, g)
     times["output"] = time.perf_counter() - t
     times["total"] = time.perf_counter() - t0
     json.dump({"sweeps": sweeps, "converged": converged, "solver": solver, "r": r,
