@@ -157,22 +157,30 @@ def one_contact(case, script):
              "a rigid obstacle ([contact], or one [[contact]] with an obstacle), which is all this script solves")
 
 
-def one_body_problem(path, script):
-    """The case file at `path` as the reference scripts solve it: its case table, mesh,
-    one material and hypothesis, stiffness K, loads f and prescribed dofs (NaN where free),
-    and its one contact against a rigid obstacle with that contact's foundation
-    (node numbers, weights, segment lengths, gaps, rows N and T)."""
+def read_case(path):
+    """The case file at `path` and its mesh: the case table, nodes, triangles, groups."""
     case = tomllib.load(open(path, "rb"))
     here = os.path.dirname(os.path.abspath(path))
-    nodes, tri, groups = read_mesh(os.path.join(here, case["mesh"]["file"]))
+    return (case, *read_mesh(os.path.join(here, case["mesh"]["file"])))
+
+
+def one_body(case, nodes, tri, groups, script):
+    """A case read by `read_case` as the reference scripts solve it: its one material and
+    hypothesis, stiffness K, loads f and prescribed dofs (NaN where free), and its one
+    contact against a rigid obstacle with that contact's foundation (node numbers,
+    weights, segment lengths, gaps, rows N and T)."""
     mat = one_material(case, script)
     hyp = mat.get("hypothesis", "plane_strain")
     k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
     f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
     con = one_contact(case, script)
-    return types.SimpleNamespace(case=case, nodes=nodes, tri=tri, groups=groups, mat=mat, hyp=hyp,
-                                 k=k, area=area, f=f, fixed=fixed, con=con,
-                                 foundation=foundation(con, nodes, groups))
+    return types.SimpleNamespace(case=case, nodes=nodes, mat=mat, hyp=hyp, k=k, f=f,
+                                 fixed=fixed, con=con, foundation=foundation(con, nodes, groups))
+
+
+def one_body_problem(path, script):
+    """`one_body` of the case file at `path`."""
+    return one_body(*read_case(path), script)
 
 
 def write_contact_csv(path, pts, u_n, u_t, p_n, p_t, g):
@@ -269,18 +277,14 @@ def main():
     args = ap.parse_args()
     t0 = time.perf_counter()
     times = {}
-    case = tomllib.load(open(args.case, "rb"))
-    here = os.path.dirname(os.path.abspath(args.case))
-    nodes, tri, groups = read_mesh(os.path.join(here, case["mesh"]["file"]))
+    read = read_case(args.case)
     times["read"] = time.perf_counter() - t0
 
     t = time.perf_counter()
-    mat = one_material(case, "plain_alg2.py")
-    hyp = mat.get("hypothesis", "plane_strain")
-    k, area = stiffness(nodes, tri, mat["young"], mat["poisson"], hyp)
-    f, fixed = loads_and_prescribed(case, nodes, tri, groups, area)
-    con = one_contact(case, "plain_alg2.py")
-    cn, w, length, g, nmat, tmat = foundation(con, nodes, groups)
+    prob = one_body(*read, "plain_alg2.py")
+    case, nodes, mat, hyp, k, f, fixed, con = (prob.case, prob.nodes, prob.mat, prob.hyp, prob.k,
+                                               prob.f, prob.fixed, prob.con)
+    cn, w, length, g, nmat, tmat = prob.foundation
     law = con.get("friction", "none")
     frictional = law != "none"
     # contact-par's automatic r: E_eff / sqrt(h L).
