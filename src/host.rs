@@ -197,6 +197,27 @@ pub fn node_pool(threads: usize) -> Option<rayon::ThreadPool> {
     pool.ok()
 }
 
+/// Starts the rank's threads: `threads`, or by default the cores this process may run
+/// on over the `node_ranks` ranks of its node (per node, not per job: on a cluster the
+/// ranks of other nodes use other cores), for the global pool and faer; with
+/// `borrow_idle_cores` false the first rank's work alone keeps to them too
+/// ([`keep_to_own_cores`]).
+pub fn start_threads(threads: Option<usize>, borrow_idle_cores: bool, node_ranks: usize) {
+    if !borrow_idle_cores {
+        keep_to_own_cores();
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = threads.unwrap_or((cores / node_ranks).max(1)).max(1);
+    let _ = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build_global();
+    faer::set_global_parallelism(if threads == 1 {
+        faer::Par::Seq
+    } else {
+        faer::Par::rayon(threads)
+    });
+}
+
 /// Shares the rank's `threads` among its `per_rank` subdomains: each factorization
 /// (faer) gets its share, sequential below two threads.
 pub fn share_threads(threads: usize, per_rank: usize) {
