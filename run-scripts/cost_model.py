@@ -213,7 +213,7 @@ class Start:
         x = math.log(parts)
         i = max(min(sum(px <= x for px, _ in pts) - 1, len(pts) - 2), 0)
         (x0, y0), (x1, y1) = pts[i], pts[i + 1]
-        return y0 + (y1 - y0) * (x - x0) / (x1 - x0)
+        return max(y0 + (y1 - y0) * (x - x0) / (x1 - x0), min(y for _, y in pts))
 
     def partition_extra(self, parts):
         """Seconds per node the partition into `parts` costs over 2 parts (one core)."""

@@ -525,41 +525,7 @@ fn contact_geometry(
     mesh: &Mesh,
     boundary: &HashSet<(usize, usize)>,
 ) -> Result<ContactGeometry> {
-    // Per node: its weight in each obstacle contact whose group holds it.
-    let mut weight: HashMap<usize, Vec<(usize, f64)>> = HashMap::new();
-    let mut lengths = Vec::new();
-    for (i, c) in case.contacts.iter().enumerate() {
-        let lines = line_group(case, mesh, "contact", &c.group)?;
-        let mut groups = vec![("slave", &c.group, lines)];
-        if let Some(m) = &c.master {
-            groups.push(("master", m, line_group(case, mesh, "contact master", m)?));
-        }
-        for (what, name, lines) in groups {
-            if let Some(&[a, b]) = lines
-                .iter()
-                .find(|&&[a, b]| !boundary.contains(&(a.min(b), a.max(b))))
-            {
-                return input(format!(
-                    "{}: contact {what} group \"{name}\" has the edge ({}, {}) - ({}, {}) that is not on the boundary of a body; the contact groups must be boundary lines",
-                    case.origin, mesh.nodes[a][0], mesh.nodes[a][1], mesh.nodes[b][0], mesh.nodes[b][1]
-                ));
-            }
-        }
-        for &[a, b] in lines {
-            let len = edge_length(&mesh.nodes, a, b);
-            lengths.push(len);
-            if c.obstacle.is_none() {
-                continue;
-            }
-            for v in [a, b] {
-                let per = weight.entry(v).or_default();
-                match per.iter_mut().find(|(j, _)| *j == i) {
-                    Some((_, w)) => *w += 0.5 * len,
-                    None => per.push((i, 0.5 * len)),
-                }
-            }
-        }
-    }
+    let (weight, mut lengths) = contact_lines(case, mesh, boundary)?;
     let obstacle = |i: usize| {
         case.contacts[i]
             .obstacle
@@ -597,22 +563,10 @@ fn contact_geometry(
             (None, None) => unreachable!("a contact node is in a contact"),
         })
         .collect();
-    let mut s: Vec<f64> = geometry.iter().map(|g| g.s).collect();
     let contact_of = |v: &usize| owner.get(v).map_or_else(|| rows[v].0, |o| o.0);
-    for (i, c) in case.contacts.iter().enumerate() {
-        let Some(obstacle) = &c.obstacle else {
-            continue;
-        };
-        let mine: Vec<usize> = (0..contact_nodes.len())
-            .filter(|&k| contact_of(&contact_nodes[k]) == i)
-            .collect();
-        let xs: Vec<[f64; 2]> = mine.iter().map(|&k| mesh.nodes[contact_nodes[k]]).collect();
-        if let Some(arc) = obstacle.arc_positions(&xs) {
-            for (&k, a) in mine.iter().zip(arc) {
-                s[k] = a;
-            }
-        }
-    }
+    let pair: Vec<u32> = contact_nodes.iter().map(|v| contact_of(v) as u32).collect();
+    let mut s: Vec<f64> = geometry.iter().map(|g| g.s).collect();
+    arc_positions(case, mesh, (&contact_nodes, &pair), &mut s);
     let contact = ContactNodes {
         w: (contact_nodes.iter())
             .map(|v| owner.get(v).map_or_else(|| rows[v].1.w, |o| o.1))
@@ -620,7 +574,7 @@ fn contact_geometry(
         g: geometry.iter().map(|g| g.gap).collect(),
         s,
         normal: geometry.iter().map(|g| g.normal).collect(),
-        pair: contact_nodes.iter().map(|v| contact_of(v) as u32).collect(),
+        pair,
         friction: Vec::new(),
         fixed_threshold: Vec::new(),
         part: Vec::new(),
@@ -628,12 +582,89 @@ fn contact_geometry(
     let masters: Vec<Vec<(usize, f64)>> = (contact_nodes.iter())
         .map(|v| rows.get(v).map_or_else(Vec::new, |r| r.1.masters.clone()))
         .collect();
-    // Round-off in mesh coordinates can put a touching node a hair below the line.
-    // (A gap that is not a number, from an obstacle far beyond the mesh's scale, is
-    // refused alike.) A mortar row's gap is a weighted mean over the slave segments
-    // (`contact::mortar`) between two polygons: where curved bodies touch, the chords'
-    // sag makes it slightly negative (about h^2 / R), which is the discrete geometry,
-    // not an overlap; one of a twentieth of the contact edges is refused.
+    let found = ContactGeometry {
+        nodes: contact_nodes,
+        contact,
+        h: contact_h,
+        masters,
+    };
+    check_overlap(case, mesh, &found)?;
+    Ok(found)
+}
+
+/// Per node, its weight in each obstacle contact whose group holds it; and the length of
+/// every contact edge. Refuses a contact group (slave or master) off the boundary.
+#[allow(clippy::type_complexity)]
+fn contact_lines(
+    case: &Case,
+    mesh: &Mesh,
+    boundary: &HashSet<(usize, usize)>,
+) -> Result<(HashMap<usize, Vec<(usize, f64)>>, Vec<f64>)> {
+    let mut weight: HashMap<usize, Vec<(usize, f64)>> = HashMap::new();
+    let mut lengths = Vec::new();
+    for (i, c) in case.contacts.iter().enumerate() {
+        let lines = line_group(case, mesh, "contact", &c.group)?;
+        let mut groups = vec![("slave", &c.group, lines)];
+        if let Some(m) = &c.master {
+            groups.push(("master", m, line_group(case, mesh, "contact master", m)?));
+        }
+        for (what, name, lines) in groups {
+            if let Some(&[a, b]) = lines
+                .iter()
+                .find(|&&[a, b]| !boundary.contains(&(a.min(b), a.max(b))))
+            {
+                return input(format!(
+                    "{}: contact {what} group \"{name}\" has the edge ({}, {}) - ({}, {}) that is not on the boundary of a body; the contact groups must be boundary lines",
+                    case.origin, mesh.nodes[a][0], mesh.nodes[a][1], mesh.nodes[b][0], mesh.nodes[b][1]
+                ));
+            }
+        }
+        for &[a, b] in lines {
+            let len = edge_length(&mesh.nodes, a, b);
+            lengths.push(len);
+            if c.obstacle.is_none() {
+                continue;
+            }
+            for v in [a, b] {
+                let per = weight.entry(v).or_default();
+                match per.iter_mut().find(|(j, _)| *j == i) {
+                    Some((_, w)) => *w += 0.5 * len,
+                    None => per.push((i, 0.5 * len)),
+                }
+            }
+        }
+    }
+    Ok((weight, lengths))
+}
+
+/// The positions `s` along their obstacles of each obstacle contact's nodes (`nodes`,
+/// with their contacts `pair`), where the obstacle measures them along itself.
+fn arc_positions(case: &Case, mesh: &Mesh, (nodes, pair): (&[usize], &[u32]), s: &mut [f64]) {
+    for (i, c) in case.contacts.iter().enumerate() {
+        let Some(obstacle) = &c.obstacle else {
+            continue;
+        };
+        let mine: Vec<usize> = (0..nodes.len())
+            .filter(|&k| pair[k] as usize == i)
+            .collect();
+        let xs: Vec<[f64; 2]> = mine.iter().map(|&k| mesh.nodes[nodes[k]]).collect();
+        if let Some(arc) = obstacle.arc_positions(&xs) {
+            for (&k, a) in mine.iter().zip(arc) {
+                s[k] = a;
+            }
+        }
+    }
+}
+
+/// Refuses a contact node already through its obstacle or master line. Round-off in mesh
+/// coordinates can put a touching node a hair below the line. (A gap that is not a
+/// number, from an obstacle far beyond the mesh's scale, is refused alike.) A mortar
+/// row's gap is a weighted mean over the slave segments (`contact::mortar`) between two
+/// polygons: where curved bodies touch, the chords' sag makes it slightly negative
+/// (about h^2 / R), which is the discrete geometry, not an overlap; one of a twentieth
+/// of the contact edges is refused.
+fn check_overlap(case: &Case, mesh: &Mesh, found: &ContactGeometry) -> Result<()> {
+    let (contact, masters, contact_h) = (&found.contact, &found.masters, found.h);
     let allowed = |k: usize| {
         let mortar = !masters[k].is_empty();
         if mortar {
@@ -642,35 +673,30 @@ fn contact_geometry(
             1e-9 * contact_h
         }
     };
-    if let Some(k) =
-        (0..contact_nodes.len()).find(|&k| contact.g[k].is_nan() || contact.g[k] < -allowed(k))
-    {
-        let x = mesh.nodes[contact_nodes[k]];
-        let c = &case.contacts[contact.pair[k] as usize];
-        let fix = match (&c.obstacle, &c.master) {
-            (Some(Obstacle::Line { .. }), _) => "move obstacle_point or check that obstacle_normal points from the foundation into the body (obstacle.point and obstacle.normal in a [[contact]] entry)".to_string(),
-            (Some(Obstacle::Circle { .. }), _) => "check the centre and the radius, and body = \"outside\" (the body outside the disc) or \"inside\" (in the hole)".to_string(),
-            (Some(Obstacle::Polyline { .. }), _) => "check the points, and body = \"left\" or \"right\" (the body's side walking from the first point to the last)".to_string(),
-            (None, m) => format!("the two bodies overlap there: mesh them apart or touching (master \"{}\")", m.as_deref().unwrap_or_default()),
-        };
-        return input(format!(
-            "{}: contact node at ({}, {}) already penetrates the {} by {} (contact \"{}\", {} {}); {fix}",
-            case.origin,
-            x[0],
-            x[1],
-            if c.obstacle.is_some() { "foundation" } else { "master body" },
-            -contact.g[k],
-            c.group,
-            if c.obstacle.is_some() { "obstacle type" } else { "against" },
-            c.obstacle.as_ref().map_or("a master line", Obstacle::kind)
-        ));
-    }
-    Ok(ContactGeometry {
-        nodes: contact_nodes,
-        contact,
-        h: contact_h,
-        masters,
-    })
+    let Some(k) =
+        (0..found.nodes.len()).find(|&k| contact.g[k].is_nan() || contact.g[k] < -allowed(k))
+    else {
+        return Ok(());
+    };
+    let x = mesh.nodes[found.nodes[k]];
+    let c = &case.contacts[contact.pair[k] as usize];
+    let fix = match (&c.obstacle, &c.master) {
+        (Some(Obstacle::Line { .. }), _) => "move obstacle_point or check that obstacle_normal points from the foundation into the body (obstacle.point and obstacle.normal in a [[contact]] entry)".to_string(),
+        (Some(Obstacle::Circle { .. }), _) => "check the centre and the radius, and body = \"outside\" (the body outside the disc) or \"inside\" (in the hole)".to_string(),
+        (Some(Obstacle::Polyline { .. }), _) => "check the points, and body = \"left\" or \"right\" (the body's side walking from the first point to the last)".to_string(),
+        (None, m) => format!("the two bodies overlap there: mesh them apart or touching (master \"{}\")", m.as_deref().unwrap_or_default()),
+    };
+    input(format!(
+        "{}: contact node at ({}, {}) already penetrates the {} by {} (contact \"{}\", {} {}); {fix}",
+        case.origin,
+        x[0],
+        x[1],
+        if c.obstacle.is_some() { "foundation" } else { "master body" },
+        -contact.g[k],
+        c.group,
+        if c.obstacle.is_some() { "obstacle type" } else { "against" },
+        c.obstacle.as_ref().map_or("a master line", Obstacle::kind)
+    ))
 }
 
 /// The weighted overlap of a mortar row accepted at the start, as a share of the mean
@@ -900,7 +926,6 @@ pub fn check_held(
         dirichlet: holds.clone(),
         first: parts.first.iter().map(|f| f.1).collect(),
     };
-    let frictional = Problem::is_frictional(case);
     let rows: Vec<ContactHold> = (contact_nodes.iter().enumerate())
         .map(|(k, &node)| ContactHold {
             part: part[node],
@@ -922,9 +947,6 @@ pub fn check_held(
         k[2] |= t[0];
         k[3] |= t[1];
     }
-    if holds.iter().all(|h| h.free().is_none()) {
-        return Ok((holding, parts_of));
-    }
     let Some((p, free)) = holds
         .iter()
         .enumerate()
@@ -932,8 +954,31 @@ pub fn check_held(
     else {
         return Ok((holding, parts_of));
     };
+    let held = Held {
+        by: kinds[p],
+        on_body: touched[p][2],
+    };
+    Err(Error::Input(not_held(case, (mesh, parts), p, free, held)))
+}
+
+/// What holds a part that is not held: its kinds of conditions (ux fixed, uy fixed,
+/// contact along the normal, friction along the tangent), and whether a contact
+/// between bodies holds it.
+struct Held {
+    by: [bool; 4],
+    on_body: bool,
+}
+
+/// The message of [`check_held`] for part `p`, left `free` by what `held` it.
+fn not_held(
+    case: &Case,
+    (mesh, parts): (&Mesh, &Parts),
+    p: usize,
+    free: Free,
+    held: Held,
+) -> String {
     let origin = &case.origin;
-    let on_body = touched[p][2];
+    let count = parts.first.len();
     let body = if count == 1 {
         "the body".to_string()
     } else {
@@ -951,20 +996,21 @@ pub fn check_held(
         "contact along obstacle_normal",
         "friction",
     ];
-    let held_by: Vec<&str> = (0..4).filter(|&k| kinds[p][k]).map(|k| names[k]).collect();
+    let held_by: Vec<&str> = (0..4).filter(|&k| held.by[k]).map(|k| names[k]).collect();
     let held_by = held_by.join(", ");
     let groups = format!("groups in the mesh: {}", mesh.group_names().join(", "));
-    let msg = match free {
+    let frictionless = held.by[2] && !Problem::is_frictional(case);
+    match free {
         Free::Everything => format!(
             "{origin}: {body} has no [[dirichlet]] condition and no contact node, so nothing holds it (singular problem); fix ux and uy on one of its groups with [[dirichlet]] ({groups})"
         ),
-        Free::Slide { along } if kinds[p][2] && !frictional && on_body => {
+        Free::Slide { along } if frictionless && held.on_body => {
             let comp = component(along);
             format!(
                 "{origin}: nothing stops {body} from sliding on the body it rests on (singular problem): frictionless contact holds it only along the contact normals and no [[dirichlet]] fixes {comp}; add a [[dirichlet]] with {comp} = 0.0 on a symmetry line or on one node (a point group), or use friction = \"tresca\" or \"coulomb\" ({groups})"
             )
         }
-        Free::Slide { along } if kinds[p][2] && !frictional => {
+        Free::Slide { along } if frictionless => {
             let comp = component(along);
             format!(
                 "{origin}: nothing stops {body} from sliding along the foundation (singular problem): frictionless contact holds it only along obstacle_normal and no [[dirichlet]] fixes {comp}; add a [[dirichlet]] with {comp} = 0.0 on a symmetry line or on one node (a point group), or use friction = \"tresca\" or \"coulomb\" ({groups})"
@@ -984,8 +1030,7 @@ pub fn check_held(
             "{origin}: {body} can translate and rotate rigidly (singular problem): all its conditions ({held_by}) act along one line, through ({}, {}) along ({}, {}); fix both ux and uy, on a line group or at two separate nodes ({groups})",
             point[0], point[1], dir[0], dir[1]
         ),
-    };
-    Err(Error::Input(msg))
+    }
 }
 
 #[cfg(test)]
