@@ -60,18 +60,12 @@ fn read(opts: &Options, timer: &Timer) -> Result<(Case, Problem, String)> {
 fn read_line(setup: &Setup, mesh_name: &str, timer: &Timer) -> String {
     let f = &setup.facts;
     let parts = match setup.case.mesh {
-        MeshSource::File(_) => timer.figure(&[Phase::Mesh, Phase::Problem]),
+        MeshSource::File(_) => format!("; {}", timer.figure(&[Phase::Mesh, Phase::Problem])),
         MeshSource::Builtin { .. } => String::new(),
     };
     let figure = format!(
-        "{mesh_name}: {} nodes, {} triangles, {} contact nodes{}",
-        f.nodes,
-        f.elements,
-        f.contact_nodes,
-        match parts.is_empty() {
-            true => parts,
-            false => format!("; {parts}"),
-        }
+        "{mesh_name}: {} nodes, {} triangles, {} contact nodes{parts}",
+        f.nodes, f.elements, f.contact_nodes,
     );
     timer::phase_line(Phase::Read, timer.seconds(Phase::Read), &figure)
 }

@@ -191,36 +191,61 @@ fn mesh_file(case: &Case) -> Result<Option<MeshFile>> {
 }
 
 /// Writes `subs` (part k at index k) and then the manifest into `dir`, each file
-/// atomically. Part files of an earlier split with more parts are removed first, so
-/// that the directory holds one split only.
+/// atomically. An old manifest and part files of an earlier split with more parts are
+/// removed first, so that the directory holds one split only.
 pub fn write(dir: &Path, case: &Case, facts: &Facts, subs: &[SubProblem]) -> Result<Split> {
     let parts = subs.len();
-    let begun = begin(dir, case, parts)?;
-    for (part, sub) in subs.iter().enumerate() {
-        write_part(dir, &begun.id, part, parts, sub)?;
+    clear(dir, parts)?;
+    // The id every part file carries: the program, the layout, the case and the mesh.
+    let (mesh_file, fingerprint) = (mesh_file(case)?, fingerprint(case));
+    let mut h = Sha256::new();
+    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(format!("{FORMAT} {parts} {fingerprint:?}").as_bytes());
+    if let Some(m) = &mesh_file {
+        h.update(m.sha256.as_bytes());
     }
-    finish(dir, case, facts, parts, begun)
+    let id = hex(&h.finalize())[..16].to_string();
+    for (part, sub) in subs.iter().enumerate() {
+        let header = PartHeader {
+            format: FORMAT,
+            id: id.clone(),
+            part,
+            parts,
+        };
+        let mut bytes = MAGIC.to_vec();
+        bytes = postcard::to_extend(&header, bytes).map_err(|e| encode_failed(dir, e))?;
+        bytes = postcard::to_extend(sub, bytes).map_err(|e| encode_failed(dir, e))?;
+        write_atomic(&part_path(dir, part), &bytes)?;
+    }
+    // The manifest, once every part is written: what makes the split whole.
+    let manifest = Manifest {
+        format: FORMAT,
+        program: format!("contact-par {}", env!("CARGO_PKG_VERSION")),
+        parts,
+        id: id.clone(),
+        case: case.origin.clone(),
+        mesh_file,
+        fingerprint,
+        facts: facts.clone(),
+    };
+    let text = serde_json::to_string_pretty(&manifest).map_err(|e| encode_failed(dir, e))?;
+    write_atomic(&dir.join(MANIFEST), format!("{text}\n").as_bytes())?;
+    Ok(Split {
+        dir: dir.to_path_buf(),
+        parts,
+        id,
+        facts: facts.clone(),
+    })
 }
 
-/// A split begun ([`begin`]): its id, which every part file carries, and the mesh
-/// file's fingerprint for the manifest (hashed once).
-struct Begun {
-    id: String,
-    mesh_file: Option<MeshFile>,
-}
-
-fn out_failed(dir: &Path, e: std::io::Error) -> Error {
-    Error::Output(format!(
-        "{}: cannot write the split: {e}; check that the directory is writable",
-        dir.display()
-    ))
-}
-
-/// The start of a split of `parts` parts into `dir` ([`write`], or its parts written by
-/// their ranks): the directory made, an old manifest and part files beyond `parts`
-/// removed.
-fn begin(dir: &Path, case: &Case, parts: usize) -> Result<Begun> {
-    let out = |e| out_failed(dir, e);
+/// `dir` made, an old manifest and part files beyond `parts` removed.
+fn clear(dir: &Path, parts: usize) -> Result<()> {
+    let out = |e: std::io::Error| {
+        Error::Output(format!(
+            "{}: cannot write the split: {e}; check that the directory is writable",
+            dir.display()
+        ))
+    };
     std::fs::create_dir_all(dir).map_err(out)?;
     // An old manifest must not vouch for a half-written new split.
     match std::fs::remove_file(dir.join(MANIFEST)) {
@@ -238,55 +263,7 @@ fn begin(dir: &Path, case: &Case, parts: usize) -> Result<Begun> {
             std::fs::remove_file(dir.join(&*name)).map_err(out)?;
         }
     }
-    let mesh_file = mesh_file(case)?;
-    let fingerprint = fingerprint(case);
-    let mut h = Sha256::new();
-    h.update(env!("CARGO_PKG_VERSION").as_bytes());
-    h.update(format!("{FORMAT} {parts} {fingerprint:?}").as_bytes());
-    if let Some(m) = &mesh_file {
-        h.update(m.sha256.as_bytes());
-    }
-    Ok(Begun {
-        id: hex(&h.finalize())[..16].to_string(),
-        mesh_file,
-    })
-}
-
-/// Part `part` of a split `id` of `parts` parts, atomically.
-fn write_part(dir: &Path, id: &str, part: usize, parts: usize, sub: &SubProblem) -> Result<()> {
-    let header = PartHeader {
-        format: FORMAT,
-        id: id.to_string(),
-        part,
-        parts,
-    };
-    let mut bytes = MAGIC.to_vec();
-    bytes = postcard::to_extend(&header, bytes).map_err(|e| encode_failed(dir, e))?;
-    bytes = postcard::to_extend(sub, bytes).map_err(|e| encode_failed(dir, e))?;
-    write_atomic(&part_path(dir, part), &bytes)
-}
-
-/// The manifest, once every part is written: what makes the split whole.
-fn finish(dir: &Path, case: &Case, facts: &Facts, parts: usize, begun: Begun) -> Result<Split> {
-    let Begun { id, mesh_file } = begun;
-    let manifest = Manifest {
-        format: FORMAT,
-        program: format!("contact-par {}", env!("CARGO_PKG_VERSION")),
-        parts,
-        id: id.clone(),
-        case: case.origin.clone(),
-        mesh_file,
-        fingerprint: fingerprint(case),
-        facts: facts.clone(),
-    };
-    let text = serde_json::to_string_pretty(&manifest).map_err(|e| encode_failed(dir, e))?;
-    write_atomic(&dir.join(MANIFEST), format!("{text}\n").as_bytes())?;
-    Ok(Split {
-        dir: dir.to_path_buf(),
-        parts,
-        id,
-        facts: facts.clone(),
-    })
+    Ok(())
 }
 
 fn encode_failed(dir: &Path, e: impl std::fmt::Display) -> Error {
