@@ -29,10 +29,8 @@
 //!   of hertz levels 4 and 6 (a Hertz-like profile, with p_t) and for histories of 20
 //!   sweeps (hertz level 4) and 330 (block level 2 with `--coulomb outer`).
 //!
-//! * `problem/locality/level{2,4}`, `problem/file/level{2,4}`: `problem::build` (the
-//!   mesh checks, groups, contact geometry, held check, the locality renumbering) against
-//!   `problem::build_numbered` in the file's numbering, what the first rank builds where
-//!   each rank builds its own part (the mesh cloned outside the timing).
+//! * `problem/level{2,4}`: `problem::build` (the mesh checks, groups, contact geometry,
+//!   held check, the locality renumbering; the mesh cloned outside the timing).
 //!
 //! A sweep is `contact_par::contact::solve` with a budget of one plain (unaccelerated)
 //! sweep, through the public `LinearStep` trait, so it is the loop body the program
@@ -43,7 +41,6 @@
 //! The whole run takes about 90 s on a 2-core machine: `cargo bench --bench kernels`
 //! (`cargo bench --bench kernels -- sweep/` runs one group).
 
-use contact_par::app::load_mesh;
 use contact_par::case::{self, Case};
 use contact_par::contact::kernels::{coulomb_threshold, normal_from_state, tangential_from_state};
 use contact_par::contact::operators::{contact_blocks, ContactDofs, ContactRowsGeometry};
@@ -56,6 +53,7 @@ use contact_par::error::Result;
 use contact_par::fem::{self, assemble, Assembled, DofMap, Materials};
 use contact_par::linear::{interior_groups, NodeGraph, SparseCholesky};
 use contact_par::problem::{self, Problem};
+use contact_par::setup::load_mesh;
 use contact_par::timer::Timer;
 use criterion::{black_box, criterion_group, criterion_main, BatchSize, Criterion, SamplingMode};
 use faer::sparse::linalg::cholesky::SymmetricOrdering;
@@ -399,18 +397,13 @@ fn problems(c: &mut Criterion) {
         let case = case::builtin_case("block", level).expect("built-in case");
         let (mesh, name) = load_mesh(&case).expect("built-in mesh");
         let mut g = heavy(c, "problem", PROBLEM_S[k]);
-        for (label, numbering) in [
-            ("locality", problem::Numbering::Locality),
-            ("file", problem::Numbering::File),
-        ] {
-            g.bench_function(format!("{label}/level{level}"), |b| {
-                b.iter_batched(
-                    || mesh.clone(),
-                    |m| problem::build_numbered(&case, m, &name, numbering).expect("problem"),
-                    BatchSize::LargeInput,
-                )
-            });
-        }
+        g.bench_function(format!("level{level}"), |b| {
+            b.iter_batched(
+                || mesh.clone(),
+                |m| problem::build(&case, m, &name).expect("problem"),
+                BatchSize::LargeInput,
+            )
+        });
         g.finish();
     }
 }

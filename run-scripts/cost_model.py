@@ -14,12 +14,13 @@ printed with the ratio model / measured on every run. Only work, sizes, bytes an
 memory are fitted: they are the same on an oversubscribed machine as on a cluster.
 Times follow from them and a node's parameters, which are arguments.
 
-With --start (the directory of run-scripts/start_study.py's CSV files), the start from one Gmsh file is
-predicted too: what the first rank does alone while every other rank waits (the scan,
-the assembly of the shares, the problem, the partition and split, the scatter), each
-piece's seconds per node on one core and the part of it that runs on the threads of
-the first rank's node (--node-cores), and the first rank's memory per node; against the
-run's other phases, its share of the whole run.
+With --start (the directory of run-scripts/start_study.py's CSV files), the start from
+one mesh file is predicted too: what the first rank does alone while every other rank
+waits (the mesh read, the problem, the partition and split, the scatter), each piece's
+seconds per node on one core and the part of it that runs on the threads of the first
+rank's node (--node-cores), and the first rank's memory per node; against the run's
+other phases, its share of the whole run, and against a start from a split directory
+(`contact-par split` once, then `--mesh-split`).
 """
 import argparse
 import csv
@@ -160,11 +161,11 @@ class Model:
         ])
 
 
-START_PIECES = ("scan", "assembly", "problem", "partition", "scatter")
+START_PIECES = ("mesh", "problem", "partition", "scatter")
 
 
 class Start:
-    """The first rank's work alone from one Gmsh file, per piece p:
+    """The first rank's work alone from one mesh file, per piece p:
       T_p(N, c) = t_p N (1 - f_p + f_p / c)   seconds, N nodes, c cores of its node
     t_p from the runs where the first rank has one core (`--bind-to core`), f_p from
     those where it has its node's k cores (`--bind-to none`): T_k / T_1 = 1 - f + f / k. Those runs have
@@ -203,19 +204,20 @@ class Start:
         else:
             self.m_0 = max(b / n for n, b in peaks)
 
-    def partition_extra(self, parts):
-        """Seconds per node the partition into `parts` costs over 2 parts (one core):
-        linear in log P between the measured counts, the nearest segment extended
-        beyond them."""
+    def split_at(self, parts):
+        """`contact-par split`'s seconds per node into `parts` on one core: linear in
+        log P between the measured counts, the nearest segment extended beyond them."""
         pts = [(math.log(p), s) for p, s in self.split_per_node]
         if len(pts) < 2:
-            return 0.0
+            return pts[0][1]
         x = math.log(parts)
         i = max(min(sum(px <= x for px, _ in pts) - 1, len(pts) - 2), 0)
         (x0, y0), (x1, y1) = pts[i], pts[i + 1]
-        y = y0 + (y1 - y0) * (x - x0) / (x1 - x0)
-        base = dict(self.split_per_node).get(2, pts[0][1])
-        return max(y - base, 0.0)
+        return max(y0 + (y1 - y0) * (x - x0) / (x1 - x0), min(y for _, y in pts))
+
+    def partition_extra(self, parts):
+        """Seconds per node the partition into `parts` costs over 2 parts (one core)."""
+        return max(self.split_at(parts) - self.split_at(2), 0.0)
 
     def seconds(self, nodes, cores, parts):
         """Each piece's seconds on `cores` cores, the partition's into `parts`."""
@@ -229,80 +231,6 @@ class Start:
         splits = ", ".join(f"{p} parts {s * 1e6:.2f}" for p, s in self.split_per_node)
         return (f"  start at 2 parts: {pieces}\n  contact-par split, one core, us/node: {splits};"
                 f" its peak {self.m_0:.0f} B per node")
-
-
-def checks_of(directory):
-    """Where every rank checks the mesh on its parts and finds the conditions (the ranks
-    build their own parts, no rank holding the whole mesh; start_study.py's `checks_s`):
-    their seconds per triangle and rank, a core each, and the first rank's scan of the
-    file on those runs, seconds per node (its scan no longer holds the file: measured
-    there, not in --start's runs). Medians over the runs where the first rank has one
-    core."""
-    with open(os.path.join(directory, "start.csv")) as fh:
-        rows = [r for r in csv.DictReader(fh)
-                if r["bind"] == "core" and float(r.get("checks_s") or 0) > 0]
-    if not rows:
-        sys.exit(f"cost_model.py: {directory}/start.csv has no runs with the checks on the ranks")
-    checks = statistics.median(float(r["checks_s"]) * float(r["ranks"]) / float(r["triangles"])
-                               for r in rows)
-    scan = statistics.median(float(r["scan_s"]) / float(r["nodes"]) for r in rows)
-    return checks, scan
-
-
-class Cut:
-    """The partition by every rank, fitted on run-scripts/cut_study.py's cut.csv rows of
-    one kind: `ptscotch` (PT-Scotch on the first rank's graph) or `shares` (the ranks'
-    locality order, graph and PT-Scotch, from their shares of the file). The seconds on
-    the ranks with a core per rank: PT-Scotch's, a T^g_T P^g_P in the triangles T and
-    the ranks P (least squares in logs, on the `ptscotch` rows); for `shares` plus
-    b T / P, the order, the graph, the part lists and each rank's build of its own part,
-    each rank's share of the triangles (b the median over the `shares` rows of what they
-    took beyond PT-Scotch's law). And what stays on the first rank (the graph, the
-    ownership rules and the split; for `shares` the parts taken into its numbering and
-    the conditions it sends), its seconds per triangle on one core."""
-
-    def __init__(self, directory, kind="ptscotch"):
-        with open(os.path.join(directory, "cut.csv")) as fh:
-            rows = list(csv.DictReader(fh))
-        pts = [r for r in rows if r["partitioner"] == "ptscotch"]
-        mine = [r for r in rows if r["partitioner"] == kind]
-        for name, some in (("ptscotch", pts), (kind, mine)):
-            if len({r["triangles"] for r in some}) < 2 or len({r["ranks"] for r in some}) < 2:
-                raise ValueError(f"--cut needs {name} runs of two meshes on two rank counts")
-        self.a, (self.g_t, self.g_p) = fit_power(
-            [([float(r["triangles"]), float(r["ranks"])], max(float(r["cut_rank_s"]), 1e-6))
-             for r in pts])
-        self.b = 0.0
-        if kind == "shares":
-            self.b = max(statistics.median(
-                (float(r["cut_rank_s"]) - self.pt_scotch(float(r["triangles"]), float(r["ranks"])))
-                * float(r["ranks"]) / float(r["triangles"]) for r in mine), 0.0)
-        # The first rank's pieces: the same for METIS and PT-Scotch on its graph.
-        first = mine if kind == "shares" else [r for r in rows if r["partitioner"] != "shares"]
-        self.first = fit_scale([(float(r["triangles"]),
-                                 max(float(r["graph_s"]) + float(r["split_s"]), 1e-6)) for r in first])
-        self.per_node = statistics.median(float(r["triangles"]) / float(r["nodes"]) for r in rows)
-        self.rows = mine
-
-    def pt_scotch(self, t, P):
-        return self.a * t ** self.g_t * P ** self.g_p
-
-    def on_ranks(self, t, P):
-        return self.pt_scotch(t, P) + self.b * t / P
-
-    def seconds(self, nodes, P):
-        """The first rank's pieces alone and the cut on P ranks, in seconds."""
-        t = self.per_node * nodes
-        return self.first * t, self.on_ranks(t, P)
-
-    def describe(self):
-        worst = max(abs(self.on_ranks(float(r["triangles"]), float(r["ranks"]))
-                        / max(float(r["cut_rank_s"]), 1e-6) - 1) for r in self.rows)
-        order = (f" + {self.b * 1e6:.3f} us T / P (the ranks' order, graph, lists and parts)"
-                 if self.b else "")
-        return (f"  cut by PT-Scotch, a core per rank: {self.a:.3g} T^{self.g_t:.2f} P^{self.g_p:.2f}"
-                f"{order} s (within {worst:.0%} of every measured row); the first rank's graph and"
-                f" split {self.first * 1e6:.3f} us per triangle; {self.per_node:.2f} triangles per node")
 
 
 def times(pr, P, sweeps, a):
@@ -338,17 +266,7 @@ def main():
     ap.add_argument("--mumps-efficiency", type=float, default=0.3,
                     help="MUMPS's flop rate in the interface factorization over --flops")
     ap.add_argument("--start", help="start_study.py's output directory (start.csv, split.csv): "
-                    "predict the start from one Gmsh file")
-    ap.add_argument("--cut", help="cut_study.py's output directory (cut.csv): the start with the "
-                    "partition by every rank (needs --start)")
-    ap.add_argument("--groups", help="start_study.py's output directory of runs where the ranks "
-                    "check the mesh and find the conditions (no rank holding the whole mesh): "
-                    "the --cut shares start with them")
-    ap.add_argument("--file-numbering", type=float, default=0.55,
-                    help="the first rank's problem in the file's numbering (where each rank "
-                    "builds its own part) over the problem in the locality numbering: "
-                    "0.41-0.57 in start_study.py runs on the 1M-node meshes (the larger kept), "
-                    "0.39 in benches/kernels.rs problem/file over problem/locality at level 4")
+                    "predict the start from one mesh file")
     ap.add_argument("--node-cores", type=int, default=64,
                     help="cores of the first rank's node, which it borrows for the start")
     a = ap.parse_args()
@@ -388,69 +306,36 @@ def main():
               f"{pr['share'] / 1e9:>8.2f} {(pr['F_s'] + pr['share']) / one:>9.5f} "
               f"{pr['M'] / 2**30:>10.2f} {m.r_0 * pr['M'] / 2**30:>9.2f} {f:>9.1f} {sw * 1e3:>9.2f} {loop:>7.1f}")
     if a.start:
-        st = Start(a.start)
-        nodes = a.dofs / 2
-        print()
-        print(f"the start from one Gmsh file ({nodes:.3g} nodes): the first rank alone, on its node's "
-              f"{a.node_cores} cores, while the other ranks wait; fitted on {a.start}:")
-        print(st.describe())
-        print(f"  its peak memory: {st.m_0 * nodes / 2**30:.1f} GiB (the whole mesh and problem)")
-        print(f"{'P':>5} {'scan':>6} {'assembly':>9} {'problem':>8} {'partition':>10} {'scatter':>8} "
-              f"{'alone s':>8} {'factor + loop s':>15} {'serial share':>12}")
-        for P in sorted({64, 128, 256, a.ranks}):
-            secs = st.seconds(nodes, a.node_cores, P)
-            alone = sum(secs.values())
-            f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
-            print(f"{P:>5} " + " ".join(f"{secs[p]:>{w}.1f}" for p, w in zip(START_PIECES, (6, 9, 8, 10, 8)))
-                  + f" {alone:>8.1f} {f + loop:>15.1f} {alone / (alone + f + loop):>12.1%}")
-        checks, scan = checks_of(a.groups) if a.groups else (None, None)
-        kinds = [("ptscotch", "the same start with the partition cut by every rank on the first"
-                   " rank's graph (--partitioner ptscotch)"),
-                 ("shares", "the same start with the partition found by every rank from its share"
-                   " of the file (--partitioner ptscotch --mesh-read shared)")]
-        for kind, title in kinds if a.cut else []:
-            try:
-                cut = Cut(a.cut, kind)
-            except ValueError as e:
-                if kind == "ptscotch":
-                    sys.exit(f"cost_model.py: {e}")
-                continue
-            print()
-            print(f"{title}; fitted on {a.cut}:")
-            print(cut.describe())
-            groups = kind == "shares" and checks is not None
-            if groups:
-                print(f"  no rank holds the whole mesh: the first rank neither puts it together nor"
-                      f" builds the problem; every rank checks the mesh on its parts and finds the"
-                      f" conditions, {checks * 1e6:.3f} us per triangle and rank (in 'on the"
-                      f" ranks'); its scan {scan * 1e6:.3f} us per node; fitted on {a.groups}")
-            elif kind == "shares":
-                print(f"  the first rank's problem in the file's numbering: {a.file_numbering:.2f} x"
-                      " the start's (no locality renumbering)")
-            print(f"{'P':>5} {'first rank: graph + split':>26} {'cut, all ranks':>15} "
-                  f"{'first rank alone s':>19} {'start s':>8} {'serial share':>12} {'start share':>11}")
-            for P in sorted({64, 128, 256, a.ranks}):
-                secs = st.seconds(nodes, a.node_cores, P)
-                if kind == "shares":
-                    secs["problem"] *= a.file_numbering
-                first, on_ranks = cut.seconds(nodes, P)
-                if groups:
-                    secs["assembly"] = secs["problem"] = 0.0
-                    secs["scan"] = scan * nodes
-                    # The conditions the first rank sends are sized like the boundary.
-                    first = 0.0
-                    on_ranks += checks * cut.per_node * nodes / P
-                # From the shares each rank builds its own part: the first rank
-                # scatters nothing (its split is the conditions it sends, in `first`).
-                dropped = ("partition", "scatter") if kind == "shares" else ("partition",)
-                alone = sum(v for k, v in secs.items() if k not in dropped) + first
-                # The ranks cut from their shares while the first rank builds the
-                # problem, but with a rank on every core its node's cores are theirs
-                # then: no overlap is counted.
-                f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
-                whole = alone + on_ranks + f + loop
-                print(f"{P:>5} {first:>26.1f} {on_ranks:>15.1f} {alone:>19.1f} "
-                      f"{alone + on_ranks:>8.1f} {alone / whole:>12.1%} {(alone + on_ranks) / whole:>11.1%}")
+        start(a, Start(a.start), m, C, sweeps)
+
+
+def start(a, st, m, C, sweeps):
+    """The start from one mesh file against the run, and the way round it."""
+    nodes = a.dofs / 2
+    print()
+    print(f"the start from one mesh file ({nodes:.3g} nodes): the first rank alone, on its node's "
+          f"{a.node_cores} cores, while the other ranks wait; fitted on {a.start}:")
+    print(st.describe())
+    peak = st.m_0 * nodes / 2**30
+    print(f"  its peak memory: {peak:.1f} GiB (the whole mesh and problem)")
+    print(f"{'P':>5} {'mesh':>6} {'problem':>8} {'partition':>10} {'scatter':>8} "
+          f"{'alone s':>8} {'factor + loop s':>15} {'serial share':>12}")
+    share = {}
+    for P in sorted({64, 128, 256, a.ranks}):
+        secs = st.seconds(nodes, a.node_cores, P)
+        alone = sum(secs.values())
+        f, _, loop = times(m.predict(a.dofs, P, C), P, sweeps, a)
+        share[P] = (alone, alone / (alone + f + loop))
+        print(f"{P:>5} " + " ".join(f"{secs[p]:>{w}.1f}" for p, w in zip(START_PIECES, (6, 8, 10, 8)))
+              + f" {alone:>8.1f} {f + loop:>15.1f} {share[P][1]:>12.1%}")
+    alone, part = share[a.ranks]
+    split = st.split_at(a.ranks) * nodes
+    print(f"at {a.ranks} ranks a run from one file spends {alone:.0f} s ({part:.1%} of the run) on "
+          f"the first rank alone, which holds {peak:.1f} GiB: split once instead "
+          f"(`contact-par split --parts {a.ranks}`, about {split:.0f} s on one core, the same "
+          f"peak), then run with --mesh-split, where each rank reads its own part and no rank "
+          f"holds the mesh.")
+
 
 if __name__ == "__main__":
     sys.exit(main())

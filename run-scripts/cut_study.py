@@ -1,31 +1,19 @@
 #!/usr/bin/env python3
-"""The partition of a run from one mesh file, by the first rank alone (its straight cuts,
-`--partitioner geometric`, or METIS, `--partitioner metis`), by every rank on the first rank's graph (`--partitioner ptscotch`), and by every
-rank from its own share of the file (`shares`: `--partitioner ptscotch --mesh-read
-shared`), against the rank count: each piece's seconds and the parts' quality.
+"""The partition of a run from one mesh file by the first rank, its straight cuts
+(`--partitioner geometric`, the default; METIS where a part would be in pieces) against
+METIS (`--partitioner metis`), against the rank count: each piece's seconds and the
+parts' quality.
 
     python3 run-scripts/cut_study.py CASE.toml [CASE.toml ...] --out DIR \\
-        [--ranks 2,4,8,16,32] [--runs 3] [--partitioners geometric,metis,ptscotch,shares] [--append]
+        [--ranks 2,4,8,16,32] [--runs 3] [--partitioners geometric,metis] [--append]
         [--binary target/release/contact-par]
 
 Each case runs on each rank count (`--oversubscribe --bind-to none`, one thread and one
 subdomain per rank), with each partitioner in turn, --runs times; a run is stopped once
 its partition line is out (the rest of the run is not this study's). The partition line
-names its pieces: the graph (the first rank's dual graph; for `shares` only the
-triangles around each node), the cut (the first rank, or PT-Scotch on every rank; for
-`shares` also the ranks' locality order and graph, the part lists, and the build of
-each rank's own part), the ownership rules and the split (the first rank; for `shares`
-with a part per rank, only the conditions it sends the ranks). Medians go to DIR/cut.csv (with --append, after its rows) and a table
-on stdout, with the edge cut and the interface nodes.
-
-A `shares` run that the ranks could not cut from their shares (a contact between two
-bodies, a repeated triangle) cuts the first rank's graph instead; its row is labelled
-`shares-fell-back` and no law is fitted to it.
-
-`cut_rank_s`, for PT-Scotch, estimates the cut's seconds with a core per rank: its
-seconds times min(ranks, cores) / ranks, since ranks beyond the cores take turns. It is
-an estimate (oversubscribed ranks also wait on each other's turns); run-scripts/
-cost_model.py `--cut DIR` fits its law in the triangles and predicts a larger run.
+names its pieces: the dual graph, the cut (and the method that made it) and the split.
+Medians go to DIR/cut.csv (with --append, after its rows) and a table on stdout, with
+the edge cut and the interface nodes.
 """
 import argparse
 import csv
@@ -40,12 +28,11 @@ import tempfile
 READ = re.compile(r"^read\s+done in .*?: (\d+) nodes, (\d+) triangles")
 PART = re.compile(
     r"^partition done in\s+([\d.]+) s: graph ([\d.]+) s, cut ([\d.]+) s \((.*?)\), "
-    r"(?:split ([\d.]+) s|conditions ([\d.]+) s, parts built on their ranks ([\d.]+) s): "
-    r".*?edge cut (\d+); (\d+) interface nodes"
+    r"split ([\d.]+) s: .*?edge cut (\d+); (\d+) interface nodes"
 )
 FIELDS = [
-    "case", "nodes", "triangles", "ranks", "partitioner", "runs", "partition_s", "graph_s",
-    "cut_s", "split_s", "cut_rank_s", "edge_cut", "interface_nodes",
+    "case", "nodes", "triangles", "ranks", "partitioner", "method", "runs", "partition_s",
+    "graph_s", "cut_s", "split_s", "edge_cut", "interface_nodes",
 ]
 
 
@@ -53,11 +40,8 @@ def one_run(binary, case, ranks, partitioner, out):
     cmd = [
         "mpirun", "-n", str(ranks), "--oversubscribe", "--bind-to", "none", binary, case,
         "--threads", "1", "--subdomains-per-rank", "1", "--no-plots", "--out", out,
+        "--partitioner", partitioner,
     ]
-    if partitioner == "shares":
-        cmd += ["--partitioner", "ptscotch", "--mesh-read", "shared"]
-    else:
-        cmd += ["--partitioner", partitioner]
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                          start_new_session=True)
     row, seen = None, []
@@ -68,14 +52,10 @@ def one_run(binary, case, ranks, partitioner, out):
             nodes, tris = int(m.group(1)), int(m.group(2))
         m = PART.match(line)
         if m:
-            total, graph, cut, who, split, conditions, built, edges, itf = m.groups()
-            # Where each rank builds its own part, the first rank's split is the
-            # conditions it sends, and the build is the ranks' work, with their cut.
-            first = split if split is not None else conditions
-            ranks_s = float(cut) + (float(built) if built is not None else 0.0)
+            total, graph, cut, method, split, edges, itf = m.groups()
             row = dict(nodes=nodes, triangles=tris, partition_s=float(total),
-                       graph_s=float(graph), cut_s=ranks_s, split_s=float(first),
-                       edge_cut=int(edges), interface_nodes=int(itf), who=who)
+                       graph_s=float(graph), cut_s=float(cut), split_s=float(split),
+                       edge_cut=int(edges), interface_nodes=int(itf), method=method)
             break
     # The run past its partition is not measured: the whole job is stopped.
     try:
@@ -95,12 +75,11 @@ def main():
     ap.add_argument("--out", required=True)
     ap.add_argument("--ranks", default="2,4,8,16,32")
     ap.add_argument("--runs", type=int, default=3)
-    ap.add_argument("--partitioners", default="geometric,metis,ptscotch,shares")
+    ap.add_argument("--partitioners", default="geometric,metis")
     ap.add_argument("--append", action="store_true", help="add the rows to DIR/cut.csv")
     ap.add_argument("--binary", default="target/release/contact-par")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
-    cores = os.cpu_count() or 1
     rows = []
     for case in a.cases:
         for ranks in (int(r) for r in a.ranks.split(",")):
@@ -111,17 +90,13 @@ def main():
                     for partitioner in runs:
                         runs[partitioner].append(one_run(a.binary, case, ranks, partitioner, tmp))
             for partitioner, rs in runs.items():
-                med = {k: statistics.median(r[k] for r in rs) for k in rs[0] if k != "who"}
-                if partitioner == "shares" and any("from their shares" not in r["who"] for r in rs):
-                    # A contact between bodies (or a file whose records are not the
-                    # problem's triangles): the ranks cut the first rank's graph.
-                    partitioner = "shares-fell-back"
-                on_ranks = partitioner not in ("geometric", "metis")
+                med = {k: statistics.median(r[k] for r in rs) for k in rs[0] if k != "method"}
+                # The method of each run (straight cuts fall back to METIS where a part
+                # would be in pieces).
+                methods = sorted({r["method"] for r in rs})
                 med.update(case=os.path.basename(case), ranks=ranks, runs=len(rs),
-                           partitioner=partitioner, nodes=rs[0]["nodes"],
-                           triangles=rs[0]["triangles"],
-                           cut_rank_s=med["cut_s"] * min(ranks, cores) / ranks
-                           if on_ranks else med["cut_s"])
+                           partitioner=partitioner, method="/".join(methods),
+                           nodes=rs[0]["nodes"], triangles=rs[0]["triangles"])
                 rows.append(med)
     path = os.path.join(a.out, "cut.csv")
     append = a.append and os.path.exists(path)
@@ -131,12 +106,12 @@ def main():
             w.writeheader()
         for r in rows:
             w.writerow({k: r[k] for k in FIELDS})
-    print("| case | triangles | ranks | partitioner | graph | cut | cut, a core per rank "
-          "| split | partition | edge cut | interface nodes |")
+    print("| case | triangles | ranks | partitioner | method | graph | cut | split | partition "
+          "| edge cut | interface nodes |")
     print("| --- " * 11 + "|")
     for r in rows:
         print(f"| {r['case']} | {r['triangles']} | {r['ranks']} | {r['partitioner']} | "
-              f"{r['graph_s']:.3f} | {r['cut_s']:.3f} | {r['cut_rank_s']:.3f} | "
+              f"{r['method']} | {r['graph_s']:.3f} | {r['cut_s']:.3f} | "
               f"{r['split_s']:.3f} | {r['partition_s']:.3f} | {r['edge_cut']:.0f} | "
               f"{r['interface_nodes']:.0f} |")
     print(f"wrote {path}")

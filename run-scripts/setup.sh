@@ -9,7 +9,7 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 # The python3 packages are the tests': VTK's readers (tests/vtk_reader.rs), SciPy and
 # Gmsh for the independent Newton solver of tests/tolerance.rs (run-scripts/pdas_friction.py).
-PKGS="openmpi-bin libopenmpi-dev libmetis-dev libmumps-dev libptscotch-dev libclang-dev pkg-config python3-vtk9 python3-scipy python3-gmsh"
+PKGS="openmpi-bin libopenmpi-dev libmetis-dev libmumps-dev libclang-dev pkg-config python3-vtk9 python3-scipy python3-gmsh"
 missing=""
 for p in $PKGS; do
   dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"

@@ -22,16 +22,9 @@ start_dir="$(mktemp -d)/start"
 python3 run-scripts/start_study.py tests/data/gmsh/quarter_disc.toml --runs 1 \
   --split-parts 2,4 --out "$start_dir" >/dev/null
 python3 run-scripts/cost_model.py docs/data/scale-summaries/*.json --start "$start_dir" >/dev/null
-python3 run-scripts/start_study.py tests/data/gmsh/quarter_disc.toml --runs 1 \
-  --partitioner ptscotch --out "$(mktemp -d)/start-ptscotch" >/dev/null
-# The partition study (the first rank's straight cuts and METIS against PT-Scotch on the ranks, on the
-# first rank's graph and from the ranks' shares of the file) and the
-# cost model's cut on it, on two meshes (seconds).
-cut_dir="$(mktemp -d)/cut"
+# The partition study (the first rank's straight cuts against METIS) on two meshes (seconds).
 python3 run-scripts/cut_study.py tests/data/gmsh/quarter_disc.toml tests/data/bodies/blocks.toml \
-  --ranks 2,3 --runs 1 --out "$cut_dir" >/dev/null
-python3 run-scripts/cost_model.py docs/data/scale-summaries/*.json --start "$start_dir" \
-  --cut "$cut_dir" >/dev/null
+  --ranks 2,3 --runs 1 --out "$(mktemp -d)/cut" >/dev/null
 # The bound of independent pieces (halves.sh): the built-in block at level 1 on 4 ranks
 # against 4 jobs at level 0, a quarter of its nodes (seconds).
 halves_dir="$(mktemp -d)/halves"

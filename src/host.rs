@@ -21,20 +21,15 @@ const SUBDOMAIN_STACK_BYTES: usize = 8 << 20;
 /// subdomains; at least one.
 ///
 /// Why split: a sparse Cholesky factorization spreads over threads only inside its
-/// fronts (faer: 1 rank x 2 threads factored hertz level 5 1.14 times faster than one
-/// thread), whereas k subdomains factor on k threads at once, each a piece whose factor
-/// costs less than 1/k of the whole (O(n^1.5) flops in 2D). Measured with 2 threads,
-/// one rank, 2 subdomains against 1 (whole runs, medians of 9): 0.99 at 1600 and 1200
-/// triangles per subdomain, 0.98 at 4700, 0.91 at 6400, 0.82 at 18700, 0.77 at 25600,
-/// 0.84 at 1.2M; below the threshold the partition and the interface cost what the
-/// threads save.
+/// fronts, whereas k subdomains factor on k threads at once, each a piece whose factor
+/// costs less than 1/k of the whole (O(n^1.5) flops in 2D); below the threshold the
+/// partition and the interface cost what the threads save (docs/performance.md).
 ///
 /// Why stop at a few subdomains: the interface system is dense and solved by the first
 /// rank (`dd`). In 2D its size grows as sqrt(nodes x subdomains), so its n_G^3 / 3 flops
 /// grow as P^1.5 times those of the whole mesh while each subdomain's factor shrinks as
-/// P^-1.5: their ratio grows as P^3, about 1.7e-3 P^3 from the hertz level 5 factors
-/// (one subdomain's factor at P = 8). With many ranks each rank keeps one subdomain, as
-/// before; more can still be asked for with `--subdomains-per-rank`.
+/// P^-1.5: their ratio grows as P^3. With many ranks each rank keeps one subdomain; more
+/// can still be asked for with `--subdomains-per-rank`.
 pub fn subdomains_per_rank(threads: usize, ranks: usize, triangles: usize) -> usize {
     let ranks = ranks.max(1);
     let by_size = triangles / (ranks * MIN_TRIANGLES_PER_SUBDOMAIN);
@@ -197,6 +192,27 @@ pub fn node_pool(threads: usize) -> Option<rayon::ThreadPool> {
     pool.ok()
 }
 
+/// Starts the rank's threads: `threads`, or by default the cores this process may run
+/// on over the `node_ranks` ranks of its node (per node, not per job: on a cluster the
+/// ranks of other nodes use other cores), for the global pool and faer; with
+/// `borrow_idle_cores` false the first rank's work alone keeps to them too
+/// ([`keep_to_own_cores`]).
+pub fn start_threads(threads: Option<usize>, borrow_idle_cores: bool, node_ranks: usize) {
+    if !borrow_idle_cores {
+        keep_to_own_cores();
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = threads.unwrap_or((cores / node_ranks).max(1)).max(1);
+    let _ = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build_global();
+    faer::set_global_parallelism(if threads == 1 {
+        faer::Par::Seq
+    } else {
+        faer::Par::rayon(threads)
+    });
+}
+
 /// Shares the rank's `threads` among its `per_rank` subdomains: each factorization
 /// (faer) gets its share, sequential below two threads.
 pub fn share_threads(threads: usize, per_rank: usize) {
@@ -238,8 +254,7 @@ pub fn on_subdomain_threads<M: Send, R>(
 /// output phase mostly page faults. Only the output phase gets this: its buffers are far
 /// smaller than the factorization's, so the peak memory per rank does not move, whereas
 /// the same setting for the whole run (`GLIBC_TUNABLES=glibc.malloc.mmap_max=0`, see the
-/// README) raises it by 9-16%. Measured on hertz level 4, one rank: output 1.05 s before,
-/// 0.81-0.87 s after; page faults 638k -> 535k-541k; peak 1036 MB both.
+/// README) raises it.
 pub fn keep_freed_blocks_for_reuse() {
     // SAFETY: mallopt only changes glibc's allocation policy; it may be called at any
     // time, and blocks already mapped are still unmapped correctly when freed. A failed
@@ -263,9 +278,9 @@ pub fn peak_memory_bytes() -> u64 {
         .map_or(0, |kb| kb * 1024)
 }
 
-/// Drops `value` on a thread of its own, so that the caller goes on at once: the factor
-/// of a million-node subdomain took 0.07 s to hand back to the system, on the way from
-/// the recovery to the output. Should the thread not start, `value` is dropped here.
+/// Drops `value` on a thread of its own, so that the caller goes on at once: a large
+/// factor takes a while to hand back to the system, on the way from the recovery to the
+/// output. Should the thread not start, `value` is dropped here.
 pub fn drop_in_background<T: Send + 'static>(value: T) {
     let _ = std::thread::Builder::new()
         .name("free".into())

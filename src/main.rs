@@ -1,4 +1,5 @@
-//! contact-par: 2D elastic contact with a rigid foundation by Uzawa block relaxation.
+//! contact-par: 2D elastic contact by Uzawa block relaxation: MPI and the command line,
+//! then `run::run` (or `contact-par split`).
 //!
 //! ```text
 //! contact-par                          # the default built-in case (Hertz)
@@ -9,15 +10,14 @@
 //! 4 numerical failure, 5 outputs could not be written.
 
 use clap::Parser;
-use contact_par::app::{self, InterfaceMode, LinearMode, MeshRead, Options, Partitioner, Printer};
 use contact_par::case;
-use contact_par::contact::{Acceleration, CoulombMode, DEFAULT_ANDERSON_MEMORY};
 use contact_par::dd::comm::Mpi;
 use contact_par::error::Error;
 use contact_par::host;
-use contact_par::linear::Ordering;
+use contact_par::options::{CaseArgs, Options, SplitOptions};
+use contact_par::run::{self, Printer};
+use contact_par::setup::split_dir;
 use mpi::Threading;
-use std::path::PathBuf;
 
 /// `--help`'s worked example of each output and of what a run prints, from
 /// `contact-par --builtin hertz --level 1 --out ex1` (tests/cli.rs checks that every
@@ -64,200 +64,26 @@ With friction (--builtin block --level 1) p_t and the stick and slip counts are 
 #[command(
     name = "contact-par",
     version,
-    about = "2D elastic contact (frictionless, Tresca, Coulomb) with a rigid foundation, Uzawa block relaxation, on one core or many MPI ranks",
+    about = "2D elastic contact (frictionless, Tresca, Coulomb) of one or two bodies against rigid obstacles (lines, circles, polylines) or each other, Uzawa block relaxation, on one core or many MPI ranks",
     after_long_help = OUTPUTS_HELP,
     args_conflicts_with_subcommands = true
 )]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
-    /// Case file (TOML). Without it, the built-in case given by --builtin runs.
-    case: Option<PathBuf>,
-    /// Output directory.
-    #[arg(long, default_value = "out")]
-    out: PathBuf,
-    /// Also write nodes.csv (x,y,ux,uy for every node).
-    #[arg(long)]
-    nodes_csv: bool,
-    /// Draw no pictures (contact.png, convergence.png); those of an earlier run in the
-    /// output directory are removed.
-    #[arg(long)]
-    no_plots: bool,
-    /// Print nothing but errors and warnings: no first line, phase lines, monitor lines
-    /// or final table.
-    #[arg(long)]
-    quiet: bool,
-    /// Built-in case to run when no case file is given: hertz, block, block_flat, punch, cylinders.
-    #[arg(long, default_value = "hertz")]
-    builtin: String,
-    /// Refinement level of the built-in case (each level halves the mesh size).
-    #[arg(long, default_value_t = 1)]
-    level: u32,
+    #[command(flatten)]
+    run: Options,
     /// Print the TOML text of the built-in case (at --level) and exit.
     #[arg(long)]
     print_case: bool,
-    /// Override solver.r (augmentation parameter).
-    #[arg(long)]
-    r: Option<f64>,
-    /// Override solver.tol.
-    #[arg(long)]
-    tol: Option<f64>,
-    /// Override solver.max_iter.
-    #[arg(long)]
-    max_iter: Option<usize>,
-    /// Override solver.coulomb: inner (threshold refreshed every sweep) or outer.
-    #[arg(long, value_parser = parse_coulomb)]
-    coulomb: Option<CoulombMode>,
-    /// Override solver.acceleration: anderson (default) or none (plain ALG2).
-    #[arg(long, value_parser = parse_acc)]
-    acceleration: Option<Acceleration>,
-    /// Fill-reducing ordering of each subdomain: auto (default: gnd), gnd (nested
-    /// dissection by straight cuts from the nodes' positions: about the least fill, as
-    /// fast as amd), amd (minimum degree) or nd (METIS nested dissection: the least
-    /// fill, a slower ordering).
-    #[arg(long, default_value = "auto", value_parser = parse_ordering)]
-    ordering: Ordering,
-    /// Where the interface system is factored and solved: rank0 (summed and factored on
-    /// the first rank), mumps (assembled where its parts are and factored across the
-    /// ranks by MUMPS, solved with distributed right-hand side and solution) or auto
-    /// (default: mumps from 16 subdomains on).
-    #[arg(long, default_value = "auto", value_parser = parse_interface)]
-    interface: InterfaceMode,
-    /// Save the loop state every N sweeps in OUT/checkpoint/ (atomically).
-    #[arg(long, default_value_t = 0)]
-    checkpoint_every: usize,
-    /// Resume from OUT/checkpoint/ (same case, same number of ranks).
-    #[arg(long)]
-    restart: bool,
-    /// Print a monitor line every K sweeps.
-    #[arg(long, default_value_t = 10)]
-    monitor_every: usize,
-    /// Threads per rank (assembly, factorization, sweep); default: the cores this rank
-    /// may run on / the ranks on its node.
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Whether the first rank runs its work alone (the read and partition of a mesh
-    /// file, the interface system's factorization) on the cores of its node's ranks
-    /// while they sleep, also where each rank is bound to a core of its own; false keeps
-    /// every rank to its own threads (to measure that work on one core).
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-    borrow_idle_cores: bool,
-    /// Subdomains per rank, each factored and swept on a thread of its own; default:
-    /// one per thread of the rank while each keeps 5000 triangles and the job has at
-    /// most 8 subdomains, else fewer (1 for --linear full). 1 gives a rank one
-    /// subdomain whose factorization uses its threads.
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
-    subdomains_per_rank: Option<u64>,
-    /// Linear solve in the loop: condensed (default) or full (one rank only, for
-    /// comparison: a sparse forward and backward solve per sweep).
-    #[arg(long, default_value = "condensed", value_parser = parse_linear)]
-    linear: LinearMode,
-    /// A directory written by `contact-par split`: each subdomain reads its own part
-    /// there, and no rank reads the whole mesh. The ranks must divide its parts (each
-    /// runs parts / ranks subdomains).
-    #[arg(long, value_name = "DIR")]
-    mesh_split: Option<PathBuf>,
-    /// Who reads a Gmsh mesh file on several ranks: first (the first rank, on the idle
-    /// cores of its node), shared (every rank parses a share of an MSH 4.1 file's nodes
-    /// and elements, the first puts them together; the file must be readable by every
-    /// rank, else the first reads it alone) or auto (default: shared when the ranks span
-    /// several nodes).
-    #[arg(long, default_value = "auto", value_parser = parse_mesh_read)]
-    mesh_read: MeshRead,
-    /// Who cuts a mesh read from one file into subdomains: geometric (the first rank
-    /// alone: recursive straight cuts through the triangles' centroids, refined; METIS
-    /// where a part would be in pieces), metis (the first rank alone:
-    /// the dual graph coarsened, METIS, refined back), ptscotch (every rank: PT-Scotch
-    /// on the graph spread over the ranks) or auto (default: ptscotch when the ranks
-    /// span several nodes, else geometric; see docs/performance.md).
-    #[arg(long, default_value = "auto", value_parser = parse_partitioner)]
-    partitioner: Partitioner,
 }
 
 #[derive(clap::Subcommand, Debug)]
 enum Command {
-    /// Read, partition and split a case once, on one process, into one file per part,
-    /// for runs with --mesh-split (where no rank then reads the whole mesh).
-    Split(SplitArgs),
-}
-
-#[derive(clap::Args, Debug)]
-struct SplitArgs {
-    /// Case file (TOML). Without it, the built-in case given by --builtin.
-    case: Option<PathBuf>,
-    /// Number of parts: the subdomains of the runs (ranks x subdomains per rank).
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
-    parts: u64,
-    /// Directory of the part files and their manifest (split.json).
-    #[arg(long, value_name = "DIR")]
-    out: PathBuf,
-    /// Built-in case when no case file is given: hertz, block, block_flat, punch, cylinders.
-    #[arg(long, default_value = "hertz")]
-    builtin: String,
-    /// Refinement level of the built-in case.
-    #[arg(long, default_value_t = 1)]
-    level: u32,
-    /// Who cuts the mesh: geometric or metis (this process, or the first rank; as in a
-    /// run) or ptscotch (every rank of `mpirun -n N contact-par split ...`, PT-Scotch);
-    /// auto (default): as in a run, ptscotch when the ranks span several nodes, else
-    /// geometric. The first rank reads the mesh and writes the parts.
-    #[arg(long, default_value = "auto", value_parser = parse_partitioner)]
-    partitioner: Partitioner,
-}
-
-fn parse_linear(s: &str) -> Result<LinearMode, String> {
-    match s {
-        "condensed" => Ok(LinearMode::Condensed),
-        "full" => Ok(LinearMode::Full),
-        _ => Err(format!("\"{s}\" is not condensed or full")),
-    }
-}
-
-fn parse_ordering(s: &str) -> Result<Ordering, String> {
-    match s {
-        "auto" => Ok(Ordering::Auto),
-        "amd" => Ok(Ordering::Amd),
-        "nd" => Ok(Ordering::NestedDissection),
-        "gnd" => Ok(Ordering::Geometric),
-        _ => Err(format!("\"{s}\" is not auto, amd, nd or gnd")),
-    }
-}
-
-fn parse_mesh_read(s: &str) -> Result<MeshRead, String> {
-    match s {
-        "auto" => Ok(MeshRead::Auto),
-        "first" => Ok(MeshRead::First),
-        "shared" => Ok(MeshRead::Shared),
-        _ => Err(format!("\"{s}\" is not auto, first or shared")),
-    }
-}
-
-fn parse_partitioner(s: &str) -> Result<Partitioner, String> {
-    match s {
-        "auto" => Ok(Partitioner::Auto),
-        "geometric" => Ok(Partitioner::Geometric),
-        "metis" => Ok(Partitioner::Metis),
-        "ptscotch" => Ok(Partitioner::PtScotch),
-        _ => Err(format!("\"{s}\" is not auto, geometric, metis or ptscotch")),
-    }
-}
-
-fn parse_interface(s: &str) -> Result<InterfaceMode, String> {
-    match s {
-        "auto" => Ok(InterfaceMode::Auto),
-        "rank0" => Ok(InterfaceMode::Rank0),
-        "mumps" => Ok(InterfaceMode::Mumps),
-        _ => Err(format!("\"{s}\" is not auto, rank0 or mumps")),
-    }
-}
-
-fn parse_acc(s: &str) -> Result<Acceleration, String> {
-    case::parse_acceleration(s, DEFAULT_ANDERSON_MEMORY)
-        .ok_or_else(|| format!("\"{s}\" is not anderson or none"))
-}
-
-fn parse_coulomb(s: &str) -> Result<CoulombMode, String> {
-    case::parse_coulomb_mode(s).ok_or_else(|| format!("\"{s}\" is not inner or outer"))
+    /// Read, partition and split a case once into one file per part, for runs with
+    /// --mesh-split (where no rank then reads the whole mesh). The first process does
+    /// it all; under mpirun the others sleep, lending it their cores.
+    Split(SplitOptions),
 }
 
 /// Open MPI's default transport selection tries UCX first, which costs about 0.2 s of
@@ -293,111 +119,46 @@ fn run() -> i32 {
         eprintln!("contact-par: MPI could not be initialised");
         return 1;
     };
-    use mpi::topology::Communicator;
-    let world = universe.world();
-    let rank = world.rank();
+    let mpi = Mpi::new(universe.world(), granted >= Threading::Funneled);
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
-            if rank == 0 {
+            if mpi.is_root() {
                 let _ = e.print();
             }
             return if e.use_stderr() { 2 } else { 0 };
         }
     };
-    if let Some(Command::Split(args)) = cli.command {
-        return split(args, Mpi::new(world));
-    }
-    if cli.print_case {
-        if rank == 0 {
-            match case::builtin_case_text(&cli.builtin, cli.level) {
-                Some(t) => print!("{t}"),
-                None => {
-                    eprintln!(
-                        "contact-par: unknown built-in case \"{}\"; choose one of {}",
-                        cli.builtin,
-                        case::BUILTIN_CASES.join(", ")
-                    );
-                    return 2;
-                }
-            }
+    let print = |quiet: bool| Printer {
+        enabled: mpi.is_root() && !quiet,
+    };
+    let done = match cli.command {
+        Some(Command::Split(opts)) => split_dir::split(&opts, &mpi, &print(false)).map(|()| 0),
+        None if cli.print_case => print_case(&cli.run.case, mpi.is_root()).map(|()| 0),
+        None => {
+            let opts = cli.run;
+            host::start_threads(opts.threads, opts.borrow_idle_cores, mpi.node_ranks);
+            let print = print(opts.quiet);
+            run::run(&opts, mpi, &print).map(|report| if report.converged { 0 } else { 3 })
         }
-        return 0;
-    }
-    if !cli.borrow_idle_cores {
-        host::keep_to_own_cores();
-    }
-    let mpi = Mpi::new(world);
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    // Per node, not per job: on a cluster the ranks of other nodes use other cores.
-    let threads = cli
-        .threads
-        .unwrap_or_else(|| (cores / mpi.node_ranks).max(1))
-        .max(1);
-    let subdomain_threads = may_run_subdomain_threads(cli.subdomains_per_rank, cli.linear, threads);
-    if let Err(e) = mpi.agree(check_thread_level(granted, subdomain_threads)) {
-        return report(e);
-    }
-    let _ = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build_global();
-    faer::set_global_parallelism(if threads == 1 {
-        faer::Par::Seq
-    } else {
-        faer::Par::rayon(threads)
-    });
-    let opts = Options {
-        case_file: cli.case,
-        builtin: cli.builtin,
-        level: cli.level,
-        out: cli.out,
-        nodes_csv: cli.nodes_csv,
-        plots: !cli.no_plots,
-        quiet: cli.quiet,
-        r: cli.r,
-        tol: cli.tol,
-        max_iter: cli.max_iter,
-        coulomb: cli.coulomb,
-        acceleration: cli.acceleration,
-        monitor_every: cli.monitor_every,
-        linear: cli.linear,
-        checkpoint_every: cli.checkpoint_every,
-        restart: cli.restart,
-        ordering: cli.ordering,
-        interface: cli.interface,
-        subdomains_per_rank: cli.subdomains_per_rank.map(|k| k as usize),
-        mesh_split: cli.mesh_split,
-        mesh_read: cli.mesh_read,
-        partitioner: cli.partitioner,
     };
-    let print = Printer {
-        enabled: rank == 0 && !opts.quiet,
-    };
-    match app::run(&opts, mpi, &print) {
-        Ok(report) if report.converged => 0,
-        Ok(_) => 3,
-        Err(e) => report(e),
-    }
+    done.unwrap_or_else(report)
 }
 
-/// `contact-par split`: on one process, or under mpirun with the ranks cutting (and
-/// building and writing their own parts, `app::split_case`).
-fn split(args: SplitArgs, mpi: Mpi) -> i32 {
-    let opts = app::SplitOptions {
-        case_file: args.case,
-        builtin: args.builtin,
-        level: args.level,
-        parts: args.parts as usize,
-        out: args.out,
-        partitioner: args.partitioner,
-    };
-    let print = Printer {
-        enabled: mpi.is_root(),
-    };
-    match app::split_case(&opts, &mpi, &print) {
-        Ok(()) => 0,
-        Err(e) => report(e),
+/// `--print-case`: the built-in case's text, on the first rank.
+fn print_case(case: &CaseArgs, root: bool) -> Result<(), Error> {
+    if !root {
+        return Ok(());
     }
+    let text = case::builtin_case_text(&case.builtin, case.level).ok_or_else(|| {
+        Error::Input(format!(
+            "unknown built-in case \"{}\"; choose one of {}",
+            case.builtin,
+            case::BUILTIN_CASES.join(", ")
+        ))
+    })?;
+    print!("{text}");
+    Ok(())
 }
 
 /// Prints an error that this rank holds and returns its exit code. Only the rank that
@@ -407,41 +168,6 @@ fn report(e: Error) -> i32 {
         eprintln!("contact-par: error: {e}");
     }
     e.exit_code()
-}
-
-/// Whether a rank of this run may run several subdomains, each on a thread of its own:
-/// asked for (`--subdomains-per-rank` above 1), or left to the default, which gives a
-/// rank at most one subdomain per thread and one with `--linear full`. The first rank
-/// settles the count later, from the mesh; this answers for what the options allow.
-fn may_run_subdomain_threads(per_rank: Option<u64>, linear: LinearMode, threads: usize) -> bool {
-    match per_rank {
-        Some(k) => k > 1,
-        None => linear != LinearMode::Full && threads > 1,
-    }
-}
-
-/// Whether the thread support MPI granted suffices. Subdomain threads compute and wait
-/// while their rank's main thread is inside MPI on their behalf: that is
-/// MPI_THREAD_FUNNELED. With one subdomain per rank the rank's other threads (the
-/// assembly's and the factorization's pools) run only between MPI calls, so the lowest
-/// level, MPI_THREAD_SINGLE, serves; refusing it there would refuse runs that work.
-fn check_thread_level(granted: Threading, subdomain_threads: bool) -> Result<(), Error> {
-    if !subdomain_threads || granted >= Threading::Funneled {
-        return Ok(());
-    }
-    Err(Error::Input(format!(
-        "MPI granted the thread level {}, and several subdomains per rank on threads of their own need MPI_THREAD_FUNNELED; run with --subdomains-per-rank 1, or use an MPI library built with thread support",
-        thread_level_name(granted)
-    )))
-}
-
-fn thread_level_name(level: Threading) -> &'static str {
-    match level {
-        Threading::Single => "MPI_THREAD_SINGLE",
-        Threading::Funneled => "MPI_THREAD_FUNNELED",
-        Threading::Serialized => "MPI_THREAD_SERIALIZED",
-        Threading::Multiple => "MPI_THREAD_MULTIPLE",
-    }
 }
 
 fn main() {
@@ -458,42 +184,4 @@ fn main() {
     }));
     let code = run();
     std::process::exit(code);
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn subdomain_threads_are_those_the_options_allow() {
-        let (c, f) = (LinearMode::Condensed, LinearMode::Full);
-        assert!(may_run_subdomain_threads(Some(2), c, 1));
-        assert!(!may_run_subdomain_threads(Some(1), c, 8));
-        assert!(may_run_subdomain_threads(None, c, 2));
-        assert!(!may_run_subdomain_threads(None, c, 1));
-        assert!(!may_run_subdomain_threads(None, f, 8));
-    }
-
-    #[test]
-    fn a_single_threaded_mpi_is_refused_only_where_subdomain_threads_may_run() {
-        for level in [
-            Threading::Funneled,
-            Threading::Serialized,
-            Threading::Multiple,
-        ] {
-            assert_eq!(check_thread_level(level, true), Ok(()));
-        }
-        assert_eq!(check_thread_level(Threading::Single, false), Ok(()));
-        let e = check_thread_level(Threading::Single, true).unwrap_err();
-        assert_eq!(e.exit_code(), 2);
-        let message = e.to_string();
-        assert!(!message.contains('\n'));
-        for part in [
-            "MPI_THREAD_SINGLE",
-            "MPI_THREAD_FUNNELED",
-            "--subdomains-per-rank 1",
-        ] {
-            assert!(message.contains(part), "{message}");
-        }
-    }
 }

@@ -1,8 +1,6 @@
 //! From a validated case and a mesh to the discrete problem: oriented mesh, prescribed
 //! dofs, load vector, contact nodes with their lumped weights and gaps. Everything that
-//! needs the whole mesh happens here, once, on the reading rank; where the ranks hold
-//! the triangles, the same conditions come from the groups' elements alone
-//! ([`build_on_groups`], with what the ranks find: `dd::dist_problem`).
+//! needs the whole mesh happens here, once, on the reading rank.
 
 use crate::case::Case;
 use crate::contact::mortar::{mortar_rows, MortarRow, Segment};
@@ -47,8 +45,7 @@ pub struct NodeAtAnswer {
 /// slip). A rigid motion that the Dirichlet conditions and those lines leave free moves
 /// the body at no cost until an open node touches, so the answer is one of many along
 /// it: an iterative method drifts along such a motion, and two runs may differ along it
-/// by far more than `tol` (the thin half ring of docs/performance-history.md, standing
-/// frictionless on one node: 792 sweeps on one thread, 178 on two, answers 1e-3 apart).
+/// by far more than `tol`.
 pub fn free_at_answer(holding: &Holding, nodes: &[NodeAtAnswer]) -> Vec<String> {
     let count = holding.dirichlet.len();
     let known = |p: u32| (p as usize) < count;
@@ -122,10 +119,6 @@ pub struct Problem {
     /// The mesh file's index of each node (the row of `nodes.csv`): the nodes are
     /// numbered along a Hilbert curve once the problem is built ([`renumber`]).
     pub file_node: Vec<usize>,
-    /// The mesh's index of each triangle as read (its record among the file's triangle
-    /// records, less any repeat the reading dropped): the triangles are numbered with
-    /// the nodes.
-    pub file_triangle: Vec<usize>,
     /// Each triangle's body: the index of its entry in `Case::materials`.
     pub body: Vec<u32>,
     /// The bodies of the triangles that touch a contact node, increasing: the scales of
@@ -341,61 +334,6 @@ fn no_material_message(origin: &str, missing: usize, x: [f64; 2], theirs: Option
     )
 }
 
-/// A fault of the materials as the whole problem names it ([`bodies`]), found from the
-/// file's triangle blocks alone (`blocks`: each one's count and the names of its
-/// physical surfaces, in file order) and the mesh's groups (`groups`: their names are
-/// all that is used): the triangle (its index among the file's triangle records) whose
-/// centroid the message names, where it names one, and the message given that
-/// centroid. `None` where every triangle has one material.
-#[allow(clippy::type_complexity)]
-pub fn materials_fault(
-    case: &Case,
-    blocks: &[(usize, Vec<String>)],
-    groups: &Mesh,
-) -> Option<(Option<u64>, Box<dyn Fn([f64; 2]) -> String>)> {
-    if case.materials.iter().all(|b| b.group.is_none()) {
-        return None;
-    }
-    let origin = case.origin.clone();
-    let starts: Vec<u64> = (blocks.iter())
-        .scan(0u64, |at, b| {
-            let start = *at;
-            *at += b.0 as u64;
-            Some(start)
-        })
-        .collect();
-    // Each block's material: its triangles share their surfaces, so the first triangle
-    // of a block claimed twice is the first the whole check meets.
-    let mut claimed: Vec<Option<usize>> = vec![None; blocks.len()];
-    for (i, b) in case.materials.iter().enumerate() {
-        let g = b.group.clone().unwrap_or_default();
-        if !groups.surface_groups.contains_key(&g) {
-            let message = not_a_surface_message(&origin, &g, groups);
-            return Some((None, Box::new(move |_| message.clone())));
-        }
-        for (k, (count, names)) in blocks.iter().enumerate() {
-            if *count == 0 || !names.contains(&g) {
-                continue;
-            }
-            if let Some(j) = claimed[k] {
-                let other = case.materials[j].group.clone().unwrap_or_default();
-                let message = move |x| two_materials_message(&origin, x, &other, &g);
-                return Some((Some(starts[k]), Box::new(message)));
-            }
-            claimed[k] = Some(i);
-        }
-    }
-    let open = |k: &usize| blocks[*k].0 > 0 && claimed[*k].is_none();
-    let first = (0..blocks.len()).find(open)?;
-    let missing: usize = (0..blocks.len()).filter(open).map(|k| blocks[k].0).sum();
-    let theirs = (blocks[first].1.iter())
-        .filter(|n| groups.surface_groups.contains_key(*n))
-        .min()
-        .cloned();
-    let message = move |x| no_material_message(&origin, missing, x, theirs.as_deref());
-    Some((Some(starts[first]), Box::new(message)))
-}
-
 /// The bodies of the triangles that touch `nodes`, increasing and without repeats.
 fn touching(mesh: &Mesh, body: &[u32], nodes: &[usize]) -> Vec<u32> {
     // A scan of every triangle: on the pool, where it ran on one core of the first
@@ -464,44 +402,15 @@ fn line_group<'a>(case: &Case, mesh: &'a Mesh, what: &str, name: &str) -> Result
 /// Builds the discrete problem; `mesh_name` names the mesh in messages.
 ///
 /// Everything that can be wrong with the input is reported here, before any assembly:
-/// the mesh checks of [`validate::check`], the groups, the contact boundary and gaps, and
+/// the mesh checks of [`validate::check_with`], the groups, the contact boundary and gaps, and
 /// last whether the conditions hold every part of the body ([`check_held`]).
-pub fn build(case: &Case, mesh: Mesh, mesh_name: &str) -> Result<Problem> {
-    build_numbered(case, mesh, mesh_name, Numbering::Locality)
-}
-
-/// The numbering of a built [`Problem`]'s nodes and triangles.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Numbering {
-    /// Along a Hilbert curve ([`in_locality_order`]): for a problem that is partitioned,
-    /// split, assembled or written whole.
-    Locality,
-    /// The file's: for a problem that only the conditions are taken from, each rank
-    /// building its own part (`dd::dist_split`), where the renumbering was half of
-    /// the problem's seconds (0.78 of 1.57 s on a 991k-node mesh) and a second copy of
-    /// the mesh. Its loads are summed in the file's order.
-    File,
-}
-
-/// [`build`] with the numbering given.
-pub fn build_numbered(
-    case: &Case,
-    mut mesh: Mesh,
-    mesh_name: &str,
-    numbering: Numbering,
-) -> Result<Problem> {
+pub fn build(case: &Case, mut mesh: Mesh, mesh_name: &str) -> Result<Problem> {
     let (boundary, parts) = validate::check_with(&mut mesh, mesh_name, Parts::of)?;
-    let triangles = mesh.triangles.len();
-    let conditioned = conditioned(case, &mesh, (&boundary, Thirds::InMesh), &parts)?;
+    let conditioned = conditioned(case, &mesh, &boundary, &parts)?;
     // Checked here so that every fault of the input is reported before any work; the
     // bodies are found again in the new numbering below.
     bodies(case, &mesh)?;
-    let n = mesh.num_nodes();
-    let prob = conditioned.on(mesh, (0..n).collect(), (0..triangles).collect());
-    let mut prob = match numbering {
-        Numbering::Locality => in_locality_order(prob),
-        Numbering::File => prob,
-    };
+    let mut prob = in_locality_order(conditioned.on(mesh));
     prob.body = bodies(case, &prob.mesh)?;
     let mut at_contact = prob.contact_nodes.clone();
     at_contact.extend(prob.contact_masters.iter().flatten().map(|m| m.0));
@@ -531,10 +440,11 @@ struct Conditioned {
 }
 
 impl Conditioned {
-    /// The problem on `mesh` with these conditions, its nodes' and triangles' places in
-    /// the file; without loads and bodies.
-    fn on(self, mesh: Mesh, file_node: Vec<usize>, file_triangle: Vec<usize>) -> Problem {
+    /// The problem on `mesh` with these conditions, in the file's numbering; without
+    /// loads and bodies.
+    fn on(self, mesh: Mesh) -> Problem {
         Problem {
+            file_node: (0..mesh.num_nodes()).collect(),
             mesh,
             fixed: self.fixed,
             load: Vec::new(),
@@ -542,8 +452,6 @@ impl Conditioned {
             contact: self.contact,
             contact_masters: self.contact_masters,
             contact_h: self.contact_h,
-            file_node,
-            file_triangle,
             body: Vec::new(),
             contact_bodies: Vec::new(),
             holding: self.holding,
@@ -557,7 +465,7 @@ impl Conditioned {
 fn conditioned(
     case: &Case,
     mesh: &Mesh,
-    (boundary, thirds): (&HashSet<(usize, usize)>, Thirds),
+    boundary: &HashSet<(usize, usize)>,
     parts: &Parts,
 ) -> Result<Conditioned> {
     let mut fixed: Vec<Option<f64>> = vec![None; 2 * mesh.num_nodes()];
@@ -578,7 +486,7 @@ fn conditioned(
         mut contact,
         h: contact_h,
         masters: contact_masters,
-    } = contact_geometry(case, mesh, (boundary, thirds))?;
+    } = contact_geometry(case, mesh, boundary)?;
     let (holding, held) = check_held(
         case,
         (mesh, parts),
@@ -598,61 +506,6 @@ fn conditioned(
     })
 }
 
-/// The problem's conditions alone, where the ranks hold the triangles
-/// (`dd::dist_problem`): on `mesh`, the mesh of the groups' elements (their nodes by
-/// increasing index among the file's, `file_node`; no triangles), with the boundary
-/// edges among its nodes, the third corners of their triangles and their separate parts,
-/// which the ranks found. Its load, bodies and triangles are left empty: each rank finds
-/// its own.
-pub fn build_on_groups(
-    case: &Case,
-    mesh: Mesh,
-    file_node: Vec<usize>,
-    boundary: (&HashSet<(usize, usize)>, &EdgeThirds),
-    parts: &Parts,
-) -> Result<Problem> {
-    let (edges, thirds) = boundary;
-    let conditioned = conditioned(case, &mesh, (edges, Thirds::Found(thirds)), parts)?;
-    Ok(conditioned.on(mesh, file_node, Vec::new()))
-}
-
-/// Each file triangle record's body (its `[[material]]` entry), in runs (first record,
-/// body) over the file's triangle blocks (`blocks`: each one's count and the names of its
-/// physical surfaces); `None` where a triangle is in two materials' groups or none, or a
-/// material's group is no surface of the mesh: the whole mesh's [`build`] names the
-/// fault.
-pub fn body_runs(case: &Case, blocks: &[(usize, Vec<String>)]) -> Option<Vec<(u64, u32)>> {
-    if case.materials.iter().all(|b| b.group.is_none()) {
-        return Some(vec![(0, 0)]);
-    }
-    let surface = |g: &String| blocks.iter().any(|b| b.1.contains(g));
-    if !case
-        .materials
-        .iter()
-        .all(|m| m.group.as_ref().is_some_and(surface))
-    {
-        return None;
-    }
-    let mut runs: Vec<(u64, u32)> = Vec::new();
-    let mut first = 0u64;
-    for (count, names) in blocks {
-        let mut of = case
-            .materials
-            .iter()
-            .enumerate()
-            .filter(|(_, m)| m.group.as_ref().is_some_and(|g| names.contains(g)));
-        let (body, two) = (of.next()?.0 as u32, of.next());
-        if two.is_some() {
-            return None;
-        }
-        if *count > 0 && runs.last().is_none_or(|r| r.1 != body) {
-            runs.push((first, body));
-        }
-        first += *count as u64;
-    }
-    Some(runs)
-}
-
 /// The nodal forces of the case's tractions alone, one entry per dof of `mesh`.
 pub fn traction_load(case: &Case, mesh: &Mesh) -> Result<Vec<f64>> {
     let mut load = vec![0.0; 2 * mesh.num_nodes()];
@@ -670,9 +523,83 @@ pub fn traction_load(case: &Case, mesh: &Mesh) -> Result<Vec<f64>> {
 fn contact_geometry(
     case: &Case,
     mesh: &Mesh,
-    (boundary, thirds): (&HashSet<(usize, usize)>, Thirds),
+    boundary: &HashSet<(usize, usize)>,
 ) -> Result<ContactGeometry> {
-    // Per node: its weight in each obstacle contact whose group holds it.
+    let (weight, mut lengths) = contact_lines(case, mesh, boundary)?;
+    let obstacle = |i: usize| {
+        case.contacts[i]
+            .obstacle
+            .as_ref()
+            .expect("weights are kept for obstacle contacts only")
+    };
+    // A node in several groups (the corner between two sides) is one node of the contact
+    // whose obstacle is nearest (the first on a tie), with its weight in that group: one
+    // normal per node, the other obstacle's pressure there left to its neighbours.
+    let owner: HashMap<usize, (usize, f64)> = (weight.iter())
+        .map(|(&v, per)| {
+            let gap = |i: usize| obstacle(i).geometry(mesh.nodes[v]).gap;
+            let best = (per.iter().copied())
+                .min_by(|a, b| gap(a.0).total_cmp(&gap(b.0)).then(a.0.cmp(&b.0)))
+                .expect("a contact node has a contact");
+            (v, best)
+        })
+        .collect();
+    let rows = mortar_contacts(case, mesh, &owner)?;
+    // Summed in a fixed order, so that r does not depend on the order of the file's
+    // edges by a rounding (the loop's retunes can turn that into a sweep more or less).
+    lengths.sort_unstable_by(f64::total_cmp);
+    let total_len: f64 = lengths.iter().sum();
+    let contact_h = total_len / lengths.len() as f64;
+    let mut contact_nodes: Vec<usize> = owner.keys().chain(rows.keys()).copied().collect();
+    contact_nodes.sort_unstable();
+    let geometry: Vec<NodeGeometry> = (contact_nodes.iter())
+        .map(|v| match (owner.get(v), rows.get(v)) {
+            (Some(&(i, _)), _) => obstacle(i).geometry(mesh.nodes[*v]),
+            (None, Some((_, row, s))) => NodeGeometry {
+                normal: row.normal,
+                gap: row.gap,
+                s: *s,
+            },
+            (None, None) => unreachable!("a contact node is in a contact"),
+        })
+        .collect();
+    let contact_of = |v: &usize| owner.get(v).map_or_else(|| rows[v].0, |o| o.0);
+    let pair: Vec<u32> = contact_nodes.iter().map(|v| contact_of(v) as u32).collect();
+    let mut s: Vec<f64> = geometry.iter().map(|g| g.s).collect();
+    arc_positions(case, mesh, (&contact_nodes, &pair), &mut s);
+    let contact = ContactNodes {
+        w: (contact_nodes.iter())
+            .map(|v| owner.get(v).map_or_else(|| rows[v].1.w, |o| o.1))
+            .collect(),
+        g: geometry.iter().map(|g| g.gap).collect(),
+        s,
+        normal: geometry.iter().map(|g| g.normal).collect(),
+        pair,
+        friction: Vec::new(),
+        fixed_threshold: Vec::new(),
+        part: Vec::new(),
+    };
+    let masters: Vec<Vec<(usize, f64)>> = (contact_nodes.iter())
+        .map(|v| rows.get(v).map_or_else(Vec::new, |r| r.1.masters.clone()))
+        .collect();
+    let found = ContactGeometry {
+        nodes: contact_nodes,
+        contact,
+        h: contact_h,
+        masters,
+    };
+    check_overlap(case, mesh, &found)?;
+    Ok(found)
+}
+
+/// Per node, its weight in each obstacle contact whose group holds it; and the length of
+/// every contact edge. Refuses a contact group (slave or master) off the boundary.
+#[allow(clippy::type_complexity)]
+fn contact_lines(
+    case: &Case,
+    mesh: &Mesh,
+    boundary: &HashSet<(usize, usize)>,
+) -> Result<(HashMap<usize, Vec<(usize, f64)>>, Vec<f64>)> {
     let mut weight: HashMap<usize, Vec<(usize, f64)>> = HashMap::new();
     let mut lengths = Vec::new();
     for (i, c) in case.contacts.iter().enumerate() {
@@ -707,80 +634,37 @@ fn contact_geometry(
             }
         }
     }
-    let obstacle = |i: usize| {
-        case.contacts[i]
-            .obstacle
-            .as_ref()
-            .expect("weights are kept for obstacle contacts only")
-    };
-    // A node in several groups (the corner between two sides) is one node of the contact
-    // whose obstacle is nearest (the first on a tie), with its weight in that group: one
-    // normal per node, the other obstacle's pressure there left to its neighbours.
-    let owner: HashMap<usize, (usize, f64)> = (weight.iter())
-        .map(|(&v, per)| {
-            let gap = |i: usize| obstacle(i).geometry(mesh.nodes[v]).gap;
-            let best = (per.iter().copied())
-                .min_by(|a, b| gap(a.0).total_cmp(&gap(b.0)).then(a.0.cmp(&b.0)))
-                .expect("a contact node has a contact");
-            (v, best)
-        })
-        .collect();
-    let rows = mortar_contacts(case, mesh, &owner, thirds)?;
-    // Summed in a fixed order, so that r does not depend on the order of the file's
-    // edges by a rounding (the loop's retunes can turn that into a sweep more or less).
-    lengths.sort_unstable_by(f64::total_cmp);
-    let total_len: f64 = lengths.iter().sum();
-    let contact_h = total_len / lengths.len() as f64;
-    let mut contact_nodes: Vec<usize> = owner.keys().chain(rows.keys()).copied().collect();
-    contact_nodes.sort_unstable();
-    let geometry: Vec<NodeGeometry> = (contact_nodes.iter())
-        .map(|v| match (owner.get(v), rows.get(v)) {
-            (Some(&(i, _)), _) => obstacle(i).geometry(mesh.nodes[*v]),
-            (None, Some((_, row, s))) => NodeGeometry {
-                normal: row.normal,
-                gap: row.gap,
-                s: *s,
-            },
-            (None, None) => unreachable!("a contact node is in a contact"),
-        })
-        .collect();
-    let mut s: Vec<f64> = geometry.iter().map(|g| g.s).collect();
-    let contact_of = |v: &usize| owner.get(v).map_or_else(|| rows[v].0, |o| o.0);
+    Ok((weight, lengths))
+}
+
+/// The positions `s` along their obstacles of each obstacle contact's nodes (`nodes`,
+/// with their contacts `pair`), where the obstacle measures them along itself.
+fn arc_positions(case: &Case, mesh: &Mesh, (nodes, pair): (&[usize], &[u32]), s: &mut [f64]) {
     for (i, c) in case.contacts.iter().enumerate() {
         let Some(obstacle) = &c.obstacle else {
             continue;
         };
-        let mine: Vec<usize> = (0..contact_nodes.len())
-            .filter(|&k| contact_of(&contact_nodes[k]) == i)
+        let mine: Vec<usize> = (0..nodes.len())
+            .filter(|&k| pair[k] as usize == i)
             .collect();
-        let xs: Vec<[f64; 2]> = mine.iter().map(|&k| mesh.nodes[contact_nodes[k]]).collect();
+        let xs: Vec<[f64; 2]> = mine.iter().map(|&k| mesh.nodes[nodes[k]]).collect();
         if let Some(arc) = obstacle.arc_positions(&xs) {
             for (&k, a) in mine.iter().zip(arc) {
                 s[k] = a;
             }
         }
     }
-    let contact = ContactNodes {
-        w: (contact_nodes.iter())
-            .map(|v| owner.get(v).map_or_else(|| rows[v].1.w, |o| o.1))
-            .collect(),
-        g: geometry.iter().map(|g| g.gap).collect(),
-        s,
-        normal: geometry.iter().map(|g| g.normal).collect(),
-        pair: contact_nodes.iter().map(|v| contact_of(v) as u32).collect(),
-        friction: Vec::new(),
-        fixed_threshold: Vec::new(),
-        part: Vec::new(),
-    };
-    let masters: Vec<Vec<(usize, f64)>> = (contact_nodes.iter())
-        .map(|v| rows.get(v).map_or_else(Vec::new, |r| r.1.masters.clone()))
-        .collect();
-    // Round-off in mesh coordinates can put a touching node a hair below the line.
-    // (A gap that is not a number, from an obstacle far beyond the mesh's scale, is
-    // refused alike.) A mortar row's gap is a weighted mean over the slave segments
-    // (`contact::mortar`) between two polygons: where curved bodies touch, the chords'
-    // sag makes it slightly negative (about h^2 / R), which is the discrete geometry,
-    // not an overlap; one of a twentieth of the contact edges is refused.
+}
+
+/// Refuses a contact node already through its obstacle or master line. Round-off in mesh
+/// coordinates can put a touching node a hair below the line. (A gap that is not a
+/// number, from an obstacle far beyond the mesh's scale, is refused alike.) A mortar
+/// row's gap is a weighted mean over the slave segments (`contact::mortar`) between two
+/// polygons: where curved bodies touch, the chords' sag makes it slightly negative
+/// (about h^2 / R), which is the discrete geometry, not an overlap; one of a twentieth
+/// of the contact edges is refused.
+fn check_overlap(case: &Case, mesh: &Mesh, found: &ContactGeometry) -> Result<()> {
+    let (contact, masters, contact_h) = (&found.contact, &found.masters, found.h);
     let allowed = |k: usize| {
         let mortar = !masters[k].is_empty();
         if mortar {
@@ -789,35 +673,30 @@ fn contact_geometry(
             1e-9 * contact_h
         }
     };
-    if let Some(k) =
-        (0..contact_nodes.len()).find(|&k| contact.g[k].is_nan() || contact.g[k] < -allowed(k))
-    {
-        let x = mesh.nodes[contact_nodes[k]];
-        let c = &case.contacts[contact.pair[k] as usize];
-        let fix = match (&c.obstacle, &c.master) {
-            (Some(Obstacle::Line { .. }), _) => "move obstacle_point or check that obstacle_normal points from the foundation into the body (obstacle.point and obstacle.normal in a [[contact]] entry)".to_string(),
-            (Some(Obstacle::Circle { .. }), _) => "check the centre and the radius, and body = \"outside\" (the body outside the disc) or \"inside\" (in the hole)".to_string(),
-            (Some(Obstacle::Polyline { .. }), _) => "check the points, and body = \"left\" or \"right\" (the body's side walking from the first point to the last)".to_string(),
-            (None, m) => format!("the two bodies overlap there: mesh them apart or touching (master \"{}\")", m.as_deref().unwrap_or_default()),
-        };
-        return input(format!(
-            "{}: contact node at ({}, {}) already penetrates the {} by {} (contact \"{}\", {} {}); {fix}",
-            case.origin,
-            x[0],
-            x[1],
-            if c.obstacle.is_some() { "foundation" } else { "master body" },
-            -contact.g[k],
-            c.group,
-            if c.obstacle.is_some() { "obstacle type" } else { "against" },
-            c.obstacle.as_ref().map_or("a master line", Obstacle::kind)
-        ));
-    }
-    Ok(ContactGeometry {
-        nodes: contact_nodes,
-        contact,
-        h: contact_h,
-        masters,
-    })
+    let Some(k) =
+        (0..found.nodes.len()).find(|&k| contact.g[k].is_nan() || contact.g[k] < -allowed(k))
+    else {
+        return Ok(());
+    };
+    let x = mesh.nodes[found.nodes[k]];
+    let c = &case.contacts[contact.pair[k] as usize];
+    let fix = match (&c.obstacle, &c.master) {
+        (Some(Obstacle::Line { .. }), _) => "move obstacle_point or check that obstacle_normal points from the foundation into the body (obstacle.point and obstacle.normal in a [[contact]] entry)".to_string(),
+        (Some(Obstacle::Circle { .. }), _) => "check the centre and the radius, and body = \"outside\" (the body outside the disc) or \"inside\" (in the hole)".to_string(),
+        (Some(Obstacle::Polyline { .. }), _) => "check the points, and body = \"left\" or \"right\" (the body's side walking from the first point to the last)".to_string(),
+        (None, m) => format!("the two bodies overlap there: mesh them apart or touching (master \"{}\")", m.as_deref().unwrap_or_default()),
+    };
+    input(format!(
+        "{}: contact node at ({}, {}) already penetrates the {} by {} (contact \"{}\", {} {}); {fix}",
+        case.origin,
+        x[0],
+        x[1],
+        if c.obstacle.is_some() { "foundation" } else { "master body" },
+        -contact.g[k],
+        c.group,
+        if c.obstacle.is_some() { "obstacle type" } else { "against" },
+        c.obstacle.as_ref().map_or("a master line", Obstacle::kind)
+    ))
 }
 
 /// The weighted overlap of a mortar row accepted at the start, as a share of the mean
@@ -833,26 +712,19 @@ struct ContactGeometry {
 }
 
 /// Each segment of a line group with the unit normal out of the triangle it bounds.
-fn outward_segments(mesh: &Mesh, lines: &[[usize; 2]], thirds: Thirds) -> Result<Vec<Segment>> {
+fn outward_segments(mesh: &Mesh, lines: &[[usize; 2]]) -> Result<Vec<Segment>> {
     let key = |a: usize, b: usize| (a.min(b), a.max(b));
-    let in_mesh: EdgeThirds;
-    let thirds = match thirds {
-        Thirds::Found(found) => found,
-        Thirds::InMesh => {
-            let wanted: HashSet<(usize, usize)> = lines.iter().map(|&[a, b]| key(a, b)).collect();
-            let mut third = HashMap::with_capacity(lines.len());
-            for t in &mesh.triangles {
-                for e in 0..3 {
-                    let (a, b, c) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
-                    if wanted.contains(&key(a, b)) {
-                        third.insert(key(a, b), mesh.nodes[c]);
-                    }
-                }
+    let wanted: HashSet<(usize, usize)> = lines.iter().map(|&[a, b]| key(a, b)).collect();
+    // The third corner of the triangle on each edge, which turns its normal outward.
+    let mut thirds = HashMap::with_capacity(lines.len());
+    for t in &mesh.triangles {
+        for e in 0..3 {
+            let (a, b, c) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
+            if wanted.contains(&key(a, b)) {
+                thirds.insert(key(a, b), mesh.nodes[c]);
             }
-            in_mesh = third;
-            &in_mesh
         }
-    };
+    }
     (lines.iter())
         .map(|&[a, b]| {
             let (xa, xb) = (mesh.nodes[a], mesh.nodes[b]);
@@ -872,48 +744,6 @@ fn outward_segments(mesh: &Mesh, lines: &[[usize; 2]], thirds: Thirds) -> Result
         .collect()
 }
 
-/// Where the triangle on each contact line's edge has its third corner, which turns the
-/// edge's normal outward: among the mesh's triangles, or, on the groups' mesh, which has
-/// none (`build_on_groups`), as the ranks that hold the triangles found it, by the
-/// edge's ends (lower first).
-#[derive(Debug, Clone, Copy)]
-pub enum Thirds<'a> {
-    InMesh,
-    Found(&'a EdgeThirds),
-}
-
-/// Each edge's third corner ([`Thirds`]), by the edge's ends, lower first.
-pub type EdgeThirds = HashMap<(usize, usize), [f64; 2]>;
-
-/// The edges (node pairs, lower first) of the slave and master lines of every contact
-/// between two bodies: those whose triangles' third corners [`mortar_ties`] needs.
-pub fn tied_lines(case: &Case, mesh: &Mesh) -> Vec<(usize, usize)> {
-    let groups = (case.contacts.iter())
-        .filter(|c| c.master.is_some())
-        .flat_map(|c| [Some(&c.group), c.master.as_ref()])
-        .flatten();
-    let mut edges: Vec<(usize, usize)> = (groups.filter_map(|g| mesh.line_groups.get(g)))
-        .flatten()
-        .map(|&[a, b]| (a.min(b), a.max(b)))
-        .collect();
-    edges.sort_unstable();
-    edges.dedup();
-    edges
-}
-
-/// Each slave node of a contact between two bodies paired with each master node of its
-/// mortar row, on a mesh of the contacts' lines whose triangles are elsewhere (`thirds`):
-/// the ties the partition keeps together (`partition::partition_mesh_with_ties`).
-/// `None` where the rows cannot be found: the problem's build names the fault.
-pub fn mortar_ties(case: &Case, mesh: &Mesh, thirds: &EdgeThirds) -> Option<Vec<[usize; 2]>> {
-    let rows = mortar_contacts(case, mesh, &HashMap::new(), Thirds::Found(thirds)).ok()?;
-    let mut ties: Vec<[usize; 2]> = (rows.iter())
-        .flat_map(|(&s, (_, row, _))| row.masters.iter().map(move |&(m, _)| [s, m]))
-        .collect();
-    ties.sort_unstable();
-    Some(ties)
-}
-
 /// The mortar row of every slave node of every contact with a master line, by node: its
 /// contact, the row and its position along the contact (for pictures). Refuses a slave
 /// node that is also a node of an obstacle contact or of another master contact, a slave
@@ -923,7 +753,6 @@ fn mortar_contacts(
     case: &Case,
     mesh: &Mesh,
     obstacle_nodes: &HashMap<usize, (usize, f64)>,
-    thirds: Thirds,
 ) -> Result<HashMap<usize, (usize, MortarRow, f64)>> {
     let origin = &case.origin;
     let mut rows: HashMap<usize, (usize, MortarRow, f64)> = HashMap::new();
@@ -944,8 +773,8 @@ fn mortar_contacts(
         }
         let found = mortar_rows(
             &mesh.nodes,
-            &outward_segments(mesh, slave_lines, thirds)?,
-            &outward_segments(mesh, master_lines, thirds)?,
+            &outward_segments(mesh, slave_lines)?,
+            &outward_segments(mesh, master_lines)?,
         );
         if found.is_empty() {
             return input(format!(
@@ -994,11 +823,7 @@ fn per_dof<T: Copy + Send + Sync>(old_of: &[usize], v: &[T]) -> Vec<T> {
 /// messages name nodes and triangles in the file's numbering.
 fn in_locality_order(prob: Problem) -> Problem {
     let (mesh, numbering) = renumber::by_hilbert_curve(prob.mesh);
-    let renumber::Renumbering {
-        old_of,
-        new_of,
-        tri_old_of,
-    } = numbering;
+    let renumber::Renumbering { old_of, new_of, .. } = numbering;
     let fixed = per_dof(&old_of, &prob.fixed);
     // Contact nodes stay in increasing order, now the new one.
     let mut by_new: Vec<(usize, usize)> = (prob.contact_nodes.iter())
@@ -1021,9 +846,6 @@ fn in_locality_order(prob: Problem) -> Problem {
         contact_masters,
         contact_nodes: by_new.iter().map(|&(v, _)| v).collect(),
         file_node: old_of.par_iter().map(|&o| prob.file_node[o]).collect(),
-        file_triangle: (tri_old_of.par_iter())
-            .map(|&o| prob.file_triangle[o])
-            .collect(),
         mesh,
         fixed,
         ..prob
@@ -1104,7 +926,6 @@ pub fn check_held(
         dirichlet: holds.clone(),
         first: parts.first.iter().map(|f| f.1).collect(),
     };
-    let frictional = Problem::is_frictional(case);
     let rows: Vec<ContactHold> = (contact_nodes.iter().enumerate())
         .map(|(k, &node)| ContactHold {
             part: part[node],
@@ -1126,9 +947,6 @@ pub fn check_held(
         k[2] |= t[0];
         k[3] |= t[1];
     }
-    if holds.iter().all(|h| h.free().is_none()) {
-        return Ok((holding, parts_of));
-    }
     let Some((p, free)) = holds
         .iter()
         .enumerate()
@@ -1136,8 +954,31 @@ pub fn check_held(
     else {
         return Ok((holding, parts_of));
     };
+    let held = Held {
+        by: kinds[p],
+        on_body: touched[p][2],
+    };
+    Err(Error::Input(not_held(case, (mesh, parts), p, free, held)))
+}
+
+/// What holds a part that is not held: its kinds of conditions (ux fixed, uy fixed,
+/// contact along the normal, friction along the tangent), and whether a contact
+/// between bodies holds it.
+struct Held {
+    by: [bool; 4],
+    on_body: bool,
+}
+
+/// The message of [`check_held`] for part `p`, left `free` by what `held` it.
+fn not_held(
+    case: &Case,
+    (mesh, parts): (&Mesh, &Parts),
+    p: usize,
+    free: Free,
+    held: Held,
+) -> String {
     let origin = &case.origin;
-    let on_body = touched[p][2];
+    let count = parts.first.len();
     let body = if count == 1 {
         "the body".to_string()
     } else {
@@ -1155,20 +996,21 @@ pub fn check_held(
         "contact along obstacle_normal",
         "friction",
     ];
-    let held_by: Vec<&str> = (0..4).filter(|&k| kinds[p][k]).map(|k| names[k]).collect();
+    let held_by: Vec<&str> = (0..4).filter(|&k| held.by[k]).map(|k| names[k]).collect();
     let held_by = held_by.join(", ");
     let groups = format!("groups in the mesh: {}", mesh.group_names().join(", "));
-    let msg = match free {
+    let frictionless = held.by[2] && !Problem::is_frictional(case);
+    match free {
         Free::Everything => format!(
             "{origin}: {body} has no [[dirichlet]] condition and no contact node, so nothing holds it (singular problem); fix ux and uy on one of its groups with [[dirichlet]] ({groups})"
         ),
-        Free::Slide { along } if kinds[p][2] && !frictional && on_body => {
+        Free::Slide { along } if frictionless && held.on_body => {
             let comp = component(along);
             format!(
                 "{origin}: nothing stops {body} from sliding on the body it rests on (singular problem): frictionless contact holds it only along the contact normals and no [[dirichlet]] fixes {comp}; add a [[dirichlet]] with {comp} = 0.0 on a symmetry line or on one node (a point group), or use friction = \"tresca\" or \"coulomb\" ({groups})"
             )
         }
-        Free::Slide { along } if kinds[p][2] && !frictional => {
+        Free::Slide { along } if frictionless => {
             let comp = component(along);
             format!(
                 "{origin}: nothing stops {body} from sliding along the foundation (singular problem): frictionless contact holds it only along obstacle_normal and no [[dirichlet]] fixes {comp}; add a [[dirichlet]] with {comp} = 0.0 on a symmetry line or on one node (a point group), or use friction = \"tresca\" or \"coulomb\" ({groups})"
@@ -1188,8 +1030,7 @@ pub fn check_held(
             "{origin}: {body} can translate and rotate rigidly (singular problem): all its conditions ({held_by}) act along one line, through ({}, {}) along ({}, {}); fix both ux and uy, on a line group or at two separate nodes ({groups})",
             point[0], point[1], dir[0], dir[1]
         ),
-    };
-    Err(Error::Input(msg))
+    }
 }
 
 #[cfg(test)]
@@ -1222,55 +1063,6 @@ mod tests {
             })
             .collect();
         case
-    }
-
-    /// The file's numbering is the same problem: per node and triangle of the file, the
-    /// same conditions, contact geometry, bodies and loads (to the rounding of the body
-    /// force's sums), and the same figures.
-    #[test]
-    fn the_files_numbering_is_the_same_problem() {
-        for (name, level) in [("block", 1), ("hertz", 1), ("punch", 1)] {
-            let case = builtin_case(name, level).unwrap();
-            let (mesh, mesh_name) = crate::app::load_mesh(&case).unwrap();
-            let ordered = build(&case, mesh.clone(), &mesh_name).unwrap();
-            let file = build_numbered(&case, mesh, &mesh_name, Numbering::File).unwrap();
-            let n = file.mesh.num_nodes();
-            assert_eq!(file.file_node, (0..n).collect::<Vec<_>>(), "{name}");
-            assert_ne!(
-                ordered.file_node, file.file_node,
-                "{name}: nothing renumbered"
-            );
-            let scale = file.load.iter().fold(0.0f64, |m, f| m.max(f.abs()));
-            for (v, &f) in ordered.file_node.iter().enumerate() {
-                assert_eq!(ordered.mesh.nodes[v], file.mesh.nodes[f]);
-                for c in 0..2 {
-                    assert_eq!(ordered.fixed[2 * v + c], file.fixed[2 * f + c]);
-                    let (a, b) = (ordered.load[2 * v + c], file.load[2 * f + c]);
-                    assert!((a - b).abs() <= 1e-14 * scale, "{name}: load {a} {b}");
-                }
-            }
-            for (t, &f) in ordered.file_triangle.iter().enumerate() {
-                assert_eq!(ordered.body[t], file.body[f]);
-                let mut a = ordered.mesh.triangles[t].map(|v| ordered.file_node[v]);
-                let mut b = file.mesh.triangles[f];
-                a.sort_unstable();
-                b.sort_unstable();
-                assert_eq!(a, b, "{name}: triangle {f}");
-            }
-            // The contact nodes, each in its numbering's increasing order.
-            let by_file = |p: &Problem| {
-                let c = &p.contact;
-                let mut v: Vec<_> = (p.contact_nodes.iter().enumerate())
-                    .map(|(k, &v)| (p.file_node[v], c.w[k], c.g[k], c.normal[k], c.part[k]))
-                    .collect();
-                v.sort_by_key(|e| e.0);
-                v
-            };
-            assert_eq!(by_file(&ordered), by_file(&file), "{name}");
-            assert_eq!(ordered.lengths(), file.lengths(), "{name}");
-            assert_eq!(ordered.contact_bodies, file.contact_bodies);
-            assert_eq!(ordered.contact_h, file.contact_h);
-        }
     }
 
     #[test]
@@ -1348,95 +1140,5 @@ mod tests {
         };
         assert!(free_at_answer(&holding, &[unknown]).is_empty());
         assert!(free_at_answer(&Holding::default(), &[node(0.0, true, false)]).is_empty());
-    }
-
-    /// The fault of the materials found from the file's triangle blocks is the whole
-    /// problem's, message for message, the centroid taken from the named triangle.
-    #[test]
-    fn the_materials_fault_from_the_blocks_is_the_whole_problems() {
-        // Seven triangles of a strip, in four blocks: [a] 0-1, [a, b] 2-3, [c] 4-5, [] 6.
-        let nodes: Vec<[f64; 2]> = (0..9)
-            .map(|i| [f64::from(i / 2) * 0.7, f64::from(i % 2) * 1.3])
-            .collect();
-        let triangles: Vec<[usize; 3]> = (0..7)
-            .map(|t| match t % 2 {
-                0 => [t, t + 2, t + 1],
-                _ => [t, t + 1, t + 2],
-            })
-            .collect();
-        let blocks: Vec<(usize, Vec<String>)> = [
-            (2, vec!["a"]),
-            (2, vec!["a", "b"]),
-            (0, vec!["b"]),
-            (2, vec!["c"]),
-            (1, vec![]),
-        ]
-        .into_iter()
-        .map(|(n, g)| (n, g.into_iter().map(String::from).collect()))
-        .collect();
-        let mut mesh = Mesh {
-            nodes,
-            triangles,
-            ..Mesh::default()
-        };
-        let mut first = 0;
-        for (count, names) in &blocks {
-            for g in names {
-                let tris = mesh.surface_groups.entry(g.clone()).or_default();
-                tris.extend(first..first + count);
-            }
-            first += count;
-        }
-        mesh.line_groups.insert("edge".into(), vec![[0, 1]]);
-        let groups = Mesh {
-            nodes: Vec::new(),
-            triangles: Vec::new(),
-            surface_groups: (mesh.surface_groups.keys())
-                .map(|k| (k.clone(), Vec::new()))
-                .collect(),
-            ..mesh.clone()
-        };
-        let case_of = |groups: &[Option<&str>]| {
-            let mut case = builtin_case("block", 0).unwrap();
-            let material = case.materials[0].material;
-            case.materials = (groups.iter())
-                .map(|g| BodyMaterial {
-                    group: g.map(String::from),
-                    material,
-                })
-                .collect();
-            case
-        };
-        let centroid = |t: u64| {
-            let p = mesh.triangles[t as usize].map(|v| mesh.nodes[v]);
-            [0, 1].map(|c| (p[0][c] + p[1][c] + p[2][c]) / 3.0)
-        };
-        let mut faults = 0;
-        for materials in [
-            vec![None],
-            vec![Some("a")],
-            vec![Some("a"), Some("b")],
-            vec![Some("b"), Some("a")],
-            vec![Some("c"), Some("edge")],
-            vec![Some("c"), Some("z")],
-            vec![Some("c")],
-            vec![Some("a"), Some("c")],
-        ] {
-            let case = case_of(&materials);
-            let whole = bodies(&case, &mesh).err().map(|e| e.to_string());
-            let found = materials_fault(&case, &blocks, &groups)
-                .map(|(t, message)| message(t.map_or([f64::NAN; 2], centroid)));
-            assert_eq!(found, whole, "{materials:?}");
-            faults += usize::from(whole.is_some());
-        }
-        assert_eq!(faults, 7);
-        let groups = Mesh::default();
-        let found = materials_fault(&case_of(&[Some("a")]), &[], &groups).map(|f| f.1([0.0; 2]));
-        assert_eq!(
-            found,
-            bodies(&case_of(&[Some("a")]), &Mesh::default())
-                .err()
-                .map(|e| e.to_string())
-        );
     }
 }

@@ -18,7 +18,7 @@ use serde::Serialize;
 use std::sync::Mutex;
 use std::time::Instant;
 
-/// A timed phase of the run, or a figure timed inside one (the last four).
+/// A timed phase of the run, or a figure timed inside one (those after `Output`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Phase {
     Read,
@@ -41,9 +41,19 @@ pub enum Phase {
     OneSolve,
     /// Inside Output: this subdomain's own piece (its .vtu files and rows).
     Piece,
+    /// Inside Read: the mesh read from its file (or generated).
+    Mesh,
+    /// Inside Read: the problem built on the mesh (`problem::build`).
+    Problem,
+    /// Inside Partition: the graph the cut reads.
+    Graph,
+    /// Inside Partition: the cut.
+    Cut,
+    /// Inside Partition: the split along the cut into subproblems.
+    Split,
 }
 
-const PHASES: usize = Phase::Piece as usize + 1;
+const PHASES: usize = Phase::Split as usize + 1;
 
 /// The phases of the table, in the order they run.
 pub const TABLE: [Phase; 9] = [
@@ -75,6 +85,11 @@ impl Phase {
             Phase::Schur => "schur",
             Phase::OneSolve => "one solve",
             Phase::Piece => "piece",
+            Phase::Mesh => "mesh",
+            Phase::Problem => "problem",
+            Phase::Graph => "graph",
+            Phase::Cut => "cut",
+            Phase::Split => "split",
         }
     }
 }
@@ -153,6 +168,13 @@ impl Timer {
         self.spent()[phase as usize]
     }
 
+    /// The seconds of `phases` as a phase's line shows its parts: "mesh 0.012 s,
+    /// problem 0.034 s".
+    pub fn figure(&self, phases: &[Phase]) -> String {
+        let part = |&p: &Phase| format!("{} {:.3} s", p.name(), self.seconds(p));
+        phases.iter().map(part).collect::<Vec<_>>().join(", ")
+    }
+
     /// The phases of the table and the total since the start, read once.
     pub fn finish(&self) -> Timings {
         let s = |p: Phase| self.seconds(p);
@@ -225,7 +247,7 @@ impl Timings {
             Phase::Loop => self.uzawa,
             Phase::Recover => self.recover,
             Phase::Output => self.output,
-            Phase::Ordering | Phase::Schur | Phase::OneSolve | Phase::Piece => 0.0,
+            _ => 0.0,
         }
     }
 }

@@ -5,10 +5,10 @@
 //! body forces, inclined and oblique obstacles, friction and none, two bodies in contact
 //! with mortar rows) and the built-in cases.
 
-use contact_par::app::load_mesh;
 use contact_par::case::{builtin_case, parse_case, Case};
 use contact_par::dd::split::{split, split_whole};
 use contact_par::problem::{self, Problem};
+use contact_par::setup::load_mesh;
 use std::path::Path;
 
 fn data(dir: &str) -> std::path::PathBuf {

@@ -398,25 +398,15 @@ pub fn partition_mesh_with_ties(
     graph.finish(triangles, contact_nodes, nparts, element_part)
 }
 
-/// A mesh's dual graph, ties included (see [`partition_mesh_with_ties`]), to be cut by
-/// a partitioner elsewhere (one that runs on several processes), and what the ownership
-/// rules need afterwards ([`MeshGraph::finish`]). [`partition_mesh_with_ties`] is
-/// [`MeshGraph::new`], this crate's partition of [`MeshGraph::csr`], then `finish`.
+/// A mesh's dual graph, ties included (see [`partition_mesh_with_ties`]), to be cut
+/// (METIS, [`MeshGraph::cut`], or straight cuts, [`MeshGraph::cut_straight`]), and what
+/// the ownership rules need afterwards ([`MeshGraph::finish`]).
+/// [`partition_mesh_with_ties`] is [`MeshGraph::new`], `cut`, then `finish`.
 pub struct MeshGraph {
     triangles: usize,
     mesh: Connectivity,
     /// The graph to cut (the dual graph with the ties); `None` for one part.
     graph: Option<Graph>,
-}
-
-/// A graph in CSR form with 32-bit indices: the neighbours of vertex `v` are
-/// `adjncy[xadj[v]..xadj[v + 1]]`; absent weights are all 1.
-#[derive(Debug, Clone, Copy)]
-pub struct Csr<'a> {
-    pub xadj: &'a [i32],
-    pub adjncy: &'a [i32],
-    pub adjwgt: Option<&'a [i32]>,
-    pub vwgt: Option<&'a [i32]>,
 }
 
 impl MeshGraph {
@@ -460,17 +450,6 @@ impl MeshGraph {
             triangles: triangles.len(),
             mesh,
             graph,
-        })
-    }
-
-    /// The graph to cut: vertex `e` is triangle `e`. `None` without a graph.
-    pub fn csr(&self) -> Option<Csr<'_>> {
-        let g = self.graph.as_ref()?;
-        Some(Csr {
-            xadj: &g.xadj,
-            adjncy: &g.adjncy,
-            adjwgt: g.adjwgt.as_deref(),
-            vwgt: g.vwgt.as_deref(),
         })
     }
 
@@ -548,34 +527,6 @@ impl MeshGraph {
         element_part: Vec<u32>,
     ) -> Result<Partition, PartitionError> {
         self.finish_with(triangles, contact_nodes, nparts, element_part, Counted::No)
-    }
-
-    /// [`MeshGraph::finish`] for parts cut where the graph was built too (on the
-    /// ranks, from their shares of the mesh file): `self` holds no graph
-    /// ([`MeshGraph::new`] without one), and `edge_cut` is the cut the ranks counted.
-    /// The quality's pieces are then those of triangles joined through shared nodes
-    /// (two triangles of a part that touch at a vertex only count as one piece).
-    ///
-    /// # Errors
-    /// As [`MeshGraph::finish`].
-    ///
-    /// # Panics
-    /// If `element_part.len() != triangles.len()`.
-    pub fn finish_cut(
-        self,
-        triangles: &[[usize; 3]],
-        contact_nodes: &[usize],
-        nparts: usize,
-        element_part: Vec<u32>,
-        edge_cut: usize,
-    ) -> Result<Partition, PartitionError> {
-        self.finish_with(
-            triangles,
-            contact_nodes,
-            nparts,
-            element_part,
-            Counted::Elsewhere(edge_cut),
-        )
     }
 
     fn finish_with(
@@ -1043,7 +994,6 @@ fn build_partition(
         interface_nodes,
         match counted {
             Counted::Connected(cut) => Pieces::Connected(cut),
-            Counted::Elsewhere(cut) => Pieces::Stars(stars, cut),
             Counted::No => match &mesh.graph {
                 Some(g) => Pieces::Graph(g),
                 None => Pieces::Nodes(triangles),
@@ -1063,8 +1013,6 @@ fn build_partition(
 enum Counted {
     /// Nothing.
     No,
-    /// The edges cut, on a graph the caller does not hold.
-    Elsewhere(usize),
     /// The edges cut, and every part in one piece.
     Connected(usize),
 }
@@ -1075,8 +1023,6 @@ enum Pieces<'a> {
     Connected(usize),
     /// The dual graph: each part's edge-connected pieces, the edges cut.
     Graph(&'a Graph),
-    /// A cut counted elsewhere, and each part's pieces joined through shared nodes.
-    Stars(&'a Stars, usize),
     /// One part and no graph: the mesh's pieces joined through shared nodes
     /// ([`node_pieces`]), and no cut.
     Nodes(&'a [[usize; 3]]),
@@ -1092,7 +1038,6 @@ fn quality(
     let (pieces, edge_cut) = match from {
         Pieces::Connected(cut) => (vec![1; nparts], cut),
         Pieces::Graph(graph) => pieces_and_cut(graph, nparts, |e| element_part[e]),
-        Pieces::Stars(stars, cut) => (part_node_pieces(stars, element_part, nparts), cut),
         Pieces::Nodes(triangles) => {
             debug_assert_eq!(nparts, 1);
             return Quality::one_part(element_part.len(), node_pieces(triangles));
@@ -1117,43 +1062,6 @@ fn quality(
         neighbours: parts.iter().map(|p| p.neighbours.len()).collect(),
         disconnected_parts: pieces.iter().filter(|&&c| c > 1).count(),
     }
-}
-
-/// Each part's pieces of triangles joined through shared nodes: around each node the
-/// triangles of one part are joined (union-find over the triangles).
-fn part_node_pieces(stars: &Stars, element_part: &[u32], nparts: usize) -> Vec<usize> {
-    fn root(parent: &mut [usize], mut x: usize) -> usize {
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
-        }
-        x
-    }
-    let mut parent: Vec<usize> = (0..element_part.len()).collect();
-    for n in 0..stars.num_nodes() {
-        let star = stars.of(n);
-        for (k, &t) in star.iter().enumerate() {
-            let t = t as usize;
-            // Joined to the star's first triangle of the same part.
-            let Some(&u) = star[..k]
-                .iter()
-                .find(|&&u| element_part[u as usize] == element_part[t])
-            else {
-                continue;
-            };
-            let (a, b) = (root(&mut parent, u as usize), root(&mut parent, t));
-            if a != b {
-                parent[a.max(b)] = a.min(b);
-            }
-        }
-    }
-    let mut pieces = vec![0usize; nparts];
-    for t in 0..element_part.len() {
-        if parent[t] == t {
-            pieces[element_part[t] as usize] += 1;
-        }
-    }
-    pieces
 }
 
 /// The number of pieces of a mesh whose triangles are joined through shared nodes

@@ -89,13 +89,6 @@ impl Team {
         let copies = value.map(|v| vec![v; self.size]);
         self.scatter(me, copies)
     }
-
-    /// Returns once every member has called it (asleep meanwhile).
-    pub fn barrier(&self) {
-        if self.size > 1 {
-            self.barrier.wait();
-        }
-    }
 }
 
 fn take_as<T: 'static>(slot: &mut Option<Box<dyn Any + Send>>) -> T {
@@ -121,6 +114,8 @@ pub struct Mpi {
     /// The MPI rank and the number of ranks.
     pub mpi_rank: usize,
     pub mpi_size: usize,
+    /// Whether MPI granted MPI_THREAD_FUNNELED (or more): what subdomain threads need.
+    pub funneled: bool,
     team: Arc<Team>,
     member: usize,
 }
@@ -248,6 +243,7 @@ pub struct Membership {
     mpi_rank: usize,
     mpi_size: usize,
     node_ranks: usize,
+    funneled: bool,
 }
 
 impl Reduce for Mpi {
@@ -267,8 +263,9 @@ impl Reduce for Mpi {
 }
 
 impl Mpi {
-    /// One subdomain per rank (the set-up, before any team exists).
-    pub fn new(world: SimpleCommunicator) -> Self {
+    /// One subdomain per rank (the set-up, before any team exists); `funneled`: the
+    /// thread level MPI granted.
+    pub fn new(world: SimpleCommunicator, funneled: bool) -> Self {
         let rank = world.rank() as usize;
         let size = world.size() as usize;
         let node_ranks = Self::ranks_on_node(&world);
@@ -279,6 +276,7 @@ impl Mpi {
             node_ranks,
             mpi_rank: rank,
             mpi_size: size,
+            funneled,
             team: Team::new(1),
             member: 0,
         }
@@ -298,6 +296,7 @@ impl Mpi {
                 mpi_rank: self.mpi_rank,
                 mpi_size: self.mpi_size,
                 node_ranks,
+                funneled: self.funneled,
             })
             .collect();
         let leader = Mpi {
@@ -307,6 +306,7 @@ impl Mpi {
             node_ranks,
             mpi_rank: self.mpi_rank,
             mpi_size: self.mpi_size,
+            funneled: self.funneled,
             team,
             member: 0,
         };
@@ -323,6 +323,7 @@ impl Mpi {
             node_ranks: m.node_ranks,
             mpi_rank: m.mpi_rank,
             mpi_size: m.mpi_size,
+            funneled: m.funneled,
             team: m.team,
             member: m.member,
         }
@@ -450,124 +451,6 @@ impl Mpi {
             all
         });
         *out = all;
-    }
-
-    /// Whether `ok` holds on every subdomain: a vote without a message, for work that
-    /// every rank falls back from together (the shared reading of a mesh file).
-    pub fn all_ok(&self, ok: bool) -> bool {
-        if self.size == 1 {
-            return ok;
-        }
-        self.leader_then_all(ok, |s, parts| {
-            let mine = parts.iter().all(|&ok| ok);
-            if s.mpi_size == 1 {
-                return mine;
-            }
-            Leader { mpi: s }.all_true(mine)
-        })
-    }
-
-    /// Every rank's `local` (`counts[r]` values from rank r), concatenated in rank order
-    /// on the first rank, `None` on the others: one MPI_Gatherv. For the set-up, before
-    /// any team exists (one subdomain per rank).
-    pub fn gather_varcount<T>(&self, local: &[T], counts: &[usize]) -> Option<Vec<T>>
-    where
-        T: mpi::datatype::Equivalence + Copy + Default,
-    {
-        assert_eq!(
-            self.per_rank(),
-            1,
-            "gather_varcount: one subdomain per rank"
-        );
-        debug_assert_eq!(counts.get(self.mpi_rank), Some(&local.len()));
-        if self.mpi_size == 1 {
-            return Some(local.to_vec());
-        }
-        let root = self.world().process_at_rank(0);
-        if self.is_root() {
-            let mut all = vec![T::default(); counts.iter().sum()];
-            let (c, d) = counts_displs(counts);
-            let mut part = PartitionMut::new(&mut all[..], &c[..], &d[..]);
-            root.gather_varcount_into_root(local, &mut part);
-            Some(all)
-        } else {
-            count_sent(std::mem::size_of_val(local));
-            root.gather_varcount_into(local);
-            None
-        }
-    }
-
-    /// Every rank's `n`, in rank order. For the set-up (one subdomain per rank).
-    pub fn all_gather_counts(&self, n: usize) -> Vec<usize> {
-        assert_eq!(
-            self.per_rank(),
-            1,
-            "all_gather_counts: one subdomain per rank"
-        );
-        if self.mpi_size == 1 {
-            return vec![n];
-        }
-        let all = Leader { mpi: self }.all_gather_u64(n as u64);
-        all.into_iter().map(|c| c as usize).collect()
-    }
-
-    /// [`Leader::exchange`] for the set-up (one subdomain per rank).
-    pub fn exchange<T>(&self, send: Vec<Vec<T>>) -> Vec<Vec<T>>
-    where
-        T: mpi::datatype::Equivalence + Copy + Default,
-    {
-        assert_eq!(self.per_rank(), 1, "exchange: one subdomain per rank");
-        Leader { mpi: self }.exchange(send)
-    }
-
-    /// The first rank's `all` cut by `counts` (rank r receives `counts[r]` values, in
-    /// rank order; `all` is ignored elsewhere): one MPI_Scatterv. For the set-up, before
-    /// any team exists (one subdomain per rank).
-    pub fn scatter_varcount<T>(&self, all: Option<&[T]>, counts: &[usize]) -> Vec<T>
-    where
-        T: mpi::datatype::Equivalence + Copy + Default,
-    {
-        assert_eq!(
-            self.per_rank(),
-            1,
-            "scatter_varcount: one subdomain per rank"
-        );
-        let mut mine = vec![T::default(); counts[self.mpi_rank]];
-        if self.mpi_size == 1 {
-            mine.copy_from_slice(all.expect("the first rank's values"));
-            return mine;
-        }
-        let root = self.world().process_at_rank(0);
-        if self.is_root() {
-            let all = all.expect("the first rank's values");
-            let (c, d) = counts_displs(counts);
-            count_sent(std::mem::size_of_val(all) - std::mem::size_of_val(&mine[..]));
-            let part = Partition::new(all, &c[..], &d[..]);
-            root.scatter_varcount_into_root(&part, &mut mine[..]);
-        } else {
-            root.scatter_varcount_into(&mut mine[..]);
-        }
-        mine
-    }
-
-    /// The parts of the vertices of a graph spread over the ranks (rank r holds the
-    /// r-th consecutive range, see [`ptscotch::LocalGraph`]), cut into `nparts` parts by
-    /// PT-Scotch on every rank at once. Collective; one subdomain per rank.
-    pub fn part_graph(
-        &self,
-        graph: ptscotch::LocalGraph<'_>,
-        nparts: usize,
-        imbalance: f64,
-    ) -> Result<Vec<i32>> {
-        assert_eq!(self.per_rank(), 1, "part_graph: one subdomain per rank");
-        ptscotch::part(
-            self.world().as_raw(),
-            self.mpi_size,
-            graph,
-            nparts,
-            imbalance,
-        )
-        .map_err(|e| Error::Numerical(format!("the partition on {} ranks: {e}", self.mpi_size)))
     }
 
     /// Concatenation over subdomains of `local`, on the first subdomain only.
@@ -735,12 +618,6 @@ impl Mpi {
             }
         });
         self.team.scatter(self.member, team_values)
-    }
-
-    /// The leader's `values` (one per member of its team, on the leader), each to its
-    /// member: nothing crosses ranks.
-    pub fn deal<T: Send + 'static>(&self, values: Option<Vec<T>>) -> T {
-        self.team.scatter(self.member, values)
     }
 
     /// Sends a value from the first subdomain to every other one.
@@ -981,7 +858,6 @@ mod tests {
                     seen.push(team.scatter(me, values));
                     let b = team.broadcast(me, (me == 0).then(|| vec![round; 3]));
                     assert_eq!(b, vec![round; 3]);
-                    team.barrier();
                 }
                 seen
             });
@@ -1019,6 +895,7 @@ mod tests {
                             mpi_rank: 0,
                             mpi_size: 1,
                             node_ranks: k,
+                            funneled: true,
                         });
                         f(&mpi, value)
                     })

@@ -363,9 +363,8 @@ fn unshifted_gram(l: faer::MatRef<'_, f64>, shifted_from: usize, alpha: f64) -> 
 
 /// Share of the boundary dofs up to which a changed boundary block is updated in place
 /// rather than refactored: k rank-one updates cost about k b^2 flops at a lower rate than
-/// the b^3 / 3 of a blocked factorization. Measured at b = 1000: refactoring 11.6 ms;
-/// updating 4.6 ms at k = 2 (mostly the copy of the block), 5.5 ms at k = 62, 10.9 ms at
-/// k = 125. A retune after the first moves 1-10 directions of hundreds to thousands.
+/// the b^3 / 3 of a blocked factorization; the two meet near k = b / 8. A retune after
+/// the first moves a few directions of hundreds to thousands.
 const LOW_RANK_MAX_SHARE: f64 = 1.0 / 16.0;
 
 /// Entries (i, j, v) as a map on the lower triangle (i >= j), duplicates summed.

@@ -4,10 +4,11 @@
 //! that calls MPI.
 //!
 //! ## Scheme
-//! Rank 0 partitions the mesh (METIS on the dual graph, or every rank with PT-Scotch,
-//! `--partitioner`) into P = ranks x K subdomains
-//! and sends each rank its K (K = `--subdomains-per-rank`, one per thread by default:
-//! `host::subdomains_per_rank`); a rank runs each of its subdomains on a thread of its
+//! Rank 0 partitions the mesh (straight cuts, METIS where they leave a part in pieces:
+//! `setup::from_file`) into P = ranks x K subdomains and sends each rank its K, or each
+//! subdomain reads its own from a split directory (`setup::split_dir`); K =
+//! `--subdomains-per-rank`, one per thread by default (`host::subdomains_per_rank`); a
+//! rank runs each of its subdomains on a thread of its
 //! own, and `comm` makes every collective one over subdomains. Below, "rank" stands for
 //! "subdomain". The boundary dofs B_s of a rank are its contact dofs c_s (own contact
 //! nodes that no other part touches) followed by its interface dofs g_s. Each rank
@@ -22,8 +23,9 @@
 //! sparse one (AMD ordering) when that needs at most half the work. With two
 //! subdomains each part covers all of S', which is then dense; with many, each part
 //! covers the interfaces of one subdomain only, and S' is a sum of overlapping dense
-//! blocks whose sparse factor is cheaper (hertz level 5, 8 subdomains: 97 Gflop
-//! against 240 for the dense factor of its 8967 dofs).
+//! blocks whose sparse factor is cheaper. With `--interface mumps` the interface
+//! system is instead assembled where its parts are and factored across the ranks
+//! (`interface_mumps`).
 //!
 //! A contact dof belongs to one subdomain, so the contact dofs are eliminated rank by
 //! rank, in parallel, and rank 0's dense work depends on the interface only. One sweep
@@ -34,10 +36,6 @@
 //! every rank holds its boundary values and recovers its interior with one sparse
 //! solve. Everything is a direct method: the iterates are those of the one-rank solver
 //! up to round-off, whatever the rank count.
-//!
-//! The earlier design summed the Schur complements on all of B on rank 0 and factored
-//! it there: (n_c + n_G)^3 / 3 serial flops (97 Gflop, 6.8 s, at block level 6 on two
-//! ranks, where n_c = 5122 of n_B = 6622) against n_G^3 / 3 now (1.1 Gflop).
 //!
 //! ## Cost model (rank s: n_s dofs, c_s contact and g_s interface dofs, b_s = c_s + g_s,
 //! nnz(L_s) factor entries; n_G = distinct interface dofs; m = Anderson memory)
@@ -50,31 +48,23 @@
 //! | condensed loads (each rank) | the forward half of a sparse solve, 2 nnz(L_s), + b_s^2 | n_s | - |
 //! | interface part L_gg L_gg' (each rank) | g_s^3 / 3 | g_s^2 | one message of g_s^2 doubles to rank 0 |
 //! | interface factor (rank 0, on every core of its node's ranks while they sleep) | n_G^3 / 3 dense, or the sparse factor's (`interface_gflop` in summary.json) when at most half that | n_G^2, or nnz(L_G) | - |
-//! | one sweep | each rank: 2 c_s^2 + 4 c_s g_s + O(own contact nodes); rank 0: 2 n_G^2, or 4 nnz(L_G) | - | MPI_Gatherv + MPI_Scatterv of the interface values (sum g_s values), one MPI_Allreduce of 21 + m(m+1)/2 + m doubles (the loop's 17 named sums, the squared fixed-point residual and the secant's three norms, then the Anderson Gram matrix and right-hand side; see `contact::uzawa`); with one rank, no interface and only the allreduce |
+//! | one sweep | each rank: 2 c_s^2 + 4 c_s g_s + O(own contact nodes); rank 0: 2 n_G^2, or 4 nnz(L_G) | - | MPI_Gatherv + MPI_Scatterv of the interface values (sum g_s values), and the loop's one MPI_Allreduce (its size: `contact::uzawa`, "Communication per sweep"); with one rank, no interface and only the allreduce |
 //! | recovery | each rank: the backward half of a sparse solve, 2 nnz(L_s), + b_s^2 (the forward half is kept from the condensed loads) | - | - |
 //!
 //! The sweep is independent of the mesh size beyond the contact boundary and the
 //! interface: against one sparse forward+backward solve (4 nnz(L) flops, nnz(L) ~ 50-150
-//! per dof in 2D) it is cheaper by about 4 nnz(L) / (2 c^2 + 4 c g); e.g. block level 6 on
-//! one rank, c = 5122: 2.1e9 vs 5.2e7 flops. Measured figures are in summary.json
-//! (`sweep_s` against `one_solve_s`) and in the notes of the performance issue.
+//! per dof in 2D) it is cheaper by about 4 nnz(L) / (2 c^2 + 4 c g). Measured figures
+//! are in summary.json (`sweep_s` against `one_solve_s`).
 //!
-//! Limits: the interface system is held and factored by rank 0 (n_G^2 doubles dense,
-//! less sparse): fine for the interfaces of meshes of tens of millions of nodes on tens
-//! of ranks (n_G = 20 000 is 3.2 GB dense); for hundreds of ranks it would need a
-//! distributed factorization or a third level, which is not built.
+//! Limits: with `--interface rank0` the interface system is held and factored by rank 0
+//! (n_G^2 doubles dense, less sparse): fine for tens of ranks (n_G = 20 000 is 3.2 GB
+//! dense); beyond, `--interface mumps` (the default from 16 subdomains) factors it
+//! across the ranks (docs/cost-model.md).
 
 pub mod comm;
 pub mod condense;
-pub mod dist_check;
-pub mod dist_graph;
-pub mod dist_problem;
-pub mod dist_split;
 pub mod full;
 pub mod interface_mumps;
 pub mod local_factor;
-pub mod locality;
-pub mod ownership;
-pub mod share_cut;
 pub mod split;
 pub mod step;

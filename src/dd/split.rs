@@ -252,8 +252,8 @@ fn masters_of(prob: &Problem, k: usize) -> &[(usize, f64)] {
 /// [`split`] into one part, `prob`'s arrays moved rather than copied: the one subdomain
 /// of a one-rank run is the whole problem in its own numbering (every node is on a
 /// triangle, which the problem's checks make sure of), with its contact dofs for B and
-/// no interface. On a one-rank run of a million nodes the copy, the node stars and the
-/// ownership pass of the general split took 0.25 s on its one thread.
+/// no interface, without the copy, the node stars and the ownership pass of the general
+/// split.
 pub fn split_whole(prob: Problem, frictional: bool) -> (SubProblem, GlobalMap) {
     let reads = ContactReads::of(&prob, frictional);
     let nc = prob.contact_nodes.len();
@@ -303,35 +303,60 @@ pub fn split(
     part: &Partition,
     frictional: bool,
 ) -> Result<(Vec<SubProblem>, GlobalMap)> {
-    let n = prob.mesh.num_nodes();
-    let nparts = part.nparts;
     let reads = ContactReads::of(prob, frictional);
-    let ContactReads {
-        is_contact,
-        frame,
-        is_master,
-        ..
-    } = &reads;
-    let masters = |k: usize| masters_of(prob, k);
-    let mut on_interface = vec![false; n];
+    let (ghosts, on_interface) = ghosts(prob, part, &reads.is_master);
+    let (interface_index, n_interface, n_boundary) = number_boundary(prob, &reads, &on_interface);
+    let mut contact_by_rank: Vec<Vec<usize>> = vec![Vec::new(); part.nparts];
+    for (k, &c) in prob.contact_nodes.iter().enumerate() {
+        contact_by_rank[part.node_owner[c] as usize].push(k);
+    }
+    let split = Splitter {
+        prob,
+        part,
+        reads,
+        ghosts,
+        interface_index,
+        contact_by_rank,
+    };
+    // Each part on a thread of the pool, with a scratch map from global to local node
+    // numbers per thread: a part of a large mesh takes tens of milliseconds, and the
+    // other ranks wait for the first rank's split.
+    let n = prob.mesh.num_nodes();
+    let subs = (part.parts.par_iter().enumerate())
+        .map_init(
+            || vec![usize::MAX; n],
+            |local_of, (r, p)| split.sub(local_of, r, p),
+        )
+        .collect::<Result<Vec<SubProblem>>>()?;
+    let contact_counts = split.contact_by_rank.iter().map(Vec::len).collect();
+    let map = GlobalMap {
+        n_interface,
+        n_boundary,
+        contact_counts,
+    };
+    Ok((subs, map))
+}
+
+/// Each part's ghosts (the master nodes of its own contact rows that it does not hold:
+/// `SubProblem::ghosts`, sorted), and which nodes are on the interface: the parts'
+/// interface nodes and every ghost.
+fn ghosts(prob: &Problem, part: &Partition, is_master: &[bool]) -> (Vec<Vec<usize>>, Vec<bool>) {
+    let mut on_interface = vec![false; prob.mesh.num_nodes()];
     for p in &part.parts {
         for &v in &p.interface {
             on_interface[v] = true;
         }
     }
-    // A master node held by another part than its slave's owner is a ghost there
-    // (`SubProblem::ghosts`), and an interface node everywhere.
-    let owner = |v: usize| part.node_owner[v] as usize;
     let mut holders: std::collections::HashMap<usize, Vec<usize>> = Default::default();
     for (r, p) in part.parts.iter().enumerate() {
         for &v in p.nodes.iter().filter(|&&v| is_master[v]) {
             holders.entry(v).or_default().push(r);
         }
     }
-    let mut ghosts: Vec<Vec<usize>> = vec![Vec::new(); nparts];
+    let mut ghosts: Vec<Vec<usize>> = vec![Vec::new(); part.nparts];
     for (k, &c) in prob.contact_nodes.iter().enumerate() {
-        let r = owner(c);
-        for &(v, _) in masters(k) {
+        let r = part.node_owner[c] as usize;
+        for &(v, _) in masters_of(prob, k) {
             if !holders[&v].contains(&r) {
                 ghosts[r].push(v);
                 on_interface[v] = true;
@@ -342,15 +367,23 @@ pub fn split(
         g.sort_unstable();
         g.dedup();
     }
-    // Each interface dof's number plus one (0: none), numbered by node then component;
-    // zeroed memory, so the vector costs nothing where it is not written. The loop runs
-    // over the interface and contact nodes alone.
+    (ghosts, on_interface)
+}
+
+/// Each interface dof's number plus one (0: none), numbered by node then component, and
+/// the counts of interface and boundary dofs. Zeroed memory, so the vector costs nothing
+/// where it is not written; the loop runs over the interface and contact nodes alone.
+fn number_boundary(
+    prob: &Problem,
+    reads: &ContactReads,
+    on_interface: &[bool],
+) -> (Vec<[u32; 2]>, usize, usize) {
+    let n = prob.mesh.num_nodes();
     let mut interface_index = vec![[0u32; 2]; n];
-    let mut n_interface = 0;
-    let mut n_boundary = 0;
+    let (mut n_interface, mut n_boundary) = (0, 0);
     let boundary_nodes: Vec<usize> = (0..n)
         .into_par_iter()
-        .filter(|&v| on_interface[v] || is_contact[v])
+        .filter(|&v| on_interface[v] || reads.is_contact[v])
         .collect();
     for v in boundary_nodes {
         for c in 0..2 {
@@ -366,75 +399,81 @@ pub fn split(
             }
         }
     }
+    (interface_index, n_interface, n_boundary)
+}
 
-    let mut contact_by_rank: Vec<Vec<usize>> = vec![Vec::new(); nparts];
-    for (k, &c) in prob.contact_nodes.iter().enumerate() {
-        contact_by_rank[owner(c)].push(k);
-    }
+/// What every part's subproblem is cut from ([`split`]).
+struct Splitter<'a> {
+    prob: &'a Problem,
+    part: &'a Partition,
+    reads: ContactReads,
+    ghosts: Vec<Vec<usize>>,
+    /// [`number_boundary`]'s.
+    interface_index: Vec<[u32; 2]>,
+    /// Each part's own contact nodes (indices into the problem's).
+    contact_by_rank: Vec<Vec<usize>>,
+}
 
-    // Each part on a thread of the pool, with a scratch map from global to local node
-    // numbers per thread: a part of a large mesh takes tens of milliseconds, and the
-    // other ranks wait for the first rank's split.
-    let one = |local_of: &mut Vec<usize>, (r, p): (usize, &partition::Part)| {
-        let all_nodes: Vec<usize> = p.nodes.iter().chain(&ghosts[r]).copied().collect();
+/// A part's dofs: each one's prescribed value and load, its contact dofs for B and its
+/// interface dofs with their global numbers.
+struct PartDofs {
+    fixed: Vec<Option<f64>>,
+    load: Vec<f64>,
+    boundary_dofs: Vec<usize>,
+    interface: Vec<(usize, usize)>,
+}
+
+impl Splitter<'_> {
+    /// Part `r`'s subproblem; `local_of` is a scratch map from global to local nodes,
+    /// all `usize::MAX`, and left so.
+    fn sub(&self, local_of: &mut [usize], r: usize, p: &partition::Part) -> Result<SubProblem> {
+        let prob = self.prob;
+        let all_nodes: Vec<usize> = p.nodes.iter().chain(&self.ghosts[r]).copied().collect();
         for (l, &g) in all_nodes.iter().enumerate() {
             local_of[g] = l;
         }
-        let triangles: Vec<[usize; 3]> = p
-            .elements
-            .iter()
-            .map(|&e| prob.mesh.triangles[e].map(|g| local_of[g]))
-            .collect();
         let owned: Vec<bool> = (all_nodes.iter().enumerate())
-            .map(|(l, &g)| l < p.nodes.len() && owner(g) == r)
+            .map(|(l, &g)| l < p.nodes.len() && self.part.node_owner[g] as usize == r)
             .collect();
-        let mut fixed = Vec::with_capacity(2 * p.nodes.len());
-        let mut load = Vec::with_capacity(2 * p.nodes.len());
-        let mut boundary_dofs = Vec::new();
-        let mut interface = Vec::new();
-        for (l, &g) in all_nodes.iter().enumerate() {
-            for c in 0..2 {
-                fixed.push(prob.fixed[2 * g + c]);
-                load.push(if owned[l] { prob.load[2 * g + c] } else { 0.0 });
-                if let Some(b) = interface_index[g][c].checked_sub(1) {
-                    interface.push((b as usize, 2 * l + c));
-                } else if reads.in_b(prob, g, c) {
-                    boundary_dofs.push(2 * l + c);
-                }
-            }
-        }
+        let PartDofs {
+            fixed,
+            load,
+            mut boundary_dofs,
+            mut interface,
+        } = self.dofs(&all_nodes, &owned);
         // Ghosts come last among the nodes but take their place among the interface dofs.
         interface.sort_unstable();
         let (interface_global, interface_dofs): (Vec<usize>, Vec<usize>) =
             interface.into_iter().unzip();
         let n_contact_dofs = boundary_dofs.len();
         boundary_dofs.extend(interface_dofs);
-        let mine = &contact_by_rank[r];
+        let mine = &self.contact_by_rank[r];
+        let local = |v: usize| local_of[v];
         let sub = SubProblem {
             rank: r,
             global_nodes: all_nodes.iter().map(|&g| prob.file_node[g]).collect(),
             nodes: all_nodes.iter().map(|&g| prob.mesh.nodes[g]).collect(),
-            triangles,
+            triangles: (p.elements.iter())
+                .map(|&e| prob.mesh.triangles[e].map(local))
+                .collect(),
             body: p.elements.iter().map(|&e| prob.body[e]).collect(),
             owned,
             fixed,
             load,
-            contact_nodes: mine
-                .iter()
-                .map(|&k| local_of[prob.contact_nodes[k]])
-                .collect(),
+            contact_nodes: mine.iter().map(|&k| local(prob.contact_nodes[k])).collect(),
             contact: prob.contact.select(mine),
             boundary_dofs,
             n_contact_dofs,
             interface_global,
             interface_nodes: p.interface.len(),
             frames: (all_nodes.iter().enumerate())
-                .filter_map(|(l, &g)| frame.get(&g).map(|&m| (l, m)))
+                .filter_map(|(l, &g)| self.reads.frame.get(&g).map(|&m| (l, m)))
                 .collect(),
             contact_masters: (mine.iter())
-                .map(|&k| masters(k).iter().map(|&(v, c)| (local_of[v], c)).collect())
+                .map(|&k| (masters_of(prob, k).iter()).map(|&(v, c)| (local(v), c)))
+                .map(|row| row.collect())
                 .collect(),
-            ghosts: ghosts[r].len(),
+            ghosts: self.ghosts[r].len(),
         };
         // Reset before any return: the scratch serves the thread's next part.
         let unheld = sub.contact_nodes.contains(&usize::MAX);
@@ -447,18 +486,32 @@ pub fn split(
             )));
         }
         Ok(sub)
-    };
-    let subs = (part.parts.par_iter().enumerate())
-        .map_init(|| vec![usize::MAX; n], one)
-        .collect::<Result<Vec<SubProblem>>>()?;
-    Ok((
-        subs,
-        GlobalMap {
-            n_interface,
-            n_boundary,
-            contact_counts: contact_by_rank.iter().map(Vec::len).collect(),
-        },
-    ))
+    }
+
+    /// The dofs of the nodes `all_nodes` (local numbering: their order), the loads on
+    /// the `owned` ones only.
+    fn dofs(&self, all_nodes: &[usize], owned: &[bool]) -> PartDofs {
+        let prob = self.prob;
+        let mut dofs = PartDofs {
+            fixed: Vec::with_capacity(2 * all_nodes.len()),
+            load: Vec::with_capacity(2 * all_nodes.len()),
+            boundary_dofs: Vec::new(),
+            interface: Vec::new(),
+        };
+        for (l, &g) in all_nodes.iter().enumerate() {
+            for c in 0..2 {
+                dofs.fixed.push(prob.fixed[2 * g + c]);
+                dofs.load
+                    .push(if owned[l] { prob.load[2 * g + c] } else { 0.0 });
+                if let Some(b) = self.interface_index[g][c].checked_sub(1) {
+                    dofs.interface.push((b as usize, 2 * l + c));
+                } else if self.reads.in_b(prob, g, c) {
+                    dofs.boundary_dofs.push(2 * l + c);
+                }
+            }
+        }
+        dofs
+    }
 }
 
 #[cfg(test)]

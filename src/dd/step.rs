@@ -182,47 +182,10 @@ impl<'a> CondensedStep<'a> {
         ))?;
         drop(schur);
 
-        // The interface system, summed and factored once: on the first rank, or across
-        // the ranks by MUMPS.
-        let has_interface = setup.n_interface > 0;
         let mut mumps = None;
-        let (interface, interface_figures) = if has_interface && setup.interface_mumps {
-            let (flops, entries) = interface_mumps::build(
-                mpi,
-                setup.n_interface,
-                sub.interface_global.clone(),
-                s_local,
-                &mut mumps,
-            )?;
-            // A rank's MUMPS work is its leader subdomain's; the factor's size is
-            // reported once.
-            (
-                None,
-                (
-                    Some("mumps"),
-                    if mumps.is_some() { flops } else { 0.0 },
-                    if mpi.rank == 0 { entries } else { 0.0 },
-                ),
-            )
-        } else {
-            let interface = if has_interface {
-                build_interface(mpi, sub, s_local, setup.n_interface)?
-            } else {
-                None
-            };
-            let figures = (
-                interface
-                    .as_ref()
-                    .map(|i| if i.is_sparse() { "sparse" } else { "dense" }),
-                interface
-                    .as_ref()
-                    .map_or(0.0, InterfaceSystem::factor_flops),
-                interface
-                    .as_ref()
-                    .map_or(0.0, InterfaceSystem::factor_entries),
-            );
-            (interface, figures)
-        };
+        let (interface, interface_figures) =
+            factor_interface(mpi, (setup, sub), s_local, &mut mumps)?;
+        let has_interface = setup.n_interface > 0;
         let interface_counts = interface_counts(mpi, sub, has_interface && !setup.interface_mumps);
         let interface_dense = mpi.broadcast(
             mpi.is_root()
@@ -538,6 +501,41 @@ fn with_pair_entries(
     SparseColMat::try_new_from_triplets(n, n, &triplets).map_err(|e| {
         crate::error::Error::Numerical(format!("cannot assemble the mortar coupling: {e:?}"))
     })
+}
+
+/// The interface system, summed and factored once: on the first rank, or across the
+/// ranks by MUMPS (into `mumps`, on each rank's team leader); with its figures (see
+/// `CondensedStep::interface_figures`).
+#[allow(clippy::type_complexity)]
+fn factor_interface(
+    mpi: &Mpi,
+    (setup, sub): (StepSetup, &SubProblem),
+    s_local: Mat<f64>,
+    mumps: &mut Option<MumpsInterface>,
+) -> Result<(Option<InterfaceSystem>, (Option<&'static str>, f64, f64))> {
+    let n = setup.n_interface;
+    if n > 0 && setup.interface_mumps {
+        let index = sub.interface_global.clone();
+        let (flops, entries) = interface_mumps::build(mpi, n, index, s_local, mumps)?;
+        // A rank's MUMPS work is its leader subdomain's; the factor's size is reported
+        // once.
+        let flops = if mumps.is_some() { flops } else { 0.0 };
+        let entries = if mpi.rank == 0 { entries } else { 0.0 };
+        return Ok((None, (Some("mumps"), flops, entries)));
+    }
+    let interface = match n > 0 {
+        true => build_interface(mpi, sub, s_local, n)?,
+        false => None,
+    };
+    let figures = match &interface {
+        Some(i) => (
+            Some(if i.is_sparse() { "sparse" } else { "dense" }),
+            i.factor_flops(),
+            i.factor_entries(),
+        ),
+        None => (None, 0.0, 0.0),
+    };
+    Ok((interface, figures))
 }
 
 /// Every subdomain's number of interface dofs (collective; zeros without an interface).

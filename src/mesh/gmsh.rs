@@ -18,9 +18,6 @@ use crate::mesh::validate::NodeRows;
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 
-#[path = "gmsh_shares.rs"]
-pub mod shares;
-
 const REEXPORT: &str = "export the mesh again from Gmsh";
 const CONVERT: &str =
     "convert it with `gmsh old.msh -save -format msh41 -o new.msh` (or `-format msh22`)";

@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 /// A 2D triangle mesh with named groups.
 ///
 /// Node indices are 0-based and contiguous. Triangles are counter-clockwise once
-/// [`validate::check`] has oriented them (see [`validate::orient`]). Groups keep the names of the Gmsh physical groups: line groups hold
+/// [`validate::check_with`] has oriented them (see [`validate::orient`]). Groups keep the names of the Gmsh physical groups: line groups hold
 /// 2-node edges (boundary conditions, contact), point groups hold single nodes (e.g. a
 /// pinned point). Surface groups hold triangle indices: the bodies, each of which can
 /// be given its own material.

@@ -59,14 +59,9 @@ pub fn size(mesh: &Mesh) -> f64 {
 
 /// Runs every mesh check in the order that gives the most useful message first, orients
 /// the triangles counter-clockwise, and returns the boundary edges (node pairs
-/// `(min, max)` that belong to exactly one triangle).
-pub fn check(mesh: &mut Mesh, name: &str) -> Result<HashSet<(usize, usize)>> {
-    check_with(mesh, name, |_| ()).map(|(boundary, ())| boundary)
-}
-
-/// [`check`], and `with` the oriented mesh at the same time as the last check (the
-/// edges), on another thread of the pool: e.g. the mesh's separate parts, which need
-/// sound indices, not the edges' verdict.
+/// `(min, max)` that belong to exactly one triangle); and `with` the oriented mesh at the
+/// same time as the last check (the edges), on another thread of the pool: e.g. the
+/// mesh's separate parts, which need sound indices, not the edges' verdict.
 pub fn check_with<T: Send>(
     mesh: &mut Mesh,
     name: &str,
@@ -802,6 +797,10 @@ pub fn hold_parts(holds: &mut [Holds], nodes: &[ContactHold]) -> Vec<[bool; 3]> 
 mod tests {
     use super::*;
     use crate::mesh::builtin;
+
+    fn check(mesh: &mut Mesh, name: &str) -> Result<HashSet<(usize, usize)>> {
+        check_with(mesh, name, |_| ()).map(|(boundary, ())| boundary)
+    }
 
     /// The unit square as a 2 x 2 grid of cells, two counter-clockwise triangles each;
     /// nodes row by row from (0, 0), node 4 (0-based) in the middle.

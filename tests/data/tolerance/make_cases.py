@@ -138,8 +138,7 @@ obstacle_normal = [0.0, 1.0]
 
 
 def beams(scale, out):
-    """Clamped beams of 0.2, 0.4, 1 and 2 m (the slender-body study of
-    docs/performance-history.md): beam_L.msh and beam_L_coulomb.toml, beam_L_none.toml."""
+    """Clamped beams of 0.2, 0.4, 1 and 2 m (the slender-body study): beam_L.msh and beam_L_coulomb.toml, beam_L_none.toml."""
     t, E, weight = 0.04, 2.1e11, 77008.5
     for length in [0.2, 0.4, 1.0, 2.0]:
         gmsh.model.add("beam")
@@ -240,7 +239,7 @@ def slender(scale, out):
 
 def heldout(scale, out):
     """Held-out cases made after the floors of the held directions' r and the cut step
-    of the safeguard were chosen (docs/performance-history.md), run once with each binary:
+    of the safeguard were chosen, run once with each binary:
     a steel block in mm with Coulomb 0.8 on a foundation inclined by 15 degrees that
     friction alone holds along the slope, a thin aluminium half ring (mm) standing on its
     outer arc that only the contact holds vertically, and a thin slab in mm on a foundation
@@ -371,7 +370,7 @@ def heldout(scale, out):
 
 def later(cases, scale, out):
     """Made after the free directions' lower r once the statuses settle and the glide of
-    a floating body to its first touch (docs/performance-history.md): a thin steel tube
+    a floating body to its first touch: a thin steel tube
     standing on its outer arc, held along x at a top arc where it is pressed (Coulomb,
     Tresca, frictionless), a shallow aluminium arch (SI) on a 0.5-degree slope, and an
     aluminium plate with a hole landing on its corner on a nearly flat foundation. Two of

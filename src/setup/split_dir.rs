@@ -1,6 +1,6 @@
-//! Split directories: a case read, partitioned and split once (`contact-par split`, its
-//! first process; under mpirun every process cuts the graph), into one file per part, so that a run (`--mesh-split DIR`) has each subdomain
-//! read its own part and no rank reads the whole mesh.
+//! Split directories: a case read, partitioned and split once (`contact-par split`, by
+//! its first process) into one file per part, so that a run (`--mesh-split DIR`) has
+//! each subdomain read its own part and no rank reads the whole mesh.
 //!
 //! `DIR/split.json`, the manifest, is written last (a split cut short has none): how many
 //! parts, what they were made from, and the figures of the whole problem that a run prints
@@ -15,12 +15,19 @@
 //! values, the friction coefficient or threshold and the solver settings may change
 //! between runs of one split: the split keeps the mesh's lengths, not the default r.
 
+use super::from_file::{facts, load_mesh, Cut};
+use super::{check_linear, Layout, Setup};
 use crate::case::{Case, MeshSource};
 use crate::contact::Friction;
+use crate::dd::comm::Mpi;
 use crate::dd::split::SubProblem;
 use crate::error::{Error, Result};
+use crate::host;
+use crate::options::{LinearMode, Options, SplitOptions};
 use crate::output::write_atomic;
-use crate::problem::{Holding, Lengths};
+use crate::problem::{self, Holding, Lengths};
+use crate::run::Printer;
+use crate::timer::{self, Phase, Timer};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
@@ -184,36 +191,61 @@ fn mesh_file(case: &Case) -> Result<Option<MeshFile>> {
 }
 
 /// Writes `subs` (part k at index k) and then the manifest into `dir`, each file
-/// atomically. Part files of an earlier split with more parts are removed first, so
-/// that the directory holds one split only.
+/// atomically. An old manifest and part files of an earlier split with more parts are
+/// removed first, so that the directory holds one split only.
 pub fn write(dir: &Path, case: &Case, facts: &Facts, subs: &[SubProblem]) -> Result<Split> {
     let parts = subs.len();
-    let begun = begin(dir, case, parts)?;
-    for (part, sub) in subs.iter().enumerate() {
-        write_part(dir, &begun.id, part, parts, sub)?;
+    clear(dir, parts)?;
+    // The id every part file carries: the program, the layout, the case and the mesh.
+    let (mesh_file, fingerprint) = (mesh_file(case)?, fingerprint(case));
+    let mut h = Sha256::new();
+    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(format!("{FORMAT} {parts} {fingerprint:?}").as_bytes());
+    if let Some(m) = &mesh_file {
+        h.update(m.sha256.as_bytes());
     }
-    finish(dir, case, facts, parts, begun)
+    let id = hex(&h.finalize())[..16].to_string();
+    for (part, sub) in subs.iter().enumerate() {
+        let header = PartHeader {
+            format: FORMAT,
+            id: id.clone(),
+            part,
+            parts,
+        };
+        let mut bytes = MAGIC.to_vec();
+        bytes = postcard::to_extend(&header, bytes).map_err(|e| encode_failed(dir, e))?;
+        bytes = postcard::to_extend(sub, bytes).map_err(|e| encode_failed(dir, e))?;
+        write_atomic(&part_path(dir, part), &bytes)?;
+    }
+    // The manifest, once every part is written: what makes the split whole.
+    let manifest = Manifest {
+        format: FORMAT,
+        program: format!("contact-par {}", env!("CARGO_PKG_VERSION")),
+        parts,
+        id: id.clone(),
+        case: case.origin.clone(),
+        mesh_file,
+        fingerprint,
+        facts: facts.clone(),
+    };
+    let text = serde_json::to_string_pretty(&manifest).map_err(|e| encode_failed(dir, e))?;
+    write_atomic(&dir.join(MANIFEST), format!("{text}\n").as_bytes())?;
+    Ok(Split {
+        dir: dir.to_path_buf(),
+        parts,
+        id,
+        facts: facts.clone(),
+    })
 }
 
-/// A split begun ([`begin`]): its id, which every part file carries, and the mesh
-/// file's fingerprint for the manifest (hashed once).
-pub struct Begun {
-    pub id: String,
-    mesh_file: Option<MeshFile>,
-}
-
-fn out_failed(dir: &Path, e: std::io::Error) -> Error {
-    Error::Output(format!(
-        "{}: cannot write the split: {e}; check that the directory is writable",
-        dir.display()
-    ))
-}
-
-/// The start of a split of `parts` parts into `dir` ([`write`], or its parts written by
-/// their ranks): the directory made, an old manifest and part files beyond `parts`
-/// removed.
-pub fn begin(dir: &Path, case: &Case, parts: usize) -> Result<Begun> {
-    let out = |e| out_failed(dir, e);
+/// `dir` made, an old manifest and part files beyond `parts` removed.
+fn clear(dir: &Path, parts: usize) -> Result<()> {
+    let out = |e: std::io::Error| {
+        Error::Output(format!(
+            "{}: cannot write the split: {e}; check that the directory is writable",
+            dir.display()
+        ))
+    };
     std::fs::create_dir_all(dir).map_err(out)?;
     // An old manifest must not vouch for a half-written new split.
     match std::fs::remove_file(dir.join(MANIFEST)) {
@@ -231,55 +263,7 @@ pub fn begin(dir: &Path, case: &Case, parts: usize) -> Result<Begun> {
             std::fs::remove_file(dir.join(&*name)).map_err(out)?;
         }
     }
-    let mesh_file = mesh_file(case)?;
-    let fingerprint = fingerprint(case);
-    let mut h = Sha256::new();
-    h.update(env!("CARGO_PKG_VERSION").as_bytes());
-    h.update(format!("{FORMAT} {parts} {fingerprint:?}").as_bytes());
-    if let Some(m) = &mesh_file {
-        h.update(m.sha256.as_bytes());
-    }
-    Ok(Begun {
-        id: hex(&h.finalize())[..16].to_string(),
-        mesh_file,
-    })
-}
-
-/// Part `part` of a split `id` of `parts` parts, atomically.
-pub fn write_part(dir: &Path, id: &str, part: usize, parts: usize, sub: &SubProblem) -> Result<()> {
-    let header = PartHeader {
-        format: FORMAT,
-        id: id.to_string(),
-        part,
-        parts,
-    };
-    let mut bytes = MAGIC.to_vec();
-    bytes = postcard::to_extend(&header, bytes).map_err(|e| encode_failed(dir, e))?;
-    bytes = postcard::to_extend(sub, bytes).map_err(|e| encode_failed(dir, e))?;
-    write_atomic(&part_path(dir, part), &bytes)
-}
-
-/// The manifest, once every part is written: what makes the split whole.
-pub fn finish(dir: &Path, case: &Case, facts: &Facts, parts: usize, begun: Begun) -> Result<Split> {
-    let Begun { id, mesh_file } = begun;
-    let manifest = Manifest {
-        format: FORMAT,
-        program: format!("contact-par {}", env!("CARGO_PKG_VERSION")),
-        parts,
-        id: id.clone(),
-        case: case.origin.clone(),
-        mesh_file,
-        fingerprint: fingerprint(case),
-        facts: facts.clone(),
-    };
-    let text = serde_json::to_string_pretty(&manifest).map_err(|e| encode_failed(dir, e))?;
-    write_atomic(&dir.join(MANIFEST), format!("{text}\n").as_bytes())?;
-    Ok(Split {
-        dir: dir.to_path_buf(),
-        parts,
-        id,
-        facts: facts.clone(),
-    })
+    Ok(())
 }
 
 fn encode_failed(dir: &Path, e: impl std::fmt::Display) -> Error {
@@ -296,6 +280,85 @@ fn split_again(case: &Case, dir: &Path) -> String {
         "make it again: contact-par split {case_arg} --parts N --out {}",
         dir.display()
     )
+}
+
+/// `contact-par split`: reads the case and its mesh, cuts and splits them into
+/// `--parts` subdomains as a run on that many would, and writes one file per part. The
+/// first process does it all; under mpirun the others sleep, lending it their cores.
+pub fn split(opts: &SplitOptions, mpi: &Mpi, print: &Printer) -> Result<()> {
+    let done = mpi.is_root().then(|| {
+        host::on_idle_cores(mpi.node_ranks, || -> Result<()> {
+            let case = opts.case.case()?;
+            let (mesh, mesh_name) = load_mesh(&case)?;
+            let prob = problem::build(&case, mesh, &mesh_name)?;
+            let triangles = prob.mesh.triangles.len();
+            if opts.parts > triangles {
+                return Err(Error::Input(format!(
+                    "{mesh_name}: --parts {} for {triangles} triangles; use at most as many parts as triangles (better: thousands of triangles each)",
+                    opts.parts
+                )));
+            }
+            let mut facts = facts(&prob);
+            let cut = Cut {
+                nparts: opts.parts,
+                partitioner: opts.partitioner,
+                mesh_name: &mesh_name,
+            };
+            let (subs, method) = cut.split(&case, &mut facts, prob, &Timer::start())?;
+            let split = write(&opts.out, &case, &facts, &subs)?;
+            print_split(print, opts, &facts, split.parts, method);
+            Ok(())
+        })
+    });
+    mpi.barrier_sleeping();
+    mpi.agree(done.unwrap_or(Ok(())))
+}
+
+/// The split's two lines: what was split, how it was cut, and how to run it.
+fn print_split(print: &Printer, opts: &SplitOptions, facts: &Facts, parts: usize, how: &str) {
+    let out = opts.out.display();
+    print.line(format!(
+        "split: {} nodes, {} triangles, {} contact nodes into {parts} parts ({how}: {}) in {out}",
+        facts.nodes, facts.elements, facts.contact_nodes, facts.partition,
+    ));
+    print.line(format!(
+        "run it with: mpirun -n N contact-par {} --mesh-split {out}   (N dividing {parts})",
+        opts.case.command_line(),
+    ));
+}
+
+/// Phase 1 of a run from the split `dir`, on the first rank: the case and the split's
+/// manifest (each subdomain reads its own part in phase 3). Prints the run's first line
+/// and the read's.
+pub(super) fn setup(
+    opts: &Options,
+    dir: &Path,
+    layout: Layout,
+    timer: &Timer,
+    print: &Printer,
+) -> Result<Setup> {
+    let (case, split) = timer.time(Phase::Read, || -> Result<_> {
+        let case = opts.load_case()?;
+        check_linear(opts, &case)?;
+        let split = open(dir, &case)?;
+        Ok((case, split))
+    })?;
+    let per_rank = split.per_rank(opts, layout.ranks)?;
+    let (facts, parts) = (split.facts.clone(), split.parts);
+    let setup = Setup::new(opts, (case, facts), Some(split), layout, per_rank)?;
+    print.line(&setup.header);
+    let f = &setup.facts;
+    let figure = format!(
+        "the split {} of {parts} parts ({} nodes, {} triangles, {} contact nodes): {}",
+        dir.display(),
+        f.nodes,
+        f.elements,
+        f.contact_nodes,
+        f.partition
+    );
+    let read = timer.seconds(Phase::Read);
+    print.line(timer::phase_line(Phase::Read, read, &figure));
+    Ok(setup)
 }
 
 /// Reads the manifest of `dir` and checks it against the run's `case`: same sections of
@@ -378,6 +441,33 @@ pub fn open(dir: &Path, case: &Case) -> Result<Split> {
 }
 
 impl Split {
+    /// Subdomains per rank of a run from this split on `ranks` ranks: its parts over
+    /// the ranks, which must divide them.
+    fn per_rank(&self, opts: &Options, ranks: usize) -> Result<usize> {
+        let (parts, dir) = (self.parts, self.dir.display());
+        if parts % ranks != 0 {
+            let divisors: Vec<String> = (1..=parts)
+                .filter(|k| parts % k == 0)
+                .map(|k| k.to_string())
+                .collect();
+            return Err(Error::Input(format!(
+                "{dir}: the split has {parts} parts for {ranks} ranks; run on a number of ranks that divides {parts} ({}), or split again with --parts {ranks}",
+                divisors.join(", ")
+            )));
+        }
+        let per_rank = parts / ranks;
+        match opts.subdomains_per_rank {
+            Some(k) if k != per_rank => Err(Error::Input(format!(
+                "{dir}: --subdomains-per-rank {k} on {ranks} ranks makes {} subdomains, the split has {parts} parts; leave --subdomains-per-rank out (it is {per_rank} here)",
+                k * ranks
+            ))),
+            _ if opts.linear == LinearMode::Full && parts > 1 => Err(Error::Input(format!(
+                "{dir}: --linear full runs on one subdomain, the split has {parts} parts; use the default (condensed) or a split with --parts 1"
+            ))),
+            _ => Ok(per_rank),
+        }
+    }
+
     /// Reads part `part` and checks that it belongs to this split.
     pub fn read_part(&self, part: usize) -> Result<SubProblem> {
         let path = part_path(&self.dir, part);
