@@ -188,6 +188,57 @@ fn restart_with_another_rank_count_is_refused_clearly() {
     );
 }
 
+/// A checkpoint of another format (as written before formats were named: the layout
+/// first) is refused in one line naming the file, not misread; so is a checkpoint of the
+/// automatic r resumed with a given r.
+#[test]
+fn a_checkpoint_of_another_format_or_policy_is_refused_clearly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let base = [
+        "--builtin",
+        "block",
+        "--level",
+        "0",
+        "--quiet",
+        "--out",
+        "o",
+    ];
+    let with = |more: &[&'static str]| -> Vec<&str> { base.iter().chain(more).copied().collect() };
+    let refused = |args: &[&str], what: &str| {
+        let o = run(1, args, tmp.path());
+        assert_eq!(o.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&o.stderr);
+        // mpirun adds its own lines.
+        let lines: Vec<&str> = err.lines().filter(|l| l.contains("contact-par")).collect();
+        assert_eq!(lines.len(), 1, "{err}");
+        assert!(lines[0].starts_with("contact-par: error:"), "{err}");
+        assert!(
+            lines[0].contains(what) && lines[0].contains("without --restart"),
+            "{err}"
+        );
+    };
+    let o = run(
+        1,
+        &with(&["--max-iter", "6", "--checkpoint-every", "3"]),
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(3));
+    refused(
+        &with(&["--restart", "--r", "1e5"]),
+        "this run has a given r (--r)",
+    );
+    let file = tmp.path().join("o/checkpoint/rank_0.bin");
+    let bytes = std::fs::read(&file).unwrap();
+    // The format's name (after its length, one byte) dropped.
+    let format = contact_par::contact::Snapshot::FORMAT;
+    assert_eq!(&bytes[1..1 + format.len()], format.as_bytes());
+    std::fs::write(&file, &bytes[1 + format.len()..]).unwrap();
+    refused(
+        &with(&["--restart"]),
+        "rank_0.bin: not a checkpoint of this version",
+    );
+}
+
 /// The process ids of mpirun's children running the solver.
 fn ranks_of(mpirun_pid: u32) -> Vec<u32> {
     let mut pids = Vec::new();

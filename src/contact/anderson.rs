@@ -2,7 +2,7 @@
 //! in force units summed over all ranks, so that every rank computes the same mixing
 //! coefficients and the iterates do not depend on the rank count.
 
-use super::retune::Augmentation;
+use super::sweep::Augmentation;
 
 /// Weighted inner product of two states, one weight per component (see [`metric`]).
 pub(super) fn dot(a: &[f64], b: &[f64], omega: &[f64]) -> f64 {
@@ -314,10 +314,6 @@ mod tests {
         let aug = Augmentation {
             r_n: vec![1000.0 * r, r / 1000.0],
             r_t: vec![r / 10.0, 10.0 * r],
-            settled: false,
-            ended: false,
-            follow_tangents: false,
-            tail: false,
         };
         let omega = metric(&w, &aug, r, true);
         let dx = [1e-3, 1e3, 10.0, 0.1];
