@@ -61,7 +61,7 @@ impl CheckpointFiles {
             return Ok(None);
         }
         let snap = mpi.agree(self.read(mpi.rank, contact_nodes))?;
-        let mut sweeps = [snap.history.len() as f64, -(snap.history.len() as f64)];
+        let mut sweeps = [snap.sweeps() as f64, -(snap.sweeps() as f64)];
         mpi.max_in_place(&mut sweeps);
         if sweeps[0] != -sweeps[1] {
             return mpi.agree(Err(Error::Input(format!(

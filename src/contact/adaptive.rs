@@ -177,11 +177,7 @@ impl Adaptive {
     pub(super) fn new(params: AdaptiveParams, nodes: &ContactNodes, mesh_stiffness: f64) -> Self {
         Adaptive {
             params,
-            mesh_stiffness: if mesh_stiffness > 0.0 {
-                mesh_stiffness
-            } else {
-                0.0
-            },
+            mesh_stiffness: mesh_stiffness.max(0.0),
             keys: (0..nodes.len()).map(|i| node_key(nodes, i)).collect(),
             state: AdaptiveState::new(nodes.len()),
         }
@@ -214,13 +210,10 @@ impl Adaptive {
 
     /// Each node's (any status, its normal's) change after sweep `since`.
     fn changed_since(&self, since: usize) -> Vec<(bool, bool)> {
-        (self
-            .state
-            .changed_at
-            .iter()
-            .zip(&self.state.normal_changed_at))
-        .map(|(&any, &normal)| (any > since, normal > since))
-        .collect()
+        let s = &self.state;
+        (s.changed_at.iter().zip(&s.normal_changed_at))
+            .map(|(&any, &normal)| (any > since, normal > since))
+            .collect()
     }
 }
 
@@ -230,8 +223,8 @@ impl Policy for Adaptive {
     /// power of the ratio; else the given r. Also returns the measured ratio.
     fn start(
         &mut self,
-        step: &mut impl LinearStep,
-        comm: &impl Reduce,
+        step: &mut dyn LinearStep,
+        comm: &dyn Reduce,
         nodes: &ContactNodes,
         r: f64,
     ) -> Result<(f64, Option<f64>)> {

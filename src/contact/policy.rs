@@ -29,8 +29,8 @@ pub(super) trait Policy {
     /// smooth-mode stiffness over E_eff / L where measured for it.
     fn start(
         &mut self,
-        _step: &mut impl LinearStep,
-        _comm: &impl Reduce,
+        _step: &mut dyn LinearStep,
+        _comm: &dyn Reduce,
         _nodes: &ContactNodes,
         r: f64,
     ) -> Result<(f64, Option<f64>)> {

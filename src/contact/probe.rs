@@ -8,7 +8,7 @@ use crate::error::Result;
 /// to linear functions of the position (the normal components of rigid translations
 /// and rotations, which a body that only the contact holds meets without any
 /// stiffness). `None` when the contact nodes have fewer than three distinct positions.
-pub fn smooth_shape(nodes: &ContactNodes, comm: &impl Reduce) -> Option<Vec<f64>> {
+pub fn smooth_shape(nodes: &ContactNodes, comm: &(impl Reduce + ?Sized)) -> Option<Vec<f64>> {
     let (w, s) = (&nodes.w, &nodes.s);
     let mut m = [
         w.iter().sum::<f64>(),
@@ -49,8 +49,8 @@ pub fn smooth_shape(nodes: &ContactNodes, comm: &impl Reduce) -> Option<Vec<f64>
 /// is the stiffness of the soft modes alone. The start is [`smooth_shape`], W-orthogonal
 /// to the rigid motions, and so is every iterate. `None` without a smooth shape.
 pub fn smooth_stiffness(
-    step: &mut impl LinearStep,
-    comm: &impl Reduce,
+    step: &mut (impl LinearStep + ?Sized),
+    comm: &(impl Reduce + ?Sized),
     nodes: &ContactNodes,
     r: f64,
     steps: usize,

@@ -201,39 +201,62 @@ pub(super) fn project_and_update(
     d
 }
 
-/// The sums of one sweep over this rank's contact nodes (over all ranks once reduced):
-/// squared W-norms of the reported quantities and of their changes over the sweep, each
-/// in its own units (forces per unit length for the multipliers, lengths for the
-/// displacements), whatever the r of each direction; the counts are floats only to
-/// travel in the same all-reduce.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub(super) struct SweepSums {
+/// Declares [`SweepSums`], its fields in the order of the all-reduce, and its packing.
+macro_rules! sweep_sums {
+    ($($(#[$doc:meta])* $field:ident,)*) => {
+        /// The sums of one sweep over this rank's contact nodes (over all ranks once
+        /// reduced): squared W-norms of the reported quantities and of their changes over
+        /// the sweep, each in its own units (forces per unit length for the multipliers,
+        /// lengths for the displacements), whatever the r of each direction; the counts
+        /// are floats only to travel in the same all-reduce.
+        #[derive(Debug, Clone, Copy, Default, PartialEq)]
+        pub(super) struct SweepSums {
+            $($(#[$doc])* pub(super) $field: f64,)*
+        }
+
+        impl SweepSums {
+            /// The numbers [`SweepSums::pack`] puts in the all-reduce.
+            pub(super) const LEN: usize = [$(stringify!($field)),*].len();
+
+            pub(super) fn pack(&self) -> [f64; Self::LEN] {
+                [$(self.$field),*]
+            }
+
+            pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
+                let [$($field),*] = v;
+                SweepSums { $($field),* }
+            }
+        }
+    };
+}
+
+sweep_sums! {
     /// |lambda+ - lambda|^2 and |mu+ - mu|^2: the change of p_n and p_t.
-    pub(super) force_change_n: f64,
-    pub(super) force_change_t: f64,
+    force_change_n,
+    force_change_t,
     /// |G(x) - x|^2 per direction: the change of the state s = Nu + lambda / r, a
     /// displacement, which bounds both the move of p and the constraint's violation
     /// Nu - p+ = (lambda+ - lambda) / r.
-    pub(super) state_change_n: f64,
-    pub(super) state_change_t: f64,
+    state_change_n,
+    state_change_t,
     /// |Nu|^2 and |Tu|^2.
-    pub(super) displacement_n: f64,
-    pub(super) displacement_t: f64,
+    displacement_n,
+    displacement_t,
     /// |lambda+|^2 and |mu+|^2.
-    pub(super) force_n: f64,
-    pub(super) force_t: f64,
+    force_n,
+    force_t,
     /// The counts of [`Sweep`].
-    pub(super) active: f64,
-    pub(super) slip: f64,
-    pub(super) changed: f64,
-    pub(super) stiff: f64,
-    pub(super) soft: f64,
-    pub(super) mistuned: f64,
-    pub(super) uncertain: f64,
-    pub(super) mistuned_n: f64,
-    pub(super) unsettled: f64,
-    /// The sum of [`status_tag`]: whole numbers, exact in the all-reduce's sum.
-    pub(super) pattern: f64,
+    active,
+    slip,
+    changed,
+    stiff,
+    soft,
+    mistuned,
+    uncertain,
+    mistuned_n,
+    unsettled,
+    /// The sum of the nodes' status tags: whole numbers, exact in the all-reduce's sum.
+    pattern,
 }
 
 /// The floor of each quantity's scale, a fraction of the other quantities of its kind (a
@@ -248,57 +271,6 @@ pub const SCALE_FLOOR: f64 = 1e-3;
 pub const ROUNDOFF: f64 = 16.0 * f64::EPSILON;
 
 impl SweepSums {
-    /// The numbers [`SweepSums::pack`] puts in the all-reduce.
-    pub(super) const LEN: usize = 18;
-
-    pub(super) fn pack(&self) -> [f64; Self::LEN] {
-        [
-            self.force_change_n,
-            self.force_change_t,
-            self.state_change_n,
-            self.state_change_t,
-            self.displacement_n,
-            self.displacement_t,
-            self.force_n,
-            self.force_t,
-            self.active,
-            self.slip,
-            self.changed,
-            self.stiff,
-            self.soft,
-            self.mistuned,
-            self.uncertain,
-            self.mistuned_n,
-            self.unsettled,
-            self.pattern,
-        ]
-    }
-
-    pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
-        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain, mistuned_n, unsettled, pattern] =
-            v;
-        SweepSums {
-            force_change_n,
-            force_change_t,
-            state_change_n,
-            state_change_t,
-            displacement_n,
-            displacement_t,
-            force_n,
-            force_t,
-            active,
-            slip,
-            changed,
-            stiff,
-            soft,
-            mistuned,
-            uncertain,
-            mistuned_n,
-            unsettled,
-            pattern,
-        }
-    }
-
     /// Whether every norm is finite (no NaN, no overflow).
     pub(super) fn finite(&self) -> bool {
         self.pack()[..8].iter().all(|v| v.is_finite())

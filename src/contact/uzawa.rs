@@ -96,46 +96,62 @@ pub struct Outcome {
     pub history: Vec<Sweep>,
 }
 
-/// Everything this rank needs to resume the loop exactly where it was: the loop's state
-/// and its policy's. Resuming from a snapshot gives the same iterates, bit for bit, as
-/// not stopping.
+/// Everything this rank needs to resume the loop exactly where it was, each part whole:
+/// resuming from a snapshot gives the same iterates, bit for bit, as not stopping.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Snapshot {
-    pub history: Vec<Sweep>,
+    /// The reference r of the loop.
+    r_ref: f64,
+    progress: Progress,
+    point: Point,
+    anderson: Anderson,
+    policy: PolicyState,
+}
+
+impl Snapshot {
+    /// The layout of a snapshot, which a checkpoint file names: any change of a struct
+    /// stored in it is a new format.
+    pub const FORMAT: &'static str = "contact-par checkpoint 2";
+
+    /// The sweeps made before it.
+    pub fn sweeps(&self) -> usize {
+        self.progress.history.len()
+    }
+}
+
+/// What the loop carries from sweep to sweep besides its point and Anderson's memory.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+struct Progress {
+    history: Vec<Sweep>,
+    /// Accelerated points refused, and retunes of r, so far.
     refused: usize,
     retunes: usize,
-    /// The last accepted state and its evaluation.
+    /// The smallest secant ratio |f(y) - f(x)| / |y - x| (f(x) = G(x) - x) since the map
+    /// last changed (infinite before the first), behind the contraction estimate.
+    min_secant: f64,
+    /// Coulomb outer mode: the frozen thresholds, the outer iteration and the last
+    /// relative change of the thresholds.
+    outer: Option<(Vec<f64>, usize, f64)>,
+    /// Every r per direction handed to the linear step, in order (the last is the r in
+    /// force): a retune that moves few directions updates the factor in place, so the
+    /// factor depends on the sequence, and a resumed run replays it.
+    applied: Vec<Augmentation>,
+    /// The piece (active and slipping nodes of the last accepted image, retunes) on which
+    /// the safeguard last refused a mixed point (see [`Run::cut_back`]).
+    refused_on: Option<(usize, usize, usize)>,
+}
+
+/// The last accepted point x, its image, the sums of its evaluation and the status
+/// margin it set.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+struct Point {
     x: Vec<f64>,
     gx: Vec<f64>,
     res: f64,
     gram: Vec<f64>,
     worst: f64,
-    /// The secant ratio of that point, which the Anderson step reads, and the smallest
-    /// since the map last changed, behind the contraction estimate.
     secant: f64,
-    min_secant: f64,
-    /// Anderson memory.
-    df: Vec<Vec<f64>>,
-    dg: Vec<Vec<f64>>,
-    last: Option<(Vec<f64>, Vec<f64>)>,
-    /// Coulomb outer mode: the frozen thresholds, the outer iteration and the last
-    /// relative change of the thresholds.
-    outer: Option<(Vec<f64>, usize, f64)>,
-    /// The reference r of the loop.
-    r_ref: f64,
-    /// Every r per direction handed to the linear step before this point, in order (the
-    /// last is the r in force): a retune that moves few directions updates the factor in
-    /// place, so the factor depends on the sequence, and a resumed run replays it.
-    applied: Vec<Augmentation>,
-    /// The piece of the last refusal ([`Run::cut_back`]).
-    refused_on: Option<(usize, usize, usize)>,
-    policy: PolicyState,
-}
-
-impl Snapshot {
-    /// The layout of a snapshot, which a checkpoint file names: any change of this
-    /// struct or of a policy's state is a new format.
-    pub const FORMAT: &'static str = "contact-par checkpoint 2";
+    margin: f64,
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -185,25 +201,10 @@ pub fn solve_with(
     monitor: &mut dyn FnMut(&Sweep),
     ckpt: &mut Checkpoints,
 ) -> Result<Outcome> {
-    match params.adaptive {
-        Some(tuning) => {
-            let policy = Adaptive::new(tuning, nodes, params.mesh_stiffness);
-            solve_by(step, comm, nodes, params, monitor, ckpt, policy)
-        }
-        None => solve_by(step, comm, nodes, params, monitor, ckpt, Fixed),
-    }
-}
-
-/// [`solve_with`] under `policy`.
-fn solve_by<P: Policy>(
-    step: &mut impl LinearStep,
-    comm: &impl Reduce,
-    nodes: &ContactNodes,
-    params: &Params,
-    monitor: &mut dyn FnMut(&Sweep),
-    ckpt: &mut Checkpoints,
-    mut policy: P,
-) -> Result<Outcome> {
+    let mut policy: Box<dyn Policy> = match params.adaptive {
+        Some(tuning) => Box::new(Adaptive::new(tuning, nodes, params.mesh_stiffness)),
+        None => Box::new(Fixed),
+    };
     let n = nodes.len();
     let (mut r, smooth_stiffness) = match ckpt.resume {
         None => policy.start(step, comm, nodes, params.r)?,
@@ -217,32 +218,25 @@ fn solve_by<P: Policy>(
             r = params.r;
         }
     }
-    let mut run = Run::new(
-        Sweeper::new(step, nodes, r),
-        comm,
-        params,
-        monitor,
-        ckpt,
-        policy,
-    );
-    run.applied = applied;
+    let sweeper = Sweeper::new(step, nodes, r);
+    let mut run = Run::new(sweeper, comm, params, monitor, ckpt, (policy, applied));
     let (converged, last, threshold, outer_iterations) = run.by_law()?;
     let frictional = !matches!(params.friction, Friction::None);
     Ok(Outcome {
         converged,
         r: run.sweeper.r_ref,
         smooth_stiffness,
-        iterations: run.history.len(),
+        iterations: run.progress.history.len(),
         outer_iterations,
-        refused: run.refused,
-        retunes: run.retunes,
+        refused: run.progress.refused,
+        retunes: run.progress.retunes,
         status: statuses(&last, frictional),
         lambda: last.lambda,
         mu: last.mu,
         un: run.sweeper.un,
         ut: run.sweeper.ut,
         threshold,
-        history: run.history,
+        history: run.progress.history,
     })
 }
 
@@ -288,35 +282,23 @@ fn statuses(last: &Derived, frictional: bool) -> Vec<Status> {
 
 /// One run of the loop on this rank: the sweeper, its communication, its policy, and the
 /// state that outlives one call of [`Run::sweeps`] (history, counters, checkpoints).
-struct Run<'r, 'a, S: LinearStep, C: Reduce, P: Policy> {
+struct Run<'r, 'a, S: LinearStep, C: Reduce> {
     sweeper: Sweeper<'r, S>,
     comm: &'r C,
     params: &'r Params,
     monitor: &'r mut dyn FnMut(&Sweep),
-    policy: P,
+    policy: Box<dyn Policy>,
     /// Contact nodes over all ranks.
     n_contact: usize,
     /// The length of the contact boundary, sum of w over all ranks.
     length: f64,
-    history: Vec<Sweep>,
-    retunes: usize,
+    progress: Progress,
     /// False once the linear step has declined a change of r.
     can_retune: bool,
-    refused: usize,
     ckpt: &'r mut Checkpoints<'a>,
     resume: Option<Snapshot>,
-    outer: Option<(Vec<f64>, usize, f64)>,
-    /// Every r per direction handed to the linear step, in order (see
-    /// [`Snapshot::applied`]).
-    applied: Vec<Augmentation>,
     /// The last accepted point x and G(x) - x, the base of the next secant.
     anchor: Option<(Vec<f64>, Vec<f64>)>,
-    /// The smallest secant ratio |f(y) - f(x)| / |y - x| (f(x) = G(x) - x) since the map
-    /// last changed (infinite before the first).
-    min_secant: f64,
-    /// The piece (active and slipping nodes of the last accepted image, retunes) on which
-    /// the safeguard last refused a mixed point (see [`Run::cut_back`]).
-    refused_on: Option<(usize, usize, usize)>,
 }
 
 /// An evaluation of G after the global reduction.
@@ -340,7 +322,7 @@ struct Evaluated {
     slip: usize,
 }
 
-impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
+impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// A run that has swept nothing yet, or will resume from `ckpt.resume`.
     fn new(
         sweeper: Sweeper<'r, S>,
@@ -348,7 +330,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
         params: &'r Params,
         monitor: &'r mut dyn FnMut(&Sweep),
         ckpt: &'r mut Checkpoints<'a>,
-        policy: P,
+        (policy, applied): (Box<dyn Policy>, Vec<Augmentation>),
     ) -> Self {
         let mut total = [sweeper.nodes.len() as f64, sweeper.nodes.w.iter().sum()];
         comm.sum_in_place(&mut total);
@@ -360,17 +342,19 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
             policy,
             n_contact: total[0] as usize,
             length: total[1],
-            history: Vec::new(),
-            retunes: 0,
+            progress: Progress {
+                history: Vec::new(),
+                refused: 0,
+                retunes: 0,
+                min_secant: f64::INFINITY,
+                outer: None,
+                applied,
+                refused_on: None,
+            },
             can_retune: true,
-            refused: 0,
             resume: ckpt.resume.take(),
             ckpt,
-            outer: None,
-            applied: Vec::new(),
             anchor: None,
-            min_secant: f64::INFINITY,
-            refused_on: None,
         }
     }
 
@@ -430,11 +414,11 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
         let mut next_save = self.next_checkpoint();
         loop {
             let converged = cur.worst <= self.stop_tol();
-            if converged || self.history.len() >= self.params.max_iter {
+            if converged || self.progress.history.len() >= self.params.max_iter {
                 *x = cur.gx;
                 return Ok((converged, cur.out));
             }
-            if self.history.len() >= next_save {
+            if self.progress.history.len() >= next_save {
                 self.save(x, &cur, &aa)?;
                 next_save = self.next_checkpoint();
             }
@@ -463,7 +447,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
     /// secant must join two points of one map, and the new map's contraction is its own.
     fn forget_secants(&mut self) {
         self.anchor = None;
-        self.min_secant = f64::INFINITY;
+        self.progress.min_secant = f64::INFINITY;
     }
 
     /// The contraction estimate after the secant `secant2` (squared |y - x| and
@@ -478,13 +462,13 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
         // status joins two pieces of the piecewise affine map, and its ratio belongs to
         // neither.
         if !statuses_changed && dx2 > SECANT_FLOOR * SECANT_FLOOR * x2 {
-            self.min_secant = self.min_secant.min((df2 / dx2).sqrt());
+            self.progress.min_secant = self.progress.min_secant.min((df2 / dx2).sqrt());
             if let Some(span) = span {
-                self.min_secant = self.min_secant.min(span);
+                self.progress.min_secant = self.progress.min_secant.min(span);
             }
         }
-        if self.min_secant.is_finite() {
-            (1.0 - self.min_secant).clamp(0.0, 1.0)
+        if self.progress.min_secant.is_finite() {
+            (1.0 - self.progress.min_secant).clamp(0.0, 1.0)
         } else {
             0.0
         }
@@ -500,7 +484,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
         self.policy
             .count(&e.now, &sweeper.aug, r, frictional, &mut e.sums);
         self.policy
-            .seen(self.history.len() + 1, &sweeper.last_held, &e.now);
+            .seen(self.progress.history.len() + 1, &sweeper.last_held, &e.now);
         sweeper.last_held = std::mem::take(&mut e.now);
         let omega = metric(&sweeper.nodes.w, &sweeper.aug, r, frictional);
         let residual2 = dot(&e.f, &e.f, &omega);
@@ -544,10 +528,12 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
         let changed = global.sums.changed > 0.0;
         let contraction = self.contraction(global.secant2, span_secant(&global.gram), changed);
         let scale = (r, self.policy.largest_r(r));
-        let iter = self.history.len() + 1;
+        let iter = self.progress.history.len() + 1;
         let sweep = Sweep {
-            refused: self.refused,
-            ..global.sums.sweep(iter, self.retunes, scale, contraction)
+            refused: self.progress.refused,
+            ..global
+                .sums
+                .sweep(iter, self.progress.retunes, scale, contraction)
         };
         // The next sweep's margin: this one's state error, |G(x) - x|_W / (1 - rho), made
         // a value per node (the W-norm's mean square over the contact length).
@@ -559,7 +545,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
                 "iteration {iter}: the residuals are not finite (NaN or overflow); the problem may be unstable (check the Dirichlet conditions and the material) or r = {r} unsuitable"
             )));
         }
-        self.history.push(sweep);
+        self.progress.history.push(sweep);
         (self.monitor)(&sweep);
         Ok(sweep)
     }
@@ -593,10 +579,10 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
             *x = y;
             return Ok(next);
         }
-        self.refused += 1;
+        self.progress.refused += 1;
         // The refused point's sweep is already in the history: it counts there.
-        if let Some(last) = self.history.last_mut() {
-            last.refused = self.refused;
+        if let Some(last) = self.progress.history.last_mut() {
+            last.refused = self.progress.refused;
         }
         aa.clear();
         match self.cut_back(law, &y, &cur, x, aa)? {
@@ -623,9 +609,9 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
         x: &mut Vec<f64>,
         aa: &mut Anderson,
     ) -> Result<Option<Evaluated>> {
-        let piece = (cur.active, cur.slip, self.retunes);
+        let piece = (cur.active, cur.slip, self.progress.retunes);
         let held_aloft = cur.active == 0 && law.holds_open_nodes();
-        if self.refused_on.replace(piece) != Some(piece) && !held_aloft {
+        if self.progress.refused_on.replace(piece) != Some(piece) && !held_aloft {
             return Ok(None);
         }
         let n = self.sweeper.nodes.len();
@@ -675,7 +661,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
             return Ok(false);
         }
         let image = Image {
-            history: &self.history,
+            history: &self.progress.history,
             last,
             law,
             n_contact: self.n_contact,
@@ -695,9 +681,9 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
                 x[n + i] = state(last.q[i], last.mu[i], aug.r_t[i]);
             }
         }
-        self.applied.push(aug.clone());
+        self.progress.applied.push(aug.clone());
         self.sweeper.aug = aug;
-        self.retunes += 1;
+        self.progress.retunes += 1;
         Ok(true)
     }
 
@@ -712,12 +698,12 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
         x: &mut Vec<f64>,
     ) -> Result<(bool, Derived, Vec<f64>, usize)> {
         let n = self.sweeper.nodes.len();
-        let resumed = self.resume.as_ref().and_then(|r| r.outer.clone());
+        let resumed = self.resume.as_ref().and_then(|r| r.progress.outer.clone());
         let (mut s, mut done_outer, mut last_change) =
             resumed.unwrap_or((vec![0.0; n], 0, f64::INFINITY));
         loop {
             let outer_iterations = done_outer + 1;
-            self.outer = Some((s.clone(), done_outer, last_change));
+            self.progress.outer = Some((s.clone(), done_outer, last_change));
             let (inner_ok, d) = self.sweeps(Law::Fixed(&s), x)?;
             let s_new = mixed_thresholds(fixed, coefficient, &d.lambda);
             // The outer iteration contracts too: its error is its change over 1 - rho,
@@ -733,7 +719,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
             // The tangential state was converged for the old thresholds: keep it.
             s = s_new;
             done_outer += 1;
-            if !inner_ok || self.history.len() >= self.params.max_iter || done {
+            if !inner_ok || self.progress.history.len() >= self.params.max_iter || done {
                 return Ok((inner_ok && done, d, s, outer_iterations));
             }
         }
@@ -752,8 +738,8 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
     }
 
     /// Resumes from a snapshot: the policy's state, every r handed to the linear step
-    /// (replayed), the counters and history, the last accepted point with its
-    /// evaluation, and the Anderson memory.
+    /// (replayed), the loop's progress, the last accepted point with its evaluation, and
+    /// the Anderson memory.
     fn resume_from(
         &mut self,
         snap: Snapshot,
@@ -762,9 +748,9 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
         aa: &mut Anderson,
     ) -> Result<Evaluated> {
         self.policy.restore(snap.policy)?;
-        let sweeper = &mut self.sweeper;
+        let (sweeper, progress) = (&mut self.sweeper, snap.progress);
         let n = sweeper.nodes.len();
-        for aug in &snap.applied {
+        for aug in &progress.applied {
             if aug.r_n.len() != n || !sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
                 return Err(Error::Input(
                     "the checkpoint was taken with r retuned per contact direction and this linear step cannot change r; restart without --restart".into(),
@@ -772,29 +758,27 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
             }
         }
         sweeper.r_ref = snap.r_ref;
-        sweeper.aug =
-            (snap.applied.last().cloned()).unwrap_or_else(|| Augmentation::uniform(n, snap.r_ref));
-        let out = project_and_update(&snap.gx, sweeper.nodes, law, &sweeper.aug);
+        sweeper.aug = (progress.applied.last().cloned())
+            .unwrap_or_else(|| Augmentation::uniform(n, snap.r_ref));
+        let p = snap.point;
+        let out = project_and_update(&p.gx, sweeper.nodes, law, &sweeper.aug);
         sweeper.last_held = out.statuses(law.frictional());
-        let (active, slip) = snap.history.last().map_or((0, 0), |s| (s.active, s.slip));
-        self.applied = snap.applied;
-        self.refused_on = snap.refused_on;
-        self.retunes = snap.retunes;
-        self.min_secant = snap.min_secant;
+        sweeper.margin = p.margin;
+        let last = progress.history.last();
+        let (active, slip) = last.map_or((0, 0), |s| (s.active, s.slip));
+        self.progress = progress;
         self.anchor = None;
-        self.history = snap.history;
-        self.refused = snap.refused;
-        let f = snap.gx.iter().zip(&snap.x).map(|(a, b)| a - b).collect();
-        *x = snap.x;
-        (aa.df, aa.dg, aa.last) = (snap.df, snap.dg, snap.last);
+        (aa.df, aa.dg, aa.last) = (snap.anderson.df, snap.anderson.dg, snap.anderson.last);
+        let f = p.gx.iter().zip(&p.x).map(|(a, b)| a - b).collect();
+        *x = p.x;
         Ok(Evaluated {
             f,
-            gx: snap.gx,
+            gx: p.gx,
             out,
-            res: snap.res,
-            gram: snap.gram,
-            worst: snap.worst,
-            secant: snap.secant,
+            res: p.res,
+            gram: p.gram,
+            worst: p.worst,
+            secant: p.secant,
             active,
             slip,
         })
@@ -803,31 +787,27 @@ impl<'r, 'a, S: LinearStep, C: Reduce, P: Policy> Run<'r, 'a, S, C, P> {
     fn next_checkpoint(&self) -> usize {
         match self.ckpt.every {
             0 => usize::MAX,
-            k => (self.history.len() / k + 1) * k,
+            k => (self.progress.history.len() / k + 1) * k,
         }
     }
 
     /// Saves a snapshot of the last accepted point `x` and everything needed to resume
     /// from it.
     fn save(&mut self, x: &[f64], cur: &Evaluated, aa: &Anderson) -> Result<()> {
-        let snap = Snapshot {
-            history: self.history.clone(),
-            refused: self.refused,
-            retunes: self.retunes,
+        let point = Point {
             x: x.to_vec(),
             gx: cur.gx.clone(),
             res: cur.res,
             gram: cur.gram.clone(),
             worst: cur.worst,
             secant: cur.secant,
-            min_secant: self.min_secant,
-            df: aa.df.clone(),
-            dg: aa.dg.clone(),
-            last: aa.last.clone(),
-            outer: self.outer.clone(),
+            margin: self.sweeper.margin,
+        };
+        let snap = Snapshot {
             r_ref: self.sweeper.r_ref,
-            applied: self.applied.clone(),
-            refused_on: self.refused_on,
+            progress: self.progress.clone(),
+            point,
+            anderson: aa.clone(),
             policy: self.policy.state(),
         };
         (self.ckpt.save)(&snap)
