@@ -433,7 +433,9 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
                 *x = y;
                 self.evaluate(law, x, aa.active())?
             } else {
-                self.plain_step(law, cur, x, aa.active())?
+                // The plain step: the image of the last accepted point.
+                *x = cur.gx;
+                self.evaluate(law, x, aa.active())?
             };
         }
     }
@@ -550,18 +552,6 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         Ok(sweep)
     }
 
-    /// The plain step: the image of the last accepted point is the next point.
-    fn plain_step(
-        &mut self,
-        law: Law,
-        cur: Evaluated,
-        x: &mut Vec<f64>,
-        aa: Option<&Anderson>,
-    ) -> Result<Evaluated> {
-        *x = cur.gx;
-        self.evaluate(law, x, aa)
-    }
-
     /// The safeguard on the Anderson point y: kept if its fixed-point residual does not
     /// exceed that of the last accepted point (or it meets the tolerance); otherwise
     /// refused, the memory cleared, and the plain step taken from the last accepted
@@ -587,7 +577,10 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         aa.clear();
         match self.cut_back(law, &y, &cur, x, aa)? {
             Some(next) => Ok(next),
-            None => self.plain_step(law, cur, x, Some(aa)),
+            None => {
+                *x = cur.gx;
+                self.evaluate(law, x, Some(aa))
+            }
         }
     }
 
