@@ -212,7 +212,7 @@ impl Fixture {
             friction: self.case.friction(),
             coulomb: self.case.solver.coulomb,
             acceleration: Acceleration::None,
-            adapt_r: false,
+            adaptive: None,
             mesh_stiffness: f64::NAN,
         }
     }

@@ -1,5 +1,6 @@
 //! The loop-state files: each subdomain saves its Uzawa snapshot every few sweeps, and a
-//! restarted run checks that every subdomain resumes the same layout, case and sweep.
+//! restarted run checks that every subdomain resumes the same format, layout, case and
+//! sweep.
 
 use crate::contact::Snapshot;
 use crate::dd::comm::{decode, encode, Mpi};
@@ -22,11 +23,19 @@ pub struct CheckpointFiles {
 /// One subdomain's checkpoint (`rank` is the subdomain, as in the file name).
 #[derive(Serialize, Deserialize)]
 struct CheckpointFile {
+    /// [`Snapshot::FORMAT`], first: a file of another format is refused, not misread.
+    format: String,
     ranks: usize,
     per_rank: usize,
     rank: usize,
     contact_nodes: usize,
     snapshot: Snapshot,
+}
+
+/// What every checkpoint file of a format begins with.
+#[derive(Deserialize)]
+struct Head {
+    format: String,
 }
 
 impl CheckpointFiles {
@@ -52,7 +61,7 @@ impl CheckpointFiles {
             return Ok(None);
         }
         let snap = mpi.agree(self.read(mpi.rank, contact_nodes))?;
-        let mut sweeps = [snap.history.len() as f64, -(snap.history.len() as f64)];
+        let mut sweeps = [snap.sweeps() as f64, -(snap.sweeps() as f64)];
         mpi.max_in_place(&mut sweeps);
         if sweeps[0] != -sweeps[1] {
             return mpi.agree(Err(Error::Input(format!(
@@ -68,12 +77,14 @@ impl CheckpointFiles {
         let path = self.path(rank);
         let bytes = std::fs::read(&path)
             .map_err(|e| Error::Input(format!("{}: cannot read the checkpoint: {e}; run without --restart, or with the --out of the interrupted run", path.display())))?;
-        let c = decode::<CheckpointFile>(&bytes).map_err(|_| {
-            Error::Input(format!(
-                "{}: not a contact-par checkpoint of this version; run without --restart",
-                path.display()
-            ))
-        })?;
+        let refuse =
+            |what: &str| Error::Input(format!("{}: {what}; run without --restart", path.display()));
+        if !decode::<Head>(&bytes).is_ok_and(|h| h.format == Snapshot::FORMAT) {
+            return Err(refuse(
+                "not a checkpoint of this version of contact-par (another format)",
+            ));
+        }
+        let c = decode::<CheckpointFile>(&bytes).map_err(|_| refuse("a damaged checkpoint"))?;
         if c.ranks != self.ranks
             || c.per_rank != self.per_rank
             || c.rank != rank
@@ -96,6 +107,7 @@ impl CheckpointFiles {
         std::fs::create_dir_all(&self.dir)
             .map_err(|e| Error::Output(format!("cannot create {}: {e}", self.dir.display())))?;
         let file = CheckpointFile {
+            format: Snapshot::FORMAT.to_string(),
             ranks: self.ranks,
             per_rank: self.per_rank,
             rank,

@@ -2,7 +2,7 @@
 //! in force units summed over all ranks, so that every rank computes the same mixing
 //! coefficients and the iterates do not depend on the rank count.
 
-use super::retune::Augmentation;
+use super::sweep::Augmentation;
 
 /// Weighted inner product of two states, one weight per component (see [`metric`]).
 pub(super) fn dot(a: &[f64], b: &[f64], omega: &[f64]) -> f64 {
@@ -38,6 +38,7 @@ pub(super) fn metric(w: &[f64], aug: &Augmentation, r_ref: f64, frictional: bool
 pub(super) const FLAT_SECANT: f64 = 1e-8;
 
 /// Anderson memory (m = 0: no acceleration): differences of residuals and of images of the last iterations.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(super) struct Anderson {
     m: usize,
     pub(super) df: Vec<Vec<f64>>,
@@ -66,8 +67,8 @@ impl Anderson {
     /// `secant` is |f(x) - f(x_prev)| / |x - x_prev| for the previous accepted point: below
     /// [`FLAT_SECANT`] the map is a translation along the step (a body that nothing holds
     /// yet, moving towards the contact by the same amount each sweep), the newest
-    /// difference is noise, and the least-squares coefficients blow up (measured: a jump
-    /// 1e13 times the step on block_flat without retunes): the memory restarts.
+    /// difference is noise and the least-squares coefficients would blow up: the memory
+    /// restarts.
     pub(super) fn propose(
         &mut self,
         x: &[f64],
@@ -245,8 +246,7 @@ fn solve_small_spd(mut a: Vec<Vec<f64>>, b: &mut [f64]) -> Option<Vec<f64>> {
 /// single secant gives |(J - I) d| / |d| for one step d, which can miss the slowest
 /// mode; the minimum over the memory's span is the smallest Ritz value of I - J on the
 /// steps taken (a Krylov space, where the slowest modes show first), never above the
-/// single secants'. Measured on a 2 m Coulomb beam at 6514 nodes: the single secants
-/// gave rho = 0.87 and a run at tol 1e-6 stopped with p_t 2.5e-6 off.
+/// single secants'.
 pub(super) fn span_secant(sums: &[f64]) -> Option<f64> {
     // k(k+1)/2 + k + k(k+1)/2 = k(k+2) numbers.
     let k = ((sums.len() + 1) as f64).sqrt().round() as usize - 1;
@@ -314,10 +314,6 @@ mod tests {
         let aug = Augmentation {
             r_n: vec![1000.0 * r, r / 1000.0],
             r_t: vec![r / 10.0, 10.0 * r],
-            settled: false,
-            ended: false,
-            follow_tangents: false,
-            tail: false,
         };
         let omega = metric(&w, &aug, r, true);
         let dx = [1e-3, 1e3, 10.0, 0.1];

@@ -1,19 +1,20 @@
 //! The contact method of docs/ALGORITHM.md: node-wise kernels and the Uzawa loop, written
 //! once against two small traits so that one rank and many ranks run the same code.
 
+mod adaptive;
 mod anderson;
 pub mod kernels;
 mod law;
 pub mod mortar;
 pub mod obstacle;
 pub mod operators;
+mod policy;
 pub mod probe;
-pub mod retune;
 mod sweep;
 pub mod uzawa;
 
+pub use adaptive::AdaptiveParams;
 pub use law::{Acceleration, CoulombMode, Friction, DEFAULT_ANDERSON_MEMORY};
-pub use retune::Augmentation;
 pub use sweep::{roundoff_warning, Sweep};
 pub use uzawa::{solve, solve_with, Checkpoints, Outcome, Params, Snapshot};
 

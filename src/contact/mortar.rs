@@ -25,6 +25,8 @@
 //! both bodies leaves every gap unchanged, and the master takes exactly the slave's
 //! force); a node faced less is left out of the contact.
 
+use std::collections::BTreeMap;
+
 /// A boundary segment (nodes a, b) and the unit normal pointing out of its body.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Segment {
@@ -86,15 +88,42 @@ fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
 /// products psi_j N_k are integrated with four Gauss points on each overlap (exact on a
 /// flat interface, where the pairing is affine).
 pub fn mortar_rows(nodes: &[[f64; 2]], slave: &[Segment], master: &[Segment]) -> Vec<MortarRow> {
-    use std::collections::BTreeMap;
-    #[derive(Default)]
-    struct Acc {
-        d: f64,
-        normal: [f64; 2],
-        /// Integrals of psi_j N_k (the dual row) and of phi_j N_k (its faced share).
-        m: BTreeMap<usize, f64>,
-        m_phi: BTreeMap<usize, f64>,
+    let mut acc = supports(nodes, slave);
+    let unit = |v: [f64; 2]| {
+        let n = v[0].hypot(v[1]);
+        [v[0] / n, v[1] / n]
+    };
+    let normals: BTreeMap<usize, [f64; 2]> =
+        acc.iter().map(|(&v, a)| (v, unit(a.normal))).collect();
+    for s in slave {
+        let side = SlaveSide::new(nodes, s, &normals);
+        for m in master {
+            if dot(s.outward, m.outward) > -FACING_COS {
+                continue;
+            }
+            if let Some(overlap) = side.overlap(nodes, m) {
+                side.integrate(s, m, overlap, nodes, &mut acc);
+            }
+        }
     }
+    (acc.into_iter())
+        .filter_map(|(node, a)| a.row(node, normals[&node], nodes))
+        .collect()
+}
+
+/// What a slave node's row gathers.
+#[derive(Default)]
+struct Acc {
+    /// D_j, and the sum of minus its segments' outward normals times their lengths.
+    d: f64,
+    normal: [f64; 2],
+    /// Integrals of psi_j N_k (the dual row) and of phi_j N_k (its faced share).
+    m: BTreeMap<usize, f64>,
+    m_phi: BTreeMap<usize, f64>,
+}
+
+/// Each slave node's weight and normal, with nothing integrated yet.
+fn supports(nodes: &[[f64; 2]], slave: &[Segment]) -> BTreeMap<usize, Acc> {
     let mut acc: BTreeMap<usize, Acc> = BTreeMap::new();
     for s in slave {
         let len = dot(
@@ -109,141 +138,170 @@ pub fn mortar_rows(nodes: &[[f64; 2]], slave: &[Segment], master: &[Segment]) ->
             n.normal[1] -= s.outward[1] * len;
         }
     }
-    let unit = |v: [f64; 2]| {
-        let n = v[0].hypot(v[1]);
-        [v[0] / n, v[1] / n]
-    };
-    let normals: BTreeMap<usize, [f64; 2]> =
-        acc.iter().map(|(&v, a)| (v, unit(a.normal))).collect();
-    // Gauss-Legendre points and weights on [0, 1].
+    acc
+}
+
+impl Acc {
+    /// The row of slave node `node` (of unit normal `normal`), if faced enough.
+    fn row(self, node: usize, normal: [f64; 2], nodes: &[[f64; 2]]) -> Option<MortarRow> {
+        // The faced share of the node's support, phi_j weighted (in [0, 1]).
+        let faced: f64 = self.m_phi.values().sum();
+        if faced < MIN_FACED * self.d {
+            return None;
+        }
+        // Faced over its whole support: the dual row. Over part of it (the end of the
+        // master, or the edge of the facing cone): the dual functions integrated over
+        // part of their support no longer average the master around the node (they take
+        // negative values), so the row is the phi_j-weighted mean of the master over the
+        // faced part: non-negative weights near the node.
+        let whole = faced >= (1.0 - FULLY_FACED) * self.d;
+        let m = if whole { self.m } else { self.m_phi };
+        let sum: f64 = m.values().sum();
+        let masters: Vec<(usize, f64)> = (m.into_iter())
+            .filter(|&(_, m)| m != 0.0)
+            .map(|(k, m)| (k, m / sum))
+            .collect();
+        let mut mean = [0.0; 2];
+        for &(k, c) in &masters {
+            mean[0] += c * nodes[k][0];
+            mean[1] += c * nodes[k][1];
+        }
+        Some(MortarRow {
+            node,
+            w: self.d,
+            normal,
+            gap: dot(normal, sub(nodes[node], mean)),
+            masters,
+        })
+    }
+}
+
+/// Gauss-Legendre points and weights on [0, 1].
+fn gauss() -> [(f64, f64); 4] {
     let (g1, g2) = (0.5 * 0.861_136_311_594_052_6, 0.5 * 0.339_981_043_584_856_3);
     let (w1, w2) = (0.5 * 0.347_854_845_137_453_9, 0.5 * 0.652_145_154_862_546_1);
-    let gauss = [
+    [
         (0.5 - g1, w1),
         (0.5 - g2, w2),
         (0.5 + g2, w2),
         (0.5 + g1, w1),
-    ];
-    for s in slave {
+    ]
+}
+
+/// A slave segment from x_a along e, with its normal field n_a + xi dn.
+struct SlaveSide {
+    xa: [f64; 2],
+    e: [f64; 2],
+    len: f64,
+    na: [f64; 2],
+    dn: [f64; 2],
+}
+
+impl SlaveSide {
+    fn new(nodes: &[[f64; 2]], s: &Segment, normals: &BTreeMap<usize, [f64; 2]>) -> Self {
         let [a, b] = s.nodes;
         let (xa, xb) = (nodes[a], nodes[b]);
         let e = sub(xb, xa);
-        let len = dot(e, e).sqrt();
         let (na, nb) = (normals[&a], normals[&b]);
-        let dn = sub(nb, na);
-        // The slave point and normal at xi.
-        let at = |xi: f64| {
-            (
-                [xa[0] + xi * e[0], xa[1] + xi * e[1]],
-                [na[0] + xi * dn[0], na[1] + xi * dn[1]],
-            )
+        SlaveSide {
+            xa,
+            e,
+            len: dot(e, e).sqrt(),
+            na,
+            dn: sub(nb, na),
+        }
+    }
+
+    /// The slave point and normal at xi.
+    fn at(&self, xi: f64) -> ([f64; 2], [f64; 2]) {
+        let (xa, e, na, dn) = (self.xa, self.e, self.na, self.dn);
+        (
+            [xa[0] + xi * e[0], xa[1] + xi * e[1]],
+            [na[0] + xi * dn[0], na[1] + xi * dn[1]],
+        )
+    }
+
+    /// The xi whose normal line passes through y: (x(xi) - y) x n(xi) = 0, a quadratic;
+    /// the root nearest the segment.
+    fn seen_from(&self, y: [f64; 2]) -> Option<f64> {
+        let (e, na, dn) = (self.e, self.na, self.dn);
+        let r = sub(self.xa, y);
+        let (qa, qb, qc) = (cross(e, dn), cross(r, dn) + cross(e, na), cross(r, na));
+        let roots: Vec<f64> = if qa.abs() <= 1e-14 * (qb.abs() + qc.abs()) {
+            (qb != 0.0).then(|| -qc / qb).into_iter().collect()
+        } else {
+            let disc = qb * qb - 4.0 * qa * qc;
+            if disc < 0.0 {
+                return None;
+            }
+            let q = -0.5 * (qb + qb.signum() * disc.sqrt());
+            [q / qa, if q != 0.0 { qc / q } else { q / qa }].to_vec()
         };
-        // The xi whose normal line passes through y: (x(xi) - y) x n(xi) = 0, a
-        // quadratic; the root nearest the segment.
-        let seen_from = |y: [f64; 2]| -> Option<f64> {
-            let r = sub(xa, y);
-            let (qa, qb, qc) = (cross(e, dn), cross(r, dn) + cross(e, na), cross(r, na));
-            let roots: Vec<f64> = if qa.abs() <= 1e-14 * (qb.abs() + qc.abs()) {
-                (qb != 0.0).then(|| -qc / qb).into_iter().collect()
-            } else {
-                let disc = qb * qb - 4.0 * qa * qc;
-                if disc < 0.0 {
-                    return None;
-                }
-                let q = -0.5 * (qb + qb.signum() * disc.sqrt());
-                [q / qa, if q != 0.0 { qc / q } else { q / qa }].to_vec()
-            };
-            roots
-                .into_iter()
-                .min_by(|p, q| (p - 0.5).abs().total_cmp(&(q - 0.5).abs()))
-        };
-        for m in master {
-            if dot(s.outward, m.outward) > -FACING_COS {
-                continue;
+        roots
+            .into_iter()
+            .min_by(|p, q| (p - 0.5).abs().total_cmp(&(q - 0.5).abs()))
+    }
+
+    /// The part (lo, hi) of this segment that master segment `m` faces along the normal
+    /// field, if they pair.
+    fn overlap(&self, nodes: &[[f64; 2]], m: &Segment) -> Option<(f64, f64)> {
+        let (yc, yd) = (nodes[m.nodes[0]], nodes[m.nodes[1]]);
+        let (xc, xd) = (self.seen_from(yc)?, self.seen_from(yd)?);
+        let (lo, hi) = (xc.min(xd).max(0.0), xc.max(xd).min(1.0));
+        if hi <= lo {
+            return None;
+        }
+        let f = sub(yd, yc);
+        // At every Gauss point the normal line must cross this master segment (the
+        // overlap came from the normal field, which a far master point can only reach by
+        // extrapolating it beyond the segment), and not behind the slave point by more
+        // than a segment (a master line across the slave body).
+        let reach = self.len.max(dot(f, f).sqrt());
+        let paired = gauss().iter().all(|&(q, _)| {
+            let (x, n) = self.at(lo + q * (hi - lo));
+            let den = cross(f, n);
+            if den == 0.0 {
+                return false;
             }
-            let [c, d] = m.nodes;
-            let (yc, yd) = (nodes[c], nodes[d]);
-            let (Some(xc), Some(xd)) = (seen_from(yc), seen_from(yd)) else {
-                continue;
-            };
-            let (lo, hi) = (xc.min(xd).max(0.0), xc.max(xd).min(1.0));
-            if hi <= lo {
-                continue;
-            }
-            let f = sub(yd, yc);
-            // At every Gauss point the normal line must cross this master segment (the
-            // overlap came from the normal field, which a far master point can only
-            // reach by extrapolating it beyond the segment), and not behind the slave
-            // point by more than a segment (a master line across the slave body).
-            let reach = len.max(dot(f, f).sqrt());
-            let paired = gauss.iter().all(|&(q, _)| {
-                let (x, n) = at(lo + q * (hi - lo));
-                let den = cross(f, n);
-                if den == 0.0 {
-                    return false;
-                }
-                let eta = cross(sub(x, yc), n) / den;
-                let y = [yc[0] + eta * f[0], yc[1] + eta * f[1]];
-                (-ETA_SLACK..=1.0 + ETA_SLACK).contains(&eta)
-                    && dot(sub(x, y), n) / dot(n, n).sqrt() >= -reach
-            });
-            if !paired {
-                continue;
-            }
-            for (q, wq) in gauss {
-                let xi = lo + q * (hi - lo);
-                let (x, n) = at(xi);
-                // The master point on the normal line of x: yc + eta f (within the
-                // segment, checked above; clamped for round-off).
-                let eta = (cross(sub(x, yc), n) / cross(f, n)).clamp(0.0, 1.0);
-                let psi = [2.0 - 3.0 * xi, 3.0 * xi - 1.0];
-                let phi = [1.0 - xi, xi];
-                let shape = [1.0 - eta, eta];
-                let weight = wq * (hi - lo) * len;
-                for (j, &vj) in [a, b].iter().enumerate() {
-                    let row = acc.get_mut(&vj).expect("added above");
-                    for (k, &vk) in [c, d].iter().enumerate() {
-                        *row.m.entry(vk).or_insert(0.0) += weight * psi[j] * shape[k];
-                        *row.m_phi.entry(vk).or_insert(0.0) += weight * phi[j] * shape[k];
-                    }
+            let eta = cross(sub(x, yc), n) / den;
+            let y = [yc[0] + eta * f[0], yc[1] + eta * f[1]];
+            (-ETA_SLACK..=1.0 + ETA_SLACK).contains(&eta)
+                && dot(sub(x, y), n) / dot(n, n).sqrt() >= -reach
+        });
+        paired.then_some((lo, hi))
+    }
+
+    /// Adds psi_j N_k and phi_j N_k over the overlap (lo, hi) of slave segment `s` (this
+    /// side) with master segment `m` to the rows of the slave nodes.
+    fn integrate(
+        &self,
+        s: &Segment,
+        m: &Segment,
+        (lo, hi): (f64, f64),
+        nodes: &[[f64; 2]],
+        acc: &mut BTreeMap<usize, Acc>,
+    ) {
+        let [c, d] = m.nodes;
+        let (yc, f) = (nodes[c], sub(nodes[d], nodes[c]));
+        for (q, wq) in gauss() {
+            let xi = lo + q * (hi - lo);
+            let (x, n) = self.at(xi);
+            // The master point on the normal line of x: yc + eta f (within the segment,
+            // checked by `overlap`; clamped for round-off).
+            let eta = (cross(sub(x, yc), n) / cross(f, n)).clamp(0.0, 1.0);
+            let psi = [2.0 - 3.0 * xi, 3.0 * xi - 1.0];
+            let phi = [1.0 - xi, xi];
+            let shape = [1.0 - eta, eta];
+            let weight = wq * (hi - lo) * self.len;
+            for (j, vj) in s.nodes.into_iter().enumerate() {
+                let row = acc.get_mut(&vj).expect("a slave node");
+                for (k, &vk) in [c, d].iter().enumerate() {
+                    *row.m.entry(vk).or_insert(0.0) += weight * psi[j] * shape[k];
+                    *row.m_phi.entry(vk).or_insert(0.0) += weight * phi[j] * shape[k];
                 }
             }
         }
     }
-    acc.into_iter()
-        .filter_map(|(node, a)| {
-            // The faced share of the node's support, phi_j weighted (in [0, 1]).
-            let faced: f64 = a.m_phi.values().sum();
-            if faced < MIN_FACED * a.d {
-                return None;
-            }
-            // Faced over its whole support: the dual row. Over part of it (the end of
-            // the master, or the edge of the facing cone): the dual functions integrated
-            // over part of their support no longer average the master around the node
-            // (they take negative values), so the row is the phi_j-weighted mean of the
-            // master over the faced part: non-negative weights near the node.
-            let whole = faced >= (1.0 - FULLY_FACED) * a.d;
-            let m = if whole { a.m } else { a.m_phi };
-            let sum: f64 = m.values().sum();
-            let normal = normals[&node];
-            let masters: Vec<(usize, f64)> = (m.into_iter())
-                .filter(|&(_, m)| m != 0.0)
-                .map(|(k, m)| (k, m / sum))
-                .collect();
-            let mut mean = [0.0; 2];
-            for &(k, c) in &masters {
-                mean[0] += c * nodes[k][0];
-                mean[1] += c * nodes[k][1];
-            }
-            Some(MortarRow {
-                node,
-                w: a.d,
-                normal,
-                gap: dot(normal, sub(nodes[node], mean)),
-                masters,
-            })
-        })
-        .collect()
 }
 
 fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {

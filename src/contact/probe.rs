@@ -1,5 +1,5 @@
 //! How soft the body is, seen from its contact boundary, for smooth contact modes:
-//! measured with two linear steps before the loop (see [`smooth_mode_ratio`]).
+//! measured with a few linear steps before the loop (see [`smooth_stiffness`]).
 
 use super::{ContactNodes, LinearStep, Reduce};
 use crate::error::Result;
@@ -8,7 +8,7 @@ use crate::error::Result;
 /// to linear functions of the position (the normal components of rigid translations
 /// and rotations, which a body that only the contact holds meets without any
 /// stiffness). `None` when the contact nodes have fewer than three distinct positions.
-pub fn smooth_shape(nodes: &ContactNodes, comm: &impl Reduce) -> Option<Vec<f64>> {
+pub fn smooth_shape(nodes: &ContactNodes, comm: &(impl Reduce + ?Sized)) -> Option<Vec<f64>> {
     let (w, s) = (&nodes.w, &nodes.s);
     let mut m = [
         w.iter().sum::<f64>(),
@@ -39,23 +39,21 @@ pub fn smooth_shape(nodes: &ContactNodes, comm: &impl Reduce) -> Option<Vec<f64>
     Some(c.iter().map(|c| c * c - a - b * c).collect())
 }
 
-/// Power iterations of the probe (each one linear step).
-pub const POWER_STEPS: usize = 6;
-
 /// The stiffness of the body for its smooth contact modes (force per unit length per unit
 /// length, like r), measured with the linear step A = K + r B'WB:
 /// a normal contact force r sigma W v moves the contact nodes by d = B A^-1 B' (r sigma W v),
 /// and mode by mode d = mu sigma v with mu = r c / (1 + r c), c the mode's compliance.
 /// Powers of that map keep the soft modes (mu near 1) and damp the stiff ones (mu near 0);
-/// after [`POWER_STEPS`] of them, the energy of the displacement u over the square of its
+/// after `steps` of them, the energy of the displacement u over the square of its
 /// contact displacement, u'Ku / |d|^2 = r (sigma v'Wd / |d|^2 - 1) (K u = r sigma B'W v - r B'W d),
 /// is the stiffness of the soft modes alone. The start is [`smooth_shape`], W-orthogonal
 /// to the rigid motions, and so is every iterate. `None` without a smooth shape.
 pub fn smooth_stiffness(
-    step: &mut impl LinearStep,
-    comm: &impl Reduce,
+    step: &mut (impl LinearStep + ?Sized),
+    comm: &(impl Reduce + ?Sized),
     nodes: &ContactNodes,
     r: f64,
+    steps: usize,
 ) -> Result<Option<f64>> {
     let Some(mut v) = smooth_shape(nodes, comm) else {
         return Ok(None);
@@ -76,7 +74,7 @@ pub fn smooth_stiffness(
     let mut norm = sizes[1].sqrt();
     let mut d = vec![0.0; n];
     let mut k = None;
-    for _ in 0..POWER_STEPS {
+    for _ in 0..steps {
         let sigma = size / norm;
         let force: Vec<f64> = (0..n).map(|i| r * sigma * w[i] * v[i]).collect();
         step.solve(&force, &zero, &mut d, &mut ut)?;

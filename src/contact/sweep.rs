@@ -3,7 +3,6 @@
 //! sums that the sweep's one all-reduce turns into its line of the history.
 
 use super::kernels::{coulomb_threshold, project_normal, shrink, state, update_multiplier};
-use super::retune::{largest_tuned, tuned, Augmentation, Held, Rules};
 use super::{ContactNodes, LinearStep, Reduce};
 use crate::error::Result;
 
@@ -36,23 +35,19 @@ pub struct Sweep {
     /// sweep's linear step is raised above the reference r, and lowered below it.
     pub stiff: usize,
     pub soft: usize,
-    /// Directions whose r differs from what their status in the image asks for.
+    /// The adaptive policy's counts (`adaptive::Adaptive::count`; 0 under a given r):
+    /// directions whose r differs from what their status asks for; nodes whose normal is
+    /// among them, or whose tangent is while the tangents follow their statuses; and
+    /// directions whose r differs from what the settled statuses' retune would give.
     pub mistuned: usize,
-    /// Nodes whose normal is among them, or whose tangent is while the tangents follow
-    /// their statuses (`Augmentation::follow_tangents`): what a normals' retune answers.
     pub mistuned_n: usize,
-    /// Directions whose r differs from what the retune of settled statuses would give
-    /// them: the mistuned ones, and the free ones not yet lowered further.
-    #[serde(default)]
     pub unsettled: usize,
     /// Contact nodes whose status could still flip: the state of a direction lies closer
     /// to its status boundary (the gap, the slip threshold) than the estimated error of
     /// the sweep before.
     pub uncertain: usize,
-    /// A fingerprint of the statuses in this sweep's image (a sum over the contact nodes
-    /// of [`status_tag`]): equal for the same statuses whatever the ranks, for the
-    /// retune's test of a cycle (`retune::retuned`).
-    #[serde(default)]
+    /// A fingerprint of the statuses in this sweep's image, the same whatever the ranks,
+    /// for the adaptive policy's test of a cycle (0 under a given r).
     pub pattern: u64,
     /// Retunes of r before this sweep.
     pub retunes: usize,
@@ -61,11 +56,52 @@ pub struct Sweep {
     pub refused: usize,
     /// The round-off floor, relative as the three changes are, of the quantities whose
     /// change in this sweep was below their round-off and counted as none (0 where no
-    /// change was hidden, as at an exact fixed point): the larger of that round-off and
-    /// of the error the hidden change may leave, change / (1 - rho); where it is hiding
-    /// changes, the accuracy the run can confirm at best ([`SweepSums::changes`]).
-    #[serde(default)]
+    /// change was hidden): the accuracy the run can confirm at best
+    /// ([`SweepSums::changes`]).
     pub roundoff: f64,
+}
+
+/// The augmentation parameter of each contact direction on this rank: ALG2 converges
+/// for any positive r per direction (it is the method in a rescaled constraint).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(super) struct Augmentation {
+    pub(super) r_n: Vec<f64>,
+    pub(super) r_t: Vec<f64>,
+}
+
+impl Augmentation {
+    /// The reference r in every direction of n contact nodes.
+    pub(super) fn uniform(n: usize, r: f64) -> Self {
+        Augmentation {
+            r_n: vec![r; n],
+            r_t: vec![r; n],
+        }
+    }
+}
+
+/// What holds a contact node's directions, as its status in an image says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Held {
+    /// The normal: pressed onto the foundation.
+    pub(super) n: bool,
+    /// The tangent (with friction): sticking, below a positive slip threshold.
+    pub(super) t: bool,
+    /// The tangent (with friction) has a zero slip threshold (an open node under
+    /// Coulomb, a frictionless contact among frictional ones): no force acts on it.
+    pub(super) loose: bool,
+}
+
+impl Held {
+    #[cfg(test)]
+    pub(super) fn new(n: bool, t: bool) -> Self {
+        Held { n, t, loose: false }
+    }
+
+    /// Whether only its spring holds the tangent's motion: a loose one, and an open
+    /// node's slipping one, whose force is a threshold no normal force sets.
+    pub(super) fn free_tangent(self) -> bool {
+        self.loose || (!self.n && !self.t)
+    }
 }
 
 /// The slip thresholds seen by one run of sweeps.
@@ -127,7 +163,7 @@ impl Derived {
         }
     }
 
-    fn statuses(&self, frictional: bool) -> Vec<Held> {
+    pub(super) fn statuses(&self, frictional: bool) -> Vec<Held> {
         (0..self.p.len())
             .map(|i| self.held(i, frictional))
             .collect()
@@ -165,111 +201,76 @@ pub(super) fn project_and_update(
     d
 }
 
-/// The sums of one sweep over this rank's contact nodes (over all ranks once reduced):
-/// squared W-norms of the reported quantities and of their changes over the sweep, each
-/// in its own units (forces per unit length for the multipliers, lengths for the
-/// displacements), whatever the r of each direction; the counts are floats only to
-/// travel in the same all-reduce.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub(super) struct SweepSums {
+/// Declares [`SweepSums`], its fields in the order of the all-reduce, and its packing.
+macro_rules! sweep_sums {
+    ($($(#[$doc:meta])* $field:ident,)*) => {
+        /// The sums of one sweep over this rank's contact nodes (over all ranks once
+        /// reduced): squared W-norms of the reported quantities and of their changes over
+        /// the sweep, each in its own units (forces per unit length for the multipliers,
+        /// lengths for the displacements), whatever the r of each direction; the counts
+        /// are floats only to travel in the same all-reduce.
+        #[derive(Debug, Clone, Copy, Default, PartialEq)]
+        pub(super) struct SweepSums {
+            $($(#[$doc])* pub(super) $field: f64,)*
+        }
+
+        impl SweepSums {
+            /// The numbers [`SweepSums::pack`] puts in the all-reduce.
+            pub(super) const LEN: usize = [$(stringify!($field)),*].len();
+
+            pub(super) fn pack(&self) -> [f64; Self::LEN] {
+                [$(self.$field),*]
+            }
+
+            pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
+                let [$($field),*] = v;
+                SweepSums { $($field),* }
+            }
+        }
+    };
+}
+
+sweep_sums! {
     /// |lambda+ - lambda|^2 and |mu+ - mu|^2: the change of p_n and p_t.
-    pub(super) force_change_n: f64,
-    pub(super) force_change_t: f64,
+    force_change_n,
+    force_change_t,
     /// |G(x) - x|^2 per direction: the change of the state s = Nu + lambda / r, a
     /// displacement, which bounds both the move of p and the constraint's violation
     /// Nu - p+ = (lambda+ - lambda) / r.
-    pub(super) state_change_n: f64,
-    pub(super) state_change_t: f64,
+    state_change_n,
+    state_change_t,
     /// |Nu|^2 and |Tu|^2.
-    pub(super) displacement_n: f64,
-    pub(super) displacement_t: f64,
+    displacement_n,
+    displacement_t,
     /// |lambda+|^2 and |mu+|^2.
-    pub(super) force_n: f64,
-    pub(super) force_t: f64,
+    force_n,
+    force_t,
     /// The counts of [`Sweep`].
-    pub(super) active: f64,
-    pub(super) slip: f64,
-    pub(super) changed: f64,
-    pub(super) stiff: f64,
-    pub(super) soft: f64,
-    pub(super) mistuned: f64,
-    pub(super) uncertain: f64,
-    pub(super) mistuned_n: f64,
-    pub(super) unsettled: f64,
-    /// The sum of [`status_tag`]: whole numbers, exact in the all-reduce's sum.
-    pub(super) pattern: f64,
+    active,
+    slip,
+    changed,
+    stiff,
+    soft,
+    mistuned,
+    uncertain,
+    mistuned_n,
+    unsettled,
+    /// The sum of the nodes' status tags: whole numbers, exact in the all-reduce's sum.
+    pattern,
 }
 
-/// The floor of each quantity's scale, as a fraction of the other quantities' sizes of
-/// the same kind: a force's floor is the other force (p_t's is p_n, p_n's is p_t), the
-/// displacement's the forces converted with the reference r. It only acts where a
-/// quantity is (nearly) zero while the others are not: p_t where the traction vanishes
-/// by symmetry, u on a foundation the body touches from the start. There, relative accuracy of the quantity itself would ask for
-/// digits that round-off in the others does not leave; instead its error is then held
-/// to tol times a thousandth of theirs. A thousandth keeps the floor far below every
-/// quantity that matters (a p_t of 0.1 % of p_n is still measured against itself).
+/// The floor of each quantity's scale, a fraction of the other quantities of its kind (a
+/// force's is the other force, u's the forces over r): where a quantity vanishes (p_t by
+/// symmetry) relative accuracy would ask for digits that the others' round-off does not
+/// leave; a thousandth keeps the floor far below every quantity that matters.
 pub const SCALE_FLOOR: f64 = 1e-3;
 
 /// The round-off of one sweep, relative to its largest forces (r |u| and the
 /// multipliers): sixteen units of round-off. A change below it cannot be told from the
-/// noise of the solve, so it counts as none. Where r |u| is far above the contact forces
-/// (a body that moves a lot before it touches), this is what bounds the attainable
-/// accuracy of p_n: measured on the cantilever of tests/data/tolerance (r |u| = 1e5 |p_n|),
-/// the changes of p_n stagnate at 7e-11 of p_n, 3 units of round-off of r |u|.
+/// noise of the solve, so it counts as none.
 pub const ROUNDOFF: f64 = 16.0 * f64::EPSILON;
 
 impl SweepSums {
-    /// The numbers [`SweepSums::pack`] puts in the all-reduce.
-    pub(super) const LEN: usize = 18;
-
-    pub(super) fn pack(&self) -> [f64; Self::LEN] {
-        [
-            self.force_change_n,
-            self.force_change_t,
-            self.state_change_n,
-            self.state_change_t,
-            self.displacement_n,
-            self.displacement_t,
-            self.force_n,
-            self.force_t,
-            self.active,
-            self.slip,
-            self.changed,
-            self.stiff,
-            self.soft,
-            self.mistuned,
-            self.uncertain,
-            self.mistuned_n,
-            self.unsettled,
-            self.pattern,
-        ]
-    }
-
-    pub(super) fn unpack(v: [f64; Self::LEN]) -> Self {
-        let [force_change_n, force_change_t, state_change_n, state_change_t, displacement_n, displacement_t, force_n, force_t, active, slip, changed, stiff, soft, mistuned, uncertain, mistuned_n, unsettled, pattern] =
-            v;
-        SweepSums {
-            force_change_n,
-            force_change_t,
-            state_change_n,
-            state_change_t,
-            displacement_n,
-            displacement_t,
-            force_n,
-            force_t,
-            active,
-            slip,
-            changed,
-            stiff,
-            soft,
-            mistuned,
-            uncertain,
-            mistuned_n,
-            unsettled,
-            pattern,
-        }
-    }
-
     /// Whether every norm is finite (no NaN, no overflow).
     pub(super) fn finite(&self) -> bool {
         self.pack()[..8].iter().all(|v| v.is_finite())
@@ -278,24 +279,17 @@ impl SweepSums {
     /// The relative changes (p_n, p_t, u) of the sweep: each quantity's change over its
     /// own size plus [`SCALE_FLOOR`] times the other force (p_n, p_t), or the forces
     /// over the reference r `r` (u); and the round-off floor of the sweep
-    /// ([`Sweep::roundoff`]) for a plain sweep contracting by `contraction`.
-    pub(super) fn changes(&self, r: f64, mesh_stiffness: f64, contraction: f64) -> ([f64; 3], f64) {
+    /// ([`Sweep::roundoff`]) for a plain sweep contracting by `contraction`. `r_raised`
+    /// is the largest r of a direction raised above `r`.
+    pub(super) fn changes(&self, (r, r_raised): (f64, f64), contraction: f64) -> ([f64; 3], f64) {
         let (pn, pt) = (self.force_n.sqrt(), self.force_t.sqrt());
         let u = self.displacement_n.sqrt() + self.displacement_t.sqrt();
-        // What round-off leaves of a change: the sweep's forces are formed from r u and
-        // the multipliers, so a force change below ROUNDOFF times their size is noise;
-        // with r raised on held directions, the largest r forms them.
-        let r_max = if self.stiff > 0.0 {
-            largest_tuned(r, mesh_stiffness)
-        } else {
-            r
-        };
+        // The sweep's forces are formed from r u and the multipliers, with the largest r
+        // where some direction is raised: a force change below their round-off is noise.
+        let r_max = if self.stiff > 0.0 { r_raised } else { r };
         let noise = ROUNDOFF * (pn + pt + r_max * u);
         // (change, its noise, its scale) of p_n, p_t and u. The forces' floors are
-        // forces: r u (a length times the augmentation) is no scale of p_n or p_t. Where
-        // r u is far above the contact forces (a body that moves a lot before it
-        // touches: the cantilever of tests/data/tolerance, r u = 5000 p_n), a floor of
-        // 1e-3 r u was 5 p_n, and p_t stopped 15 times tol off.
+        // forces: r u (a length times the augmentation) is no scale of p_n or p_t.
         let quantities = [
             (self.force_change_n.sqrt(), noise, pn + SCALE_FLOOR * pt),
             (self.force_change_t.sqrt(), noise, pt + SCALE_FLOOR * pn),
@@ -307,12 +301,9 @@ impl SweepSums {
         ];
         let changes =
             quantities.map(|(change, noise, scale)| relative((change - noise).max(0.0), scale));
-        // The floor of each quantity whose change round-off hid: there the loop can no
-        // longer tell its progress from noise. An exact fixed point (no change at all)
-        // hides nothing. The hidden change still counts as a change would: what it may
-        // leave of the error is change / (1 - rho), which exceeds the noise where the
-        // loop contracts slowly (the Tresca arch of make_cases.py --heldout at a fixed r,
-        // rho 0.999998: its p_t stopped 1.1e-7 off at tol 1e-8, under a floor of 4.3e-11).
+        // The floor of each quantity whose change round-off hid (an exact fixed point
+        // hides nothing): the noise, or what the hidden change may leave of the error,
+        // change / (1 - rho), where the loop contracts slowly.
         let floor = quantities
             .iter()
             .filter(|&&(change, noise, _)| change > 0.0 && change <= noise)
@@ -323,18 +314,17 @@ impl SweepSums {
         (changes, floor)
     }
 
-    /// The history line of sweep `iter` from the global sums, with the reference r `r`,
-    /// the body's `mesh_stiffness` (E_eff / h, 0 when not known) and the estimated
-    /// `contraction` of the plain sweep.
+    /// The history line of sweep `iter` from the global sums, with the reference r and
+    /// the largest raised r (see [`SweepSums::changes`]) and the estimated `contraction`
+    /// of the plain sweep.
     pub(super) fn sweep(
         &self,
         iter: usize,
         retunes: usize,
-        (r, mesh_stiffness): (f64, f64),
+        r: (f64, f64),
         contraction: f64,
     ) -> Sweep {
-        let ([pressure, traction, displacement], roundoff) =
-            self.changes(r, mesh_stiffness, contraction);
+        let ([pressure, traction, displacement], roundoff) = self.changes(r, contraction);
         Sweep {
             iter,
             pressure,
@@ -361,14 +351,7 @@ impl SweepSums {
 
 /// A warning when round-off, not `tol`, bounds the accuracy of the run that ended with
 /// `last`: its changes below [`Sweep::roundoff`] were noise and counted as none, so the
-/// loop could not confirm `tol`. Measured at the default tol 1e-8 against runs at 1e-12
-/// (held-out, slender and beam cases of make_cases.py, with Tresca variants): every run
-/// whose floor stayed at or below tol landed within tol (33 of 33); of the 16 above it,
-/// 6 landed 2-6 times tol off (the Coulomb cantilever of tests/data/tolerance, floor 2e-8,
-/// p_t 7.5e-8; slender Coulomb beams and a bridge, floors 1.3e-8-7.7e-8), the others
-/// stopped where the run at 1e-12 did, which round-off stopped too (runs of the
-/// cantilever at 1e-12 on 1 and 3 ranks differ by 4e-9, of the 2 m beam by 7e-8). Those
-/// floors were the round-off alone; counting the contraction only raises them.
+/// loop could not confirm `tol`.
 pub fn roundoff_warning(last: Option<&Sweep>, tol: f64) -> Option<String> {
     let last = last?;
     let (floor, rho) = (last.roundoff, last.contraction);
@@ -383,10 +366,8 @@ pub fn roundoff_warning(last: Option<&Sweep>, tol: f64) -> Option<String> {
 /// The error left after a sweep that changed the answer by `change` (relative), when the
 /// plain sweep contracts by `contraction`: for a map contracting by rho, the distance
 /// from a point to the fixed point is at most |G(x) - x| / (1 - rho). No change (none
-/// beyond round-off's noise) is a fixed point, whatever rho: a contraction estimated at
-/// 1 from a body's creep before it settled otherwise kept a run that stood still at its
-/// answer sweeping to `max_iter` (a strip balanced on a ridge, make_cases.py
-/// --obstacles: 9700 sweeps without a change).
+/// beyond round-off's noise) is a fixed point, whatever rho (a rho estimated at 1 from a
+/// creep that has ended would otherwise keep the loop going).
 pub fn error_estimate(change: f64, contraction: f64) -> f64 {
     if change == 0.0 {
         0.0
@@ -407,7 +388,8 @@ pub(super) fn relative(value: f64, scale: f64) -> f64 {
 }
 
 /// What one sweep sums over all ranks, in its single all-reduce of
-/// [`SweepSums::LEN`] + 3 + m(m+1)/2 + m numbers.
+/// [`SweepSums::LEN`] + 4 + k(k + 2) numbers, k <= m the differences in the Anderson
+/// memory: the sums, the residual, the secant's three norms and the Gram sums.
 pub(super) struct Reduced {
     pub(super) sums: SweepSums,
     /// |G(x) - x|^2 in the norm of [`super::anderson::metric`].
@@ -451,6 +433,8 @@ pub(super) struct Eval {
     /// G(x) - x.
     pub(super) f: Vec<f64>,
     pub(super) out: Derived,
+    /// The statuses in the image.
+    pub(super) now: Vec<Held>,
     pub(super) sums: SweepSums,
 }
 
@@ -461,20 +445,12 @@ pub(super) struct Sweeper<'a, S: LinearStep> {
     pub(super) nodes: &'a ContactNodes,
     /// The reference r: the scale of the residuals, and the r of a direction not retuned.
     pub(super) r_ref: f64,
-    /// E_eff / h, which sets the least r of a held direction (0 when not known).
-    pub(super) mesh_stiffness: f64,
     pub(super) aug: Augmentation,
     /// The statuses in the image of the last evaluation (empty before the first).
-    last_held: Vec<Held>,
+    pub(super) last_held: Vec<Held>,
     /// How close (a length) a state may come to its status boundary before its status
     /// counts as uncertain: the estimated error of the last sweep.
     pub(super) margin: f64,
-    /// Each node's key for the status fingerprint ([`node_key`]).
-    keys: Vec<u64>,
-    /// The sweep at which each node's statuses last changed (0: never), and its normal's,
-    /// which tell the nodes and normals that cycle ([`Augmentation::after_cycle`]).
-    pub(super) changed_at: Vec<usize>,
-    pub(super) normal_changed_at: Vec<usize>,
     force_n: Vec<f64>,
     force_t: Vec<f64>,
     pub(super) un: Vec<f64>,
@@ -483,24 +459,15 @@ pub(super) struct Sweeper<'a, S: LinearStep> {
 
 impl<'a, S: LinearStep> Sweeper<'a, S> {
     /// A sweeper with the reference r in every direction.
-    pub(super) fn new(
-        step: &'a mut S,
-        nodes: &'a ContactNodes,
-        r: f64,
-        mesh_stiffness: f64,
-    ) -> Self {
+    pub(super) fn new(step: &'a mut S, nodes: &'a ContactNodes, r: f64) -> Self {
         let n = nodes.len();
         Sweeper {
             step,
             nodes,
             r_ref: r,
-            mesh_stiffness,
             aug: Augmentation::uniform(n, r),
             last_held: Vec::new(),
             margin: f64::INFINITY,
-            keys: (0..n).map(|i| node_key(nodes, i)).collect(),
-            changed_at: vec![0; n],
-            normal_changed_at: vec![0; n],
             force_n: vec![0.0; n],
             force_t: vec![0.0; n],
             un: vec![0.0; n],
@@ -508,9 +475,9 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
         }
     }
 
-    /// One sweep of ALG2 (the loop's `sweep`-th) from the state x, then this rank's sums
-    /// of it.
-    pub(super) fn eval(&mut self, x: &[f64], law: Law, sweep: usize) -> Result<Eval> {
+    /// One sweep of ALG2 from the state x, then this rank's sums of it (compared with
+    /// the statuses of the last evaluation, which the caller then replaces).
+    pub(super) fn eval(&mut self, x: &[f64], law: Law) -> Result<Eval> {
         let frictional = law.frictional();
         // (p, lambda, q, mu) of the state: steps 2 and 3 of the sweep that produced it.
         let inp = project_and_update(x, self.nodes, law, &self.aug);
@@ -521,30 +488,15 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
         self.new_states(&inp, frictional, &mut gx);
         let out = project_and_update(&gx, self.nodes, law, &self.aug);
         let f: Vec<f64> = gx.iter().zip(x).map(|(a, b)| a - b).collect();
-        let sums = self.local_sums(&inp, &out, &f, frictional);
-        self.remember_statuses(&out, frictional, sweep);
-        Ok(Eval { gx, f, out, sums })
-    }
-
-    /// Each node's (any status, its normal's) change after sweep `since`.
-    pub(super) fn changed_since(&self, since: usize) -> Vec<(bool, bool)> {
-        (self.changed_at.iter().zip(&self.normal_changed_at))
-            .map(|(&any, &normal)| (any > since, normal > since))
-            .collect()
-    }
-
-    /// Keeps the statuses of an image, which the next evaluation's `changed` compares with.
-    pub(super) fn remember_statuses(&mut self, image: &Derived, frictional: bool, sweep: usize) {
-        let now = image.statuses(frictional);
-        for (i, (a, b)) in self.last_held.iter().zip(&now).enumerate() {
-            if a != b {
-                self.changed_at[i] = sweep;
-            }
-            if a.n != b.n {
-                self.normal_changed_at[i] = sweep;
-            }
-        }
-        self.last_held = now;
+        let now = out.statuses(frictional);
+        let sums = self.local_sums(&inp, &out, &now, &f, frictional);
+        Ok(Eval {
+            gx,
+            f,
+            out,
+            now,
+            sums,
+        })
     }
 
     /// Step 1: A u = F + N' w (r p - lambda) + T' w (r q - mu), seen as (Nu, Tu).
@@ -590,8 +542,16 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
         normal.min(tangent)
     }
 
-    /// This rank's sums of the sweep from `inp` to `out`, whose state moved by `f`.
-    fn local_sums(&self, inp: &Derived, out: &Derived, f: &[f64], frictional: bool) -> SweepSums {
+    /// This rank's sums of the sweep from `inp` to `out` (statuses `now`), whose state
+    /// moved by `f`.
+    fn local_sums(
+        &self,
+        inp: &Derived,
+        out: &Derived,
+        now: &[Held],
+        f: &[f64],
+        frictional: bool,
+    ) -> SweepSums {
         let (w, r, aug) = (&self.nodes.w, self.r_ref, &self.aug);
         let n = w.len();
         let mut s = SweepSums::default();
@@ -612,73 +572,24 @@ impl<'a, S: LinearStep> Sweeper<'a, S> {
                     s.slip += 1.0;
                 }
             }
-            let held = out.held(i, frictional);
             if self.status_margin(out, i, frictional) <= self.margin {
                 s.uncertain += 1.0;
             }
             // The first sweep compares with the statuses of its input.
             let before = self.last_held.get(i).copied();
-            if before.unwrap_or_else(|| inp.held(i, frictional)) != held {
+            if before.unwrap_or_else(|| inp.held(i, frictional)) != now[i] {
                 s.changed += 1.0;
             }
-            let (want_n, want_t) = aug.tuned(held, frictional, r, self.mesh_stiffness);
-            for (have, want) in [(aug.r_n[i], want_n), (aug.r_t[i], want_t)] {
+            for have in [aug.r_n[i], aug.r_t[i]] {
                 if have > r {
                     s.stiff += 1.0;
                 } else if have < r {
                     s.soft += 1.0;
                 }
-                if have != want {
-                    s.mistuned += 1.0;
-                }
             }
-            if aug.r_n[i] != want_n || (aug.follow_tangents && aug.r_t[i] != want_t) {
-                s.mistuned_n += 1.0;
-            }
-            let rules = Rules {
-                settled: true,
-                ..aug.rules()
-            };
-            let settled = tuned(held, frictional, r, self.mesh_stiffness, rules);
-            s.unsettled += f64::from(u8::from(aug.r_n[i] != settled.0))
-                + f64::from(u8::from(aug.r_t[i] != settled.1));
-            s.pattern += status_tag(self.keys[i], held);
         }
         s
     }
-}
-
-/// Node i's key for [`status_tag`]: a hash of its weight, gap, position and normal, the
-/// same on every rank; computed once per run.
-fn node_key(nodes: &ContactNodes, i: usize) -> u64 {
-    let [mx, my] = nodes.normal.get(i).copied().unwrap_or_default();
-    let at = |v: &[f64]| v.get(i).copied().unwrap_or_default().to_bits();
-    [
-        at(&nodes.w),
-        at(&nodes.g),
-        at(&nodes.s),
-        mx.to_bits(),
-        my.to_bits(),
-    ]
-    .into_iter()
-    .fold(0x9e37_79b9_7f4a_7c15, mix)
-}
-
-/// splitmix64's finaliser over `h` and the next word.
-fn mix(h: u64, word: u64) -> u64 {
-    let mut h = (h ^ word).wrapping_add(0x9e37_79b9_7f4a_7c15);
-    h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    h ^ (h >> 31)
-}
-
-/// A node's share of a sweep's status fingerprint ([`Sweep::pattern`]): a 20-bit whole
-/// number hashed from the node's key ([`node_key`]) and its status, so that a sum over
-/// up to 2^33 nodes stays exact in an f64 and two sets of statuses that differ at a few
-/// nodes give the same sum with a chance of about 2^-20.
-pub(super) fn status_tag(key: u64, held: Held) -> f64 {
-    let code = u64::from(held.n) | u64::from(held.t) << 1 | u64::from(held.loose) << 2;
-    (mix(key, code) >> 44) as f64
 }
 
 #[cfg(test)]
@@ -764,14 +675,14 @@ mod tests {
             ..sums
         };
         // A fast loop: the noise itself bounds what the run can confirm.
-        let (changes, floor) = with_change.changes(1.0, 0.0, 0.5);
+        let (changes, floor) = with_change.changes((1.0, 1.0), 0.5);
         assert_eq!(changes[0], 0.0);
         assert_eq!(floor, noise);
         // A slow one: the hidden change over 1 - rho, far above the noise.
-        let (changes, floor) = with_change.changes(1.0, 0.0, 0.999);
+        let (changes, floor) = with_change.changes((1.0, 1.0), 0.999);
         assert_eq!(changes[0], 0.0);
         assert!((floor - hidden / 0.001).abs() <= 1e-9 * floor, "{floor}");
         // Nothing hidden, nothing to bound, however slow.
-        assert_eq!(sums.changes(1.0, 0.0, 0.999).1, 0.0);
+        assert_eq!(sums.changes((1.0, 1.0), 0.999).1, 0.0);
     }
 }

@@ -11,39 +11,36 @@
 //!   3. G(x) = (Nu + lambda / r, Tu + mu / r).
 //!
 //! Iterating G is exactly ALG2; this form lets an accelerator act on x. Each contact
-//! direction may have its own r (an [`Augmentation`]: the normals retuned to their
-//! statuses at every sweep that moves one, the tangents once the statuses settle; see
-//! [`retuned`]); the formulas above then read r_n or r_t of the node.
+//! direction may have its own r, chosen by the loop's [`Policy`]: the given r
+//! ([`Fixed`]) or the automatic r ([`Adaptive`]); the formulas above then read the
+//! node's r_n or r_t.
 //!
 //! ## Acceleration
-//! Anderson mixing (type II, memory m) on G, with an inner product in force units (each
-//! direction weighted by w (r / r_ref)^2, see `metric` in the `anderson` module) summed over all
-//! ranks, so every rank computes the same mixing coefficients and the iterates do not
-//! depend on the rank count. Safeguard: a mixed point is kept only if its fixed-point
-//! residual |G(y) - y| (same norm) does not exceed the residual of the last kept point;
-//! otherwise the plain step G(x) is taken and the memory is cleared. The plain method
-//! therefore bounds the accelerated one (at the price of one extra solve per refusal).
+//! Anderson mixing (type II, memory m) on G, with an inner product in force units summed
+//! over all ranks, so that every rank computes the same mixing coefficients and the
+//! iterates do not depend on the rank count. Safeguard: a mixed point is kept only if its
+//! fixed-point residual does not exceed that of the last kept point; otherwise the plain
+//! step G(x) is taken and the memory is cleared. The plain method therefore bounds the
+//! accelerated one (at the price of one extra solve per refusal).
 //!
 //! ## Communication per sweep
-//! One linear step, and one all-reduce of 21 + m(m+1)/2 + m numbers: the 17 sums of
-//! `SweepSums` (the squared W-norms of the changes, displacements and multipliers, the
-//! active, slip, changed, stiff, soft, mistuned (all and normal), uncertain and unsettled counts), the squared
-//! fixed-point residual, the secant's three squared norms, and the Anderson Gram matrix
-//! and right-hand side.
+//! One linear step and one all-reduce (its numbers: `sweep::Reduced`).
 //!
 //! ## The stopping test
 //! `tol` is the relative accuracy of p_n, p_t and u at the contact nodes, each against
-//! its own size. A sweep's relative changes of the three (`SweepSums::changes`)
-//! are divided by 1 - rho, rho the contraction of the plain map estimated from secants of
-//! the evaluated points (`Run::contraction`): for a map contracting by rho, the distance
-//! to the fixed point is at most |G(x) - x| / (1 - rho). The loop stops when that
-//! estimate is below tol (docs/ALGORITHM.md, "The stopping test").
+//! its own size. A sweep's relative changes of the three are divided by 1 - rho, rho the
+//! contraction of the plain map estimated from secants of the evaluated points
+//! (`Run::contraction`): for a map contracting by rho, the distance to the fixed point is
+//! at most |G(x) - x| / (1 - rho). The loop stops when that estimate is below
+//! tol / [`STOP_MARGIN`] (docs/ALGORITHM.md, "The stopping test").
 
+use super::adaptive::{Adaptive, AdaptiveParams};
 use super::anderson::{dot, metric, span_secant, Anderson, FLAT_SECANT};
 use super::kernels::{coulomb_threshold, first_crossing, state};
-use super::retune::{retuned, tail, tangents_follow, Augmentation, Held, Retune};
+use super::policy::{Fixed, Image, Policy, PolicyState};
 use super::sweep::{
-    error_estimate, project_and_update, relative, Derived, Law, Reduced, Sweep, Sweeper, ROUNDOFF,
+    error_estimate, project_and_update, relative, Augmentation, Derived, Law, Reduced, Sweep,
+    Sweeper, ROUNDOFF,
 };
 use super::{ContactNodes, LinearStep, Reduce, Status};
 use crate::contact::{Acceleration, CoulombMode, Friction};
@@ -51,7 +48,8 @@ use crate::error::{Error, Result};
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Params {
-    /// Augmentation parameter r > 0.
+    /// Augmentation parameter r > 0: the given r, or the automatic r that the adaptive
+    /// policy starts from.
     pub r: f64,
     /// Relative accuracy asked of p_n, p_t and u at the contact nodes: the loop stops
     /// when the estimated error of each, relative to its own size, is below it.
@@ -61,12 +59,10 @@ pub struct Params {
     pub friction: Friction,
     pub coulomb: CoulombMode,
     pub acceleration: Acceleration,
-    /// Retune r per contact direction when the loop settles (see [`retuned`]), and
-    /// lower r before the loop for a body far softer than a compact one (see
-    /// [`super::probe`]).
-    pub adapt_r: bool,
-    /// E_eff / h, the stiffness of the body for mesh-scale modes (the stiffest), which
-    /// the automatic r balances against the smooth modes'.
+    /// The automatic r's tuning; `None` keeps `r` in every direction (the paper's method).
+    pub adaptive: Option<AdaptiveParams>,
+    /// E_eff / h, the body's stiffness for mesh-scale modes (NaN when not known), the
+    /// unit of the automatic r's floors.
     pub mesh_stiffness: f64,
 }
 
@@ -75,7 +71,7 @@ pub struct Params {
 pub struct Outcome {
     pub converged: bool,
     /// The reference r of the loop: the given or automatic r, or lower for a body far
-    /// softer than a compact one (see [`softened_r`]).
+    /// softer than a compact one (`Adaptive::start`).
     pub r: f64,
     /// The measured smooth-mode stiffness over E_eff / L (`None` when not measured).
     pub smooth_stiffness: Option<f64>,
@@ -100,51 +96,62 @@ pub struct Outcome {
     pub history: Vec<Sweep>,
 }
 
-/// Everything this rank needs to resume the loop exactly where it was: resuming from a
-/// snapshot gives the same iterates, bit for bit, as not stopping.
+/// Everything this rank needs to resume the loop exactly where it was, each part whole:
+/// resuming from a snapshot gives the same iterates, bit for bit, as not stopping.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Snapshot {
-    pub history: Vec<Sweep>,
-    pub refused: usize,
-    /// The last accepted state and its evaluation.
-    pub x: Vec<f64>,
-    pub gx: Vec<f64>,
-    pub res: f64,
-    pub gram: Vec<f64>,
-    pub worst: f64,
-    /// Anderson memory.
-    pub df: Vec<Vec<f64>>,
-    pub dg: Vec<Vec<f64>>,
-    pub last: Option<(Vec<f64>, Vec<f64>)>,
+    /// The reference r of the loop.
+    r_ref: f64,
+    progress: Progress,
+    point: Point,
+    anderson: Anderson,
+    policy: PolicyState,
+}
+
+impl Snapshot {
+    /// The layout of a snapshot, which a checkpoint file names: any change of a struct
+    /// stored in it is a new format.
+    pub const FORMAT: &'static str = "contact-par checkpoint 2";
+
+    /// The sweeps made before it.
+    pub fn sweeps(&self) -> usize {
+        self.progress.history.len()
+    }
+}
+
+/// What the loop carries from sweep to sweep besides its point and Anderson's memory.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+struct Progress {
+    history: Vec<Sweep>,
+    /// Accelerated points refused, and retunes of r, so far.
+    refused: usize,
+    retunes: usize,
+    /// The smallest secant ratio |f(y) - f(x)| / |y - x| (f(x) = G(x) - x) since the map
+    /// last changed (infinite before the first), behind the contraction estimate.
+    min_secant: f64,
     /// Coulomb outer mode: the frozen thresholds, the outer iteration and the last
     /// relative change of the thresholds.
-    pub outer: Option<(Vec<f64>, usize, f64)>,
-    /// This rank's r per contact direction at the last accepted point.
-    pub aug: Augmentation,
-    /// Retunes of r so far.
-    pub retunes: usize,
-    /// The smallest secant ratio so far, behind the contraction estimate.
-    pub min_secant: f64,
-    /// The secant ratio of the last accepted point, which the Anderson step reads.
-    pub secant: f64,
-    /// The reference r of the loop (see [`softened_r`]).
-    pub r_ref: f64,
-    /// Every r per direction handed to the linear step before this point, in order: a
-    /// retune that moves few directions updates the factor in place, so the factor
-    /// depends on the sequence, and a resumed run replays it to continue bit for bit.
-    pub applied: Vec<Augmentation>,
-    /// The piece of the last refusal (see [`Run::safeguard`]).
-    #[serde(default)]
-    pub refused_on: Option<(usize, usize, usize)>,
-    /// The sweep of each of this rank's contact nodes' last status change, and of its
-    /// normal's.
-    #[serde(default)]
-    pub changed_at: Vec<usize>,
-    #[serde(default)]
-    pub normal_changed_at: Vec<usize>,
-    /// The sweep count when the retunes cycled with the tangents following their statuses.
-    #[serde(default)]
-    pub tangents_cycled_at: Option<usize>,
+    outer: Option<(Vec<f64>, usize, f64)>,
+    /// Every r per direction handed to the linear step, in order (the last is the r in
+    /// force): a retune that moves few directions updates the factor in place, so the
+    /// factor depends on the sequence, and a resumed run replays it.
+    applied: Vec<Augmentation>,
+    /// The piece (active and slipping nodes of the last accepted image, retunes) on which
+    /// the safeguard last refused a mixed point (see [`Run::cut_back`]).
+    refused_on: Option<(usize, usize, usize)>,
+}
+
+/// The last accepted point x, its image, the sums of its evaluation and the status
+/// margin it set.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+struct Point {
+    x: Vec<f64>,
+    gx: Vec<f64>,
+    res: f64,
+    gram: Vec<f64>,
+    worst: f64,
+    secant: f64,
+    margin: f64,
 }
 
 /// Periodic snapshots of the loop, and an optional one to resume from.
@@ -155,29 +162,17 @@ pub struct Checkpoints<'a> {
     pub resume: Option<Snapshot>,
 }
 
-/// How many times the mean error a node's state must stay away from its status
-/// boundary for its status to count as certain (see [`Sweep::uncertain`]).
+/// How many times the mean error a node's state must stay away from its status boundary
+/// for its status to count as certain: one node may carry more than the mean.
 const MARGIN_FACTOR: f64 = 3.0;
 
-/// The loop stops when its error estimate is below tol / STOP_MARGIN. The estimate
-/// divides the last change by 1 - rho, rho measured from secants of the sweep map: a
-/// lower bound of the true contraction, exact only along the slowest mode. Measured on
-/// the unseen cases of tests/data/tolerance at tol 1e-6, runs stopping at the estimate
-/// landed up to 3.5 tol from the converged answer (the cantilever, rho = 0.9995), and
-/// runs on 1 and 3 ranks 3.5 tol apart; with the margin of 4 (and the lowered r of
-/// slender bodies), within 0.6 tol of it and 0.4 tol of each other. Cost: 0-2 more
-/// sweeps on the built-in cases at levels 1-4, 8-18 at level 5 (83 -> 91 on block,
-/// 162 -> 180 on hertz, where no retune runs).
+/// The loop stops at an estimated error of tol / STOP_MARGIN: rho estimated from secants
+/// is a lower bound of the true contraction, exact only along the slowest mode.
 pub const STOP_MARGIN: f64 = 4.0;
 
-/// The smallest step |y - x| / |y| whose secant enters the contraction estimate: a
-/// thousand times the sweep's round-off ([`ROUNDOFF`], relative to the largest forces,
-/// r |u| and the multipliers, which the state norm measures), so that the round-off of
-/// G(y) - G(x) stays below a thousandth of the difference. Measured on the cantilever of
-/// tests/data/tolerance, where the held normals' r x 1000 makes |y| (in force units) 1e8
-/// times the contact forces: its last 20 steps lay at 2e-12 to 8e-10 of |y| and gave
-/// smooth ratios (0.13-0.19); with a floor of 1e-9 none counted, rho stayed 0 and a run
-/// at tol 1e-6 stopped with p_t 2.7e-6 off.
+/// The smallest step |y - x| / |y| whose secant enters the contraction estimate: far
+/// enough above the sweep's round-off ([`ROUNDOFF`]) that G(y) - G(x) keeps its digits,
+/// yet below the steps of a slow tail whose |y| is dominated by held directions' large r.
 const SECANT_FLOOR: f64 = 30.0 * ROUNDOFF;
 
 /// Runs ALG2 (accelerated or not) to convergence or to the sweep budget.
@@ -206,132 +201,43 @@ pub fn solve_with(
     monitor: &mut dyn FnMut(&Sweep),
     ckpt: &mut Checkpoints,
 ) -> Result<Outcome> {
+    let mut policy: Box<dyn Policy> = match params.adaptive {
+        Some(tuning) => Box::new(Adaptive::new(tuning, nodes, params.mesh_stiffness)),
+        None => Box::new(Fixed),
+    };
     let n = nodes.len();
-    let frictional = !matches!(params.friction, Friction::None);
-    let mut x = initial_state(nodes, frictional);
-    let (r, smooth_stiffness) = if params.adapt_r && ckpt.resume.is_none() {
-        softened_r(step, comm, nodes, params)?
-    } else {
-        (params.r, None)
+    let (mut r, smooth_stiffness) = match ckpt.resume {
+        None => policy.start(step, comm, nodes, params.r)?,
+        Some(_) => (params.r, None),
     };
-    // Not known (a caller without a mesh): no floor under the held directions' r.
-    let mesh_stiffness = if params.mesh_stiffness > 0.0 {
-        params.mesh_stiffness
-    } else {
-        0.0
-    };
-    let sweeper = Sweeper::new(step, nodes, r, mesh_stiffness);
-    let mut run = Run::new(sweeper, comm, params, monitor, ckpt);
+    let mut applied = Vec::new();
     if r != params.r {
-        run.applied.push(Augmentation::uniform(n, r));
+        if step.set_r(&vec![r; n], &vec![r; n])? {
+            applied.push(Augmentation::uniform(n, r));
+        } else {
+            r = params.r;
+        }
     }
-    let mut outer_iterations = 1;
-    let mixed = !nodes.fixed_threshold.is_empty();
-    let (converged, last, threshold) = match (params.friction, params.coulomb) {
-        // Tresca and Coulomb contacts in one run (see `ContactNodes::fixed_threshold`).
-        (_, CoulombMode::Inner) if mixed => {
-            let (fixed, coefficient) = (&nodes.fixed_threshold, &nodes.friction);
-            let (c, d) = run.sweeps(Law::Mixed { fixed, coefficient }, &mut x)?;
-            let s = mixed_thresholds(fixed, coefficient, &d.lambda);
-            (c, d, s)
-        }
-        (_, CoulombMode::Outer) if mixed => {
-            let (fixed, coefficient) = (&nodes.fixed_threshold, &nodes.friction);
-            let (c, d, s, outer) = run.coulomb_outer(fixed, coefficient, &mut x)?;
-            outer_iterations = outer;
-            (c, d, s)
-        }
-        (Friction::None, _) => {
-            let (c, d) = run.sweeps(Law::Frictionless, &mut x)?;
-            (c, d, vec![0.0; n])
-        }
-        (Friction::Tresca { threshold }, _) => {
-            let s = nodes.friction_values(threshold);
-            let (c, d) = run.sweeps(Law::Fixed(&s), &mut x)?;
-            (c, d, s)
-        }
-        (Friction::Coulomb { coefficient }, CoulombMode::Inner) => {
-            let coefficient = nodes.friction_values(coefficient);
-            let (c, d) = run.sweeps(Law::Coulomb(&coefficient), &mut x)?;
-            let s = coulomb_thresholds(&coefficient, &d.lambda);
-            (c, d, s)
-        }
-        (Friction::Coulomb { coefficient }, CoulombMode::Outer) => {
-            let coefficient = nodes.friction_values(coefficient);
-            let (c, d, s, outer) = run.coulomb_outer(&vec![0.0; n], &coefficient, &mut x)?;
-            outer_iterations = outer;
-            (c, d, s)
-        }
-    };
+    let sweeper = Sweeper::new(step, nodes, r);
+    let mut run = Run::new(sweeper, comm, params, monitor, ckpt, (policy, applied));
+    let (converged, last, threshold, outer_iterations) = run.by_law()?;
+    let frictional = !matches!(params.friction, Friction::None);
     Ok(Outcome {
         converged,
         r: run.sweeper.r_ref,
         smooth_stiffness,
-        iterations: run.history.len(),
+        iterations: run.progress.history.len(),
         outer_iterations,
-        refused: run.refused,
-        retunes: run.retunes,
+        refused: run.progress.refused,
+        retunes: run.progress.retunes,
         status: statuses(&last, frictional),
         lambda: last.lambda,
         mu: last.mu,
         un: run.sweeper.un,
         ut: run.sweeper.ut,
         threshold,
-        history: run.history,
+        history: run.progress.history,
     })
-}
-
-/// How much softer than a compact body (E_eff / L) a body must be for smooth contact
-/// modes before r is lowered below the automatic r, by (ratio / SOFT_BODY)^2. Above it
-/// the automatic r stands: the compact bodies measured lie at 1.3-2.3 (hertz, block, and
-/// the unstructured wall, disc and wedge of tests/data/tolerance), a floating block at
-/// 0.14; clamped steel beams 0.04 m deep at 0.16, 0.042, 0.016 and 0.008 for 0.2, 0.4,
-/// 1 and 2 m of length, the cantilever case 0.008 (1760 nodes) and 0.012 (12858).
-/// Sweeps (frictionless / Coulomb 0.5) of the 0.4, 1 and 2 m beams and the cantilever,
-/// with the undoing of cycling retunes: r kept, 58/95, 173/258, 517/483, 478/643 (before
-/// that rule); r x ratio / 0.05, 58/91, 173/152, 380/401, 350/440, and the 12858-node
-/// cantilever 535/1854; its square, 70/80, 250/150, 364/253, 312/230, and 246/623; its
-/// cube, 82/104, 209/193, 466/455, 548/424, and 316/294. On beams meshed twice as finely
-/// (not used for the choice), the first power gave 72/53, 281/308, 566/988, the square
-/// 87/53, 198/181, 433/280. Thresholds 0.1 and 1 slowed the shorter beams.
-const SOFT_BODY: f64 = 0.05;
-
-/// The reference r of the loop. The automatic r is the geometric mean of the body's
-/// mesh-scale stiffness E_eff / h and a compact body's smooth-mode stiffness E_eff / L.
-/// A slender body bends: its smooth modes are far softer than E_eff / L, every open
-/// contact node is held by a spring far stiffer than the body and creeps towards its
-/// place (the loop's contraction for it is r c / (1 + r c), c its compliance). Where
-/// the measured smooth-mode stiffness ([`super::probe::smooth_stiffness`]) is below
-/// [`SOFT_BODY`] times E_eff / L, r is lowered by the square of the ratio (the linear
-/// step refactors its contact blocks, as for a retune); else kept. Returns r and the
-/// measured ratio.
-fn softened_r(
-    step: &mut impl LinearStep,
-    comm: &impl Reduce,
-    nodes: &ContactNodes,
-    params: &Params,
-) -> Result<(f64, Option<f64>)> {
-    let r = params.r;
-    // Not known (a caller without a mesh): nothing to compare with.
-    if params.mesh_stiffness.is_nan() || params.mesh_stiffness <= 0.0 {
-        return Ok((r, None));
-    }
-    let Some(k) = super::probe::smooth_stiffness(step, comm, nodes, r)? else {
-        return Ok((r, None));
-    };
-    // r = sqrt(mesh stiffness x compact stiffness).
-    let ratio = k * params.mesh_stiffness / (r * r);
-    let factor = (ratio / SOFT_BODY).clamp(1e-3, 1.0).powi(2);
-    if factor >= 1.0 {
-        return Ok((r, Some(ratio)));
-    }
-    let lowered = r * factor;
-    let n = nodes.len();
-    if step.set_r(&vec![lowered; n], &vec![lowered; n])? {
-        Ok((lowered, Some(ratio)))
-    } else {
-        Ok((r, Some(ratio)))
-    }
 }
 
 /// The start: lambda = mu = 0, p = min(g, 0), q = 0, i.e. s = min(g, 0), z = 0.
@@ -374,39 +280,25 @@ fn statuses(last: &Derived, frictional: bool) -> Vec<Status> {
         .collect()
 }
 
-/// One run of the loop on this rank: the sweeper, its communication, and the state that
-/// outlives one call of [`Run::sweeps`] (history, counters, checkpoints).
+/// One run of the loop on this rank: the sweeper, its communication, its policy, and the
+/// state that outlives one call of [`Run::sweeps`] (history, counters, checkpoints).
 struct Run<'r, 'a, S: LinearStep, C: Reduce> {
     sweeper: Sweeper<'r, S>,
     comm: &'r C,
     params: &'r Params,
     monitor: &'r mut dyn FnMut(&Sweep),
+    policy: Box<dyn Policy>,
     /// Contact nodes over all ranks.
     n_contact: usize,
     /// The length of the contact boundary, sum of w over all ranks.
     length: f64,
-    history: Vec<Sweep>,
-    retunes: usize,
+    progress: Progress,
     /// False once the linear step has declined a change of r.
     can_retune: bool,
-    refused: usize,
     ckpt: &'r mut Checkpoints<'a>,
     resume: Option<Snapshot>,
-    outer: Option<(Vec<f64>, usize, f64)>,
-    /// Every r per direction handed to the linear step, in order (see
-    /// [`Snapshot::applied`]).
-    applied: Vec<Augmentation>,
     /// The last accepted point x and G(x) - x, the base of the next secant.
     anchor: Option<(Vec<f64>, Vec<f64>)>,
-    /// The smallest secant ratio |f(y) - f(x)| / |y - x| (f(x) = G(x) - x) since the map
-    /// last changed (infinite before the first).
-    min_secant: f64,
-    /// The piece (active and slipping nodes of the last accepted image, retunes) on which
-    /// the safeguard last refused a mixed point (see [`Run::safeguard`]).
-    refused_on: Option<(usize, usize, usize)>,
-    /// The sweep count when the retunes cycled with the tangents following their
-    /// statuses ([`tangents_follow`]): from there they no longer follow.
-    tangents_cycled_at: Option<usize>,
 }
 
 /// An evaluation of G after the global reduction.
@@ -438,6 +330,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         params: &'r Params,
         monitor: &'r mut dyn FnMut(&Sweep),
         ckpt: &'r mut Checkpoints<'a>,
+        (policy, applied): (Box<dyn Policy>, Vec<Augmentation>),
     ) -> Self {
         let mut total = [sweeper.nodes.len() as f64, sweeper.nodes.w.iter().sum()];
         comm.sum_in_place(&mut total);
@@ -446,21 +339,61 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             comm,
             params,
             monitor,
+            policy,
             n_contact: total[0] as usize,
             length: total[1],
-            history: Vec::new(),
-            retunes: 0,
+            progress: Progress {
+                history: Vec::new(),
+                refused: 0,
+                retunes: 0,
+                min_secant: f64::INFINITY,
+                outer: None,
+                applied,
+                refused_on: None,
+            },
             can_retune: true,
-            refused: 0,
             resume: ckpt.resume.take(),
             ckpt,
-            outer: None,
-            applied: Vec::new(),
             anchor: None,
-            min_secant: f64::INFINITY,
-            refused_on: None,
-            tangents_cycled_at: None,
         }
+    }
+
+    /// The loop under the case's friction law, from the start state: whether it
+    /// converged, the last image, the slip thresholds and the outer iterations.
+    fn by_law(&mut self) -> Result<(bool, Derived, Vec<f64>, usize)> {
+        let (nodes, params) = (self.sweeper.nodes, self.params);
+        let n = nodes.len();
+        let mut x = initial_state(nodes, !matches!(params.friction, Friction::None));
+        let mixed = !nodes.fixed_threshold.is_empty();
+        let (fixed, coefficient) = (&nodes.fixed_threshold, &nodes.friction);
+        Ok(match (params.friction, params.coulomb) {
+            // Tresca and Coulomb contacts in one run (see `ContactNodes::fixed_threshold`).
+            (_, CoulombMode::Inner) if mixed => {
+                let (c, d) = self.sweeps(Law::Mixed { fixed, coefficient }, &mut x)?;
+                let s = mixed_thresholds(fixed, coefficient, &d.lambda);
+                (c, d, s, 1)
+            }
+            (_, CoulombMode::Outer) if mixed => self.coulomb_outer(fixed, coefficient, &mut x)?,
+            (Friction::None, _) => {
+                let (c, d) = self.sweeps(Law::Frictionless, &mut x)?;
+                (c, d, vec![0.0; n], 1)
+            }
+            (Friction::Tresca { threshold }, _) => {
+                let s = nodes.friction_values(threshold);
+                let (c, d) = self.sweeps(Law::Fixed(&s), &mut x)?;
+                (c, d, s, 1)
+            }
+            (Friction::Coulomb { coefficient }, CoulombMode::Inner) => {
+                let coefficient = nodes.friction_values(coefficient);
+                let (c, d) = self.sweeps(Law::Coulomb(&coefficient), &mut x)?;
+                let s = coulomb_thresholds(&coefficient, &d.lambda);
+                (c, d, s, 1)
+            }
+            (Friction::Coulomb { coefficient }, CoulombMode::Outer) => {
+                let coefficient = nodes.friction_values(coefficient);
+                self.coulomb_outer(&vec![0.0; n], &coefficient, &mut x)?
+            }
+        })
     }
 
     /// Iterates from `x` until both residuals are below tol (true) or the budget is
@@ -481,11 +414,11 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         let mut next_save = self.next_checkpoint();
         loop {
             let converged = cur.worst <= self.stop_tol();
-            if converged || self.history.len() >= self.params.max_iter {
+            if converged || self.progress.history.len() >= self.params.max_iter {
                 *x = cur.gx;
                 return Ok((converged, cur.out));
             }
-            if self.history.len() >= next_save {
+            if self.progress.history.len() >= next_save {
                 self.save(x, &cur, &aa)?;
                 next_save = self.next_checkpoint();
             }
@@ -500,7 +433,9 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
                 *x = y;
                 self.evaluate(law, x, aa.active())?
             } else {
-                self.plain_step(law, cur, x, aa.active())?
+                // The plain step: the image of the last accepted point.
+                *x = cur.gx;
+                self.evaluate(law, x, aa.active())?
             };
         }
     }
@@ -514,52 +449,46 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     /// secant must join two points of one map, and the new map's contraction is its own.
     fn forget_secants(&mut self) {
         self.anchor = None;
-        self.min_secant = f64::INFINITY;
+        self.progress.min_secant = f64::INFINITY;
     }
 
     /// The contraction estimate after the secant `secant2` (squared |y - x| and
-    /// |f(y) - f(x)|, zero without an anchor): rho = 1 - min |f(y) - f(x)| / |y - x| over
-    /// every secant since the map last changed. If G contracts by rho, every secant ratio
-    /// is at least 1 - rho, and a secant along the slowest mode gives 1 - rho exactly: the
-    /// plain loop's consecutive points follow that mode, Anderson's explore it. Why every
-    /// secant, not the latest: Anderson's last points may all lie off the slowest mode,
-    /// which the error still contains (measured on the cantilever of tests/data/tolerance:
-    /// the last 12 secants gave rho = 0.999 where the error implied 0.99995).
-    ///
-    /// `span`, the smallest ratio over the span of the Anderson memory
-    /// ([`span_secant`]), enters as one more secant: it is never above the newest single
-    /// secant, and sees the slow modes a run of single secants can miss.
+    /// |f(y) - f(x)|, and |y|^2; zeros without an anchor): rho = 1 - min |f(y) - f(x)| /
+    /// |y - x| over every secant since the map last changed, and over the span of the
+    /// Anderson memory (`span`, [`span_secant`]). If G contracts by rho, every secant
+    /// ratio is at least 1 - rho, with equality along the slowest mode; every secant
+    /// counts, not the latest, because Anderson's last points may all lie off that mode.
     fn contraction(&mut self, secant2: [f64; 3], span: Option<f64>, statuses_changed: bool) -> f64 {
         let [dx2, df2, x2] = secant2;
-        // A step at round-off's scale gives a ratio of noise. A step across a change of
-        // status joins two pieces of the piecewise affine map: its ratio belongs to
-        // neither (a floating body's open piece is a translation, ratio 0, which would
-        // hold rho at 1 long after the contact has closed).
+        // A step at round-off's scale gives a ratio of noise; a step across a change of
+        // status joins two pieces of the piecewise affine map, and its ratio belongs to
+        // neither.
         if !statuses_changed && dx2 > SECANT_FLOOR * SECANT_FLOOR * x2 {
-            self.min_secant = self.min_secant.min((df2 / dx2).sqrt());
+            self.progress.min_secant = self.progress.min_secant.min((df2 / dx2).sqrt());
             if let Some(span) = span {
-                self.min_secant = self.min_secant.min(span);
+                self.progress.min_secant = self.progress.min_secant.min(span);
             }
         }
-        if self.min_secant.is_finite() {
-            (1.0 - self.min_secant).clamp(0.0, 1.0)
+        if self.progress.min_secant.is_finite() {
+            (1.0 - self.progress.min_secant).clamp(0.0, 1.0)
         } else {
             0.0
         }
     }
 
-    /// Evaluates G at `x` (one sweep) with the sweep's one all-reduce: its sums,
-    /// |G(x) - x|^2 and, when accelerating, the Gram sums of `aa` at the new residual;
-    /// records the sweep.
+    /// Evaluates G at `x` (one sweep) with the sweep's one all-reduce: its sums (the
+    /// policy's counts among them), |G(x) - x|^2, the secant from the anchor and, when
+    /// accelerating, the Gram sums of `aa` at the new residual; records the sweep.
     fn evaluate(&mut self, law: Law, x: &[f64], aa: Option<&Anderson>) -> Result<Evaluated> {
-        let r = self.sweeper.r_ref;
-        let e = self.sweeper.eval(x, law, self.history.len() + 1)?;
-        let omega = metric(
-            &self.sweeper.nodes.w,
-            &self.sweeper.aug,
-            r,
-            law.frictional(),
-        );
+        let (r, frictional) = (self.sweeper.r_ref, law.frictional());
+        let mut e = self.sweeper.eval(x, law)?;
+        let sweeper = &mut self.sweeper;
+        self.policy
+            .count(&e.now, &sweeper.aug, r, frictional, &mut e.sums);
+        self.policy
+            .seen(self.progress.history.len() + 1, &sweeper.last_held, &e.now);
+        sweeper.last_held = std::mem::take(&mut e.now);
+        let omega = metric(&sweeper.nodes.w, &sweeper.aug, r, frictional);
         let residual2 = dot(&e.f, &e.f, &omega);
         let secant2 = match &self.anchor {
             Some((xa, fa)) => {
@@ -575,40 +504,8 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         };
         let gram = aa.map_or_else(Vec::new, |aa| aa.local_sums_with_new(&e.f, &e.gx, &omega));
         let global = Reduced::all_reduce(self.comm, &e.sums, residual2, secant2, gram);
-        let contraction = self.contraction(
-            global.secant2,
-            span_secant(&global.gram),
-            global.sums.changed > 0.0,
-        );
+        let sweep = self.record(&global)?;
         let [dx2, df2, _] = global.secant2;
-        let secant = if dx2 > 0.0 {
-            (df2 / dx2).sqrt()
-        } else {
-            f64::INFINITY
-        };
-        let sweep = Sweep {
-            refused: self.refused,
-            ..global.sums.sweep(
-                self.history.len() + 1,
-                self.retunes,
-                (r, self.sweeper.mesh_stiffness),
-                contraction,
-            )
-        };
-        // The next sweep's margin: this one's state error, |G(x) - x|_W / (1 - rho), made
-        // a value per node (the W-norm's mean square over the contact length) and tripled
-        // because one node may carry more than the mean.
-        let state_change = global.sums.state_change_n.sqrt() + global.sums.state_change_t.sqrt();
-        self.sweeper.margin =
-            MARGIN_FACTOR * error_estimate(state_change, contraction) / self.length.sqrt();
-        if !(global.sums.finite() && global.residual2.is_finite()) {
-            return Err(Error::Numerical(format!(
-                "iteration {}: the residuals are not finite (NaN or overflow); the problem may be unstable (check the Dirichlet conditions and the material) or r = {r} unsuitable",
-                sweep.iter
-            )));
-        }
-        self.history.push(sweep);
-        (self.monitor)(&sweep);
         Ok(Evaluated {
             gx: e.gx,
             f: e.f,
@@ -616,68 +513,49 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             res: global.residual2.sqrt(),
             gram: global.gram,
             worst: sweep.error,
-            secant,
+            secant: if dx2 > 0.0 {
+                (df2 / dx2).sqrt()
+            } else {
+                f64::INFINITY
+            },
             active: sweep.active,
             slip: sweep.slip,
         })
     }
 
-    /// The plain step: the image of the last accepted point is the next point.
-    fn plain_step(
-        &mut self,
-        law: Law,
-        cur: Evaluated,
-        x: &mut Vec<f64>,
-        aa: Option<&Anderson>,
-    ) -> Result<Evaluated> {
-        *x = cur.gx;
-        self.evaluate(law, x, aa)
+    /// The history line of the sweep whose global sums are `global`, recorded and shown
+    /// to the monitor; sets the next sweep's status margin. Fails on a non-finite sum.
+    fn record(&mut self, global: &Reduced) -> Result<Sweep> {
+        let r = self.sweeper.r_ref;
+        let changed = global.sums.changed > 0.0;
+        let contraction = self.contraction(global.secant2, span_secant(&global.gram), changed);
+        let scale = (r, self.policy.largest_r(r));
+        let iter = self.progress.history.len() + 1;
+        let sweep = Sweep {
+            refused: self.progress.refused,
+            ..global
+                .sums
+                .sweep(iter, self.progress.retunes, scale, contraction)
+        };
+        // The next sweep's margin: this one's state error, |G(x) - x|_W / (1 - rho), made
+        // a value per node (the W-norm's mean square over the contact length).
+        let state_change = global.sums.state_change_n.sqrt() + global.sums.state_change_t.sqrt();
+        self.sweeper.margin =
+            MARGIN_FACTOR * error_estimate(state_change, contraction) / self.length.sqrt();
+        if !(global.sums.finite() && global.residual2.is_finite()) {
+            return Err(Error::Numerical(format!(
+                "iteration {iter}: the residuals are not finite (NaN or overflow); the problem may be unstable (check the Dirichlet conditions and the material) or r = {r} unsuitable"
+            )));
+        }
+        self.progress.history.push(sweep);
+        (self.monitor)(&sweep);
+        Ok(sweep)
     }
 
     /// The safeguard on the Anderson point y: kept if its fixed-point residual does not
     /// exceed that of the last accepted point (or it meets the tolerance); otherwise
-    /// refused, the memory cleared, and the plain step taken from the last accepted point.
-    ///
-    /// **A second refusal on one piece.** G is affine on each set of statuses, and
-    /// Anderson's point extrapolates the piece of the last accepted point. Where that
-    /// piece contracts slowly along one mode (a body that nothing holds in the normal
-    /// direction but friction, creeping towards the foundation), the extrapolation
-    /// lands far through the foundation, on a piece where the residual is large, and is
-    /// refused; the plain steps creep on, the memory refills and the same happens again
-    /// (the pressed strip of docs/performance-history.md: a refusal every 5 sweeps for
-    /// 460 sweeps with no node in contact). So when the safeguard refuses a point again
-    /// with the same piece behind it (the same active and slipping counts, no retune
-    /// since), the step is cut back to where its first node crosses its gap, the end of
-    /// the piece on which the extrapolation holds ([`first_crossing`]), and that point
-    /// goes through the same safeguard before the plain step is taken. Not at the first
-    /// refusal: there the plain step often crosses into a closer piece than the cut
-    /// point (beams meshed finely: 19 and 29 sweeps with the plain step, 28 and 35 with
-    /// the cut at every refusal).
-    ///
-    /// **The first touch.** Where no node is pressed yet, the cut point is the body's
-    /// first touch, and it is kept whatever its residual, as [`Run::glide`] keeps its
-    /// point: its image presses the nodes the body sinks onto, so its residual exceeds
-    /// that of a body still in the air, and the safeguard would send the body back up to
-    /// creep down again. Measured on a held-out Tresca bridge (`make_cases.py --slender
-    /// --scale 0.6`, threshold 0.3 times the Coulomb answer's coefficient times its mean
-    /// pressure): the cut point pressed 155 nodes and was refused, 25 plain sweeps
-    /// followed in the air with a refusal every four, and the run took 122 sweeps; with
-    /// the cut point kept, 84 (at `--scale 0.65`, 86 -> 76: tests/tolerance.rs). Nothing
-    /// else changed among the 113 runs of docs/performance-history.md and the 48 cases of
-    /// `make_cases.py` at scales 0.7 and 0.6; of the 60 Tresca variants of the latter one
-    /// more, 69 -> 71. What follows the touch moves either way: at `--scale 0.9` the
-    /// bounce that the kept point saves is one sweep in the air, and the stick/slip
-    /// statuses then took another path, 65 -> 75 sweeps.
-    ///
-    /// **A body held aloft by thresholds.** Where open nodes carry a slip threshold
-    /// (Tresca, mixed laws), nothing pressed yet, the cut comes at the first refusal
-    /// too: those thresholds hold the body along the foundation, it creeps down through
-    /// the air with no glide ([`Run::glide`] needs zero thresholds), and the plain step
-    /// after a refused point was a step back up. Measured on held-out Tresca strips
-    /// (`make_cases.py --slender` at scales 1, 0.7 and 0.6): 55 -> 51, 61 -> 48 and 72
-    /// -> 57 sweeps, no other of the 232 runs of docs/performance-history.md changed.
-    /// With zero thresholds (frictionless, Coulomb) the first refusal keeps its plain
-    /// step: the cut there took a 2 m frictionless beam from 25 to 34 sweeps.
+    /// refused, the memory cleared, and the plain step taken from the last accepted
+    /// point, unless the step cut back to its first touch passes ([`Run::cut_back`]).
     fn safeguard(
         &mut self,
         law: Law,
@@ -691,38 +569,66 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             *x = y;
             return Ok(next);
         }
-        self.refused += 1;
+        self.progress.refused += 1;
         // The refused point's sweep is already in the history: it counts there.
-        if let Some(last) = self.history.last_mut() {
-            last.refused = self.refused;
+        if let Some(last) = self.progress.history.last_mut() {
+            last.refused = self.progress.refused;
         }
         aa.clear();
-        let piece = (cur.active, cur.slip, self.retunes);
-        let held_aloft = cur.active == 0 && law.holds_open_nodes();
-        if self.refused_on.replace(piece) == Some(piece) || held_aloft {
-            let n = self.sweeper.nodes.len();
-            let mut t = [first_crossing(&x[..n], &y[..n], &self.sweeper.nodes.g)];
-            self.comm.min_in_place(&mut t);
-            if t[0] > 0.0 && t[0] < 1.0 {
-                let cut: Vec<f64> = x.iter().zip(&y).map(|(a, b)| a + t[0] * (b - a)).collect();
-                let next = self.evaluate(law, &cut, Some(aa))?;
-                if cur.active == 0 || next.res <= cur.res || next.worst <= self.stop_tol() {
-                    *x = cut;
-                    return Ok(next);
-                }
+        match self.cut_back(law, &y, &cur, x, aa)? {
+            Some(next) => Ok(next),
+            None => {
+                *x = cur.gx;
+                self.evaluate(law, x, Some(aa))
             }
         }
-        self.plain_step(law, cur, x, Some(aa))
+    }
+
+    /// The refused step from `x` to `y`, cut back to where its first node crosses its gap
+    /// ([`first_crossing`]), if that point is kept. G is affine on each set of statuses,
+    /// and Anderson's point extrapolates the piece of `x`: where that piece contracts
+    /// slowly (a body creeping towards the foundation), it lands far through the
+    /// foundation and is refused, again and again. So the cut comes at a second refusal
+    /// on one piece (the same active and slipping counts, no retune since), not at the
+    /// first, whose plain step often crosses into a closer piece; or at the first where
+    /// open nodes carry thresholds and none is pressed (nothing glides there). The cut
+    /// point passes the safeguard, or is the body's first touch (no node pressed at `x`),
+    /// kept whatever its residual: a pressed body's residual exceeds one's in the air.
+    fn cut_back(
+        &mut self,
+        law: Law,
+        y: &[f64],
+        cur: &Evaluated,
+        x: &mut Vec<f64>,
+        aa: &mut Anderson,
+    ) -> Result<Option<Evaluated>> {
+        let piece = (cur.active, cur.slip, self.progress.retunes);
+        let held_aloft = cur.active == 0 && law.holds_open_nodes();
+        if self.progress.refused_on.replace(piece) != Some(piece) && !held_aloft {
+            return Ok(None);
+        }
+        let n = self.sweeper.nodes.len();
+        let mut t = [first_crossing(&x[..n], &y[..n], &self.sweeper.nodes.g)];
+        self.comm.min_in_place(&mut t);
+        if !(t[0] > 0.0 && t[0] < 1.0) {
+            return Ok(None);
+        }
+        let cut: Vec<f64> = x.iter().zip(y).map(|(a, b)| a + t[0] * (b - a)).collect();
+        let next = self.evaluate(law, &cut, Some(aa))?;
+        if cur.active == 0 || next.res <= cur.res || next.worst <= self.stop_tol() {
+            *x = cut;
+            return Ok(Some(next));
+        }
+        Ok(None)
     }
 
     /// The point where a body that the sweep map translates (a floating body that no
-    /// contact holds yet) first touches: on such a piece G(x) = x + f, so the plain steps
-    /// walk the line x + t f at one unit of t per sweep until a node's state crosses its
-    /// gap, where the piece ends. That walk is skipped: the point on the line where the
-    /// first node reaches its gap, t the smallest (g - x) / f over the nodes moving
-    /// towards the foundation (over all ranks). Only when accelerating, from a point
-    /// whose image presses no node, with a zero slip threshold at every open node (no
-    /// stick/slip status can change on the way), and further than the plain step.
+    /// contact holds yet) first touches: on such a piece G(x) = x + f, and the plain steps
+    /// would walk the line x + t f at one unit of t per sweep; instead t is the smallest
+    /// (g - x) / f over the nodes moving towards the foundation (over all ranks). Only
+    /// when accelerating, from a point whose image presses no node, with no slip
+    /// threshold at an open node (no stick/slip status can change on the way), and
+    /// further than the plain step.
     fn glide(&self, law: Law, cur: &Evaluated, x: &[f64], accelerating: bool) -> Option<Vec<f64>> {
         if !accelerating || cur.active > 0 || cur.secant >= FLAT_SECANT || law.holds_open_nodes() {
             return None;
@@ -739,77 +645,38 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             .then(|| x.iter().zip(&cur.f).map(|(a, b)| a + t[0] * b).collect())
     }
 
-    /// Retunes r per contact direction when [`retuned`] asks for it and the linear step
+    /// Retunes r per contact direction when the policy asks for it and the linear step
     /// can change r; then moves `x` to the state, with the new r, that keeps p, lambda, q
     /// and mu of the last image exactly: s = p + lambda / r, z = q + mu / r. Returns
     /// whether r changed.
     fn retune(&mut self, law: Law, last: &Derived, x: &mut [f64]) -> Result<bool> {
-        let frictional = law.frictional();
-        if !(self.params.adapt_r && self.can_retune) {
+        if !self.can_retune {
             return Ok(false);
         }
-        if self.sweeper.aug.ended {
-            return Ok(false);
-        }
-        // The sweeps of the tangents' own cycle no longer count towards one.
-        let since = self.tangents_cycled_at.unwrap_or(0);
-        // The tail's retunes so far are among those applied.
-        let tails = self.applied.iter().filter(|a| a.tail).count();
-        let mut kind = match retuned(&self.history[since..], frictional, self.n_contact) {
-            Some(kind) => kind,
-            None if tail(&self.history, &self.sweeper.aug, tails) => Retune::Tail,
-            None => return Ok(false),
+        let image = Image {
+            history: &self.progress.history,
+            last,
+            law,
+            n_contact: self.n_contact,
+            r_ref: self.sweeper.r_ref,
         };
-        let fixed_thresholds = matches!(law, Law::Fixed(_));
-        if fixed_thresholds
-            && self.tangents_cycled_at.is_none()
-            && matches!(kind, Retune::EndCycle { .. })
-        {
-            self.tangents_cycled_at = Some(self.history.len());
-            kind = Retune::ToStatus;
-        }
-        let pressed = self.history.last().map_or(0, |s| s.active);
-        let follow = tangents_follow(fixed_thresholds, pressed, self.tangents_cycled_at.is_some());
-        let n = last.p.len();
-        let held: Vec<Held> = (0..n).map(|i| last.held(i, frictional)).collect();
-        let (r, stiffness) = (self.sweeper.r_ref, self.sweeper.mesh_stiffness);
-        let aug = match kind {
-            Retune::EndCycle { since } => {
-                let cycled = self.sweeper.changed_since(since);
-                Augmentation::after_cycle(&held, &cycled, frictional, r, stiffness)
-            }
-            // The spent budget's statuses still moving: those the last sweep changed.
-            Retune::BudgetSpent => {
-                let cycled = self
-                    .sweeper
-                    .changed_since(self.history.len().saturating_sub(1));
-                Augmentation::after_cycle(&held, &cycled, frictional, r, stiffness)
-            }
-            _ => {
-                let from_settled = self.sweeper.aug.settled;
-                Augmentation::for_statuses(
-                    kind,
-                    &held,
-                    frictional,
-                    (r, stiffness),
-                    from_settled,
-                    follow,
-                )
-            }
+        let Some(aug) = self.policy.retune(&image) else {
+            return Ok(false);
         };
         if !self.sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
             self.can_retune = false;
             return Ok(false);
         }
+        let n = last.p.len();
         for i in 0..n {
             x[i] = state(last.p[i], last.lambda[i], aug.r_n[i]);
-            if frictional {
+            if law.frictional() {
                 x[n + i] = state(last.q[i], last.mu[i], aug.r_t[i]);
             }
         }
-        self.applied.push(aug.clone());
+        self.progress.applied.push(aug.clone());
         self.sweeper.aug = aug;
-        self.retunes += 1;
+        self.progress.retunes += 1;
         Ok(true)
     }
 
@@ -824,12 +691,12 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         x: &mut Vec<f64>,
     ) -> Result<(bool, Derived, Vec<f64>, usize)> {
         let n = self.sweeper.nodes.len();
-        let resumed = self.resume.as_ref().and_then(|r| r.outer.clone());
+        let resumed = self.resume.as_ref().and_then(|r| r.progress.outer.clone());
         let (mut s, mut done_outer, mut last_change) =
             resumed.unwrap_or((vec![0.0; n], 0, f64::INFINITY));
         loop {
             let outer_iterations = done_outer + 1;
-            self.outer = Some((s.clone(), done_outer, last_change));
+            self.progress.outer = Some((s.clone(), done_outer, last_change));
             let (inner_ok, d) = self.sweeps(Law::Fixed(&s), x)?;
             let s_new = mixed_thresholds(fixed, coefficient, &d.lambda);
             // The outer iteration contracts too: its error is its change over 1 - rho,
@@ -845,7 +712,7 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
             // The tangential state was converged for the old thresholds: keep it.
             s = s_new;
             done_outer += 1;
-            if !inner_ok || self.history.len() >= self.params.max_iter || done {
+            if !inner_ok || self.progress.history.len() >= self.params.max_iter || done {
                 return Ok((inner_ok && done, d, s, outer_iterations));
             }
         }
@@ -863,8 +730,9 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         relative(sums[0].sqrt(), sums[1].sqrt())
     }
 
-    /// Resumes from a snapshot: r per direction, the counters and history, the last
-    /// accepted point with its evaluation, and the Anderson memory.
+    /// Resumes from a snapshot: the policy's state, every r handed to the linear step
+    /// (replayed), the loop's progress, the last accepted point with its evaluation, and
+    /// the Anderson memory.
     fn resume_from(
         &mut self,
         snap: Snapshot,
@@ -872,48 +740,38 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
         x: &mut Vec<f64>,
         aa: &mut Anderson,
     ) -> Result<Evaluated> {
-        let sweeper = &mut self.sweeper;
-        for aug in &snap.applied {
-            if aug.r_n.len() != sweeper.aug.r_n.len() || !sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
+        self.policy.restore(snap.policy)?;
+        let (sweeper, progress) = (&mut self.sweeper, snap.progress);
+        let n = sweeper.nodes.len();
+        for aug in &progress.applied {
+            if aug.r_n.len() != n || !sweeper.step.set_r(&aug.r_n, &aug.r_t)? {
                 return Err(Error::Input(
                     "the checkpoint was taken with r retuned per contact direction and this linear step cannot change r; restart without --restart".into(),
                 ));
             }
         }
-        sweeper.aug = snap.aug;
-        self.applied = snap.applied;
         sweeper.r_ref = snap.r_ref;
-        let out = project_and_update(&snap.gx, sweeper.nodes, law, &sweeper.aug);
-        let (active, slip) = snap.history.last().map_or((0, 0), |s| (s.active, s.slip));
-        self.refused_on = snap.refused_on;
-        self.tangents_cycled_at = snap.tangents_cycled_at;
-        sweeper.remember_statuses(&out, law.frictional(), 0);
-        if snap.changed_at.len() == sweeper.changed_at.len() {
-            // A checkpoint from before the normals' own record: their last change taken
-            // as the node's (a normal then counts as cycling where its node did).
-            sweeper.normal_changed_at = if snap.normal_changed_at.len() == snap.changed_at.len() {
-                snap.normal_changed_at
-            } else {
-                snap.changed_at.clone()
-            };
-            sweeper.changed_at = snap.changed_at;
-        }
-        self.retunes = snap.retunes;
-        self.min_secant = snap.min_secant;
+        sweeper.aug = (progress.applied.last().cloned())
+            .unwrap_or_else(|| Augmentation::uniform(n, snap.r_ref));
+        let p = snap.point;
+        let out = project_and_update(&p.gx, sweeper.nodes, law, &sweeper.aug);
+        sweeper.last_held = out.statuses(law.frictional());
+        sweeper.margin = p.margin;
+        let last = progress.history.last();
+        let (active, slip) = last.map_or((0, 0), |s| (s.active, s.slip));
+        self.progress = progress;
         self.anchor = None;
-        self.history = snap.history;
-        self.refused = snap.refused;
-        let f = snap.gx.iter().zip(&snap.x).map(|(a, b)| a - b).collect();
-        *x = snap.x;
-        (aa.df, aa.dg, aa.last) = (snap.df, snap.dg, snap.last);
+        (aa.df, aa.dg, aa.last) = (snap.anderson.df, snap.anderson.dg, snap.anderson.last);
+        let f = p.gx.iter().zip(&p.x).map(|(a, b)| a - b).collect();
+        *x = p.x;
         Ok(Evaluated {
             f,
-            gx: snap.gx,
+            gx: p.gx,
             out,
-            res: snap.res,
-            gram: snap.gram,
-            worst: snap.worst,
-            secant: snap.secant,
+            res: p.res,
+            gram: p.gram,
+            worst: p.worst,
+            secant: p.secant,
             active,
             slip,
         })
@@ -922,35 +780,28 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
     fn next_checkpoint(&self) -> usize {
         match self.ckpt.every {
             0 => usize::MAX,
-            k => (self.history.len() / k + 1) * k,
+            k => (self.progress.history.len() / k + 1) * k,
         }
     }
 
     /// Saves a snapshot of the last accepted point `x` and everything needed to resume
     /// from it.
     fn save(&mut self, x: &[f64], cur: &Evaluated, aa: &Anderson) -> Result<()> {
-        let snap = Snapshot {
-            history: self.history.clone(),
-            refused: self.refused,
+        let point = Point {
             x: x.to_vec(),
             gx: cur.gx.clone(),
             res: cur.res,
             gram: cur.gram.clone(),
             worst: cur.worst,
-            df: aa.df.clone(),
-            dg: aa.dg.clone(),
-            last: aa.last.clone(),
-            outer: self.outer.clone(),
-            aug: self.sweeper.aug.clone(),
-            retunes: self.retunes,
-            min_secant: self.min_secant,
             secant: cur.secant,
+            margin: self.sweeper.margin,
+        };
+        let snap = Snapshot {
             r_ref: self.sweeper.r_ref,
-            applied: self.applied.clone(),
-            refused_on: self.refused_on,
-            tangents_cycled_at: self.tangents_cycled_at,
-            changed_at: self.sweeper.changed_at.clone(),
-            normal_changed_at: self.sweeper.normal_changed_at.clone(),
+            progress: self.progress.clone(),
+            point,
+            anderson: aa.clone(),
+            policy: self.policy.state(),
         };
         (self.ckpt.save)(&snap)
     }
@@ -959,7 +810,6 @@ impl<'r, 'a, S: LinearStep, C: Reduce> Run<'r, 'a, S, C> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::contact::retune::MAX_RETUNES;
     use crate::contact::NoComm;
 
     /// Contact nodes on independent springs (normal and tangential), pushed towards
@@ -996,7 +846,7 @@ mod tests {
             friction,
             coulomb: CoulombMode::Inner,
             acceleration,
-            adapt_r: false,
+            adaptive: None,
             mesh_stiffness: f64::NAN,
         }
     }
@@ -1246,7 +1096,7 @@ mod tests {
         }
     }
 
-    fn tunable(friction: Friction, adapt_r: bool) -> (Outcome, usize) {
+    fn tunable(friction: Friction, adaptive: bool) -> (Outcome, usize) {
         let (n, nodes, k) = spread_springs();
         let mut s = Tunable {
             f: k.iter().map(|k| [0.5 * k + 0.3, 0.2]).collect(),
@@ -1257,7 +1107,7 @@ mod tests {
             set_calls: 0,
         };
         let mut p = params(friction, ANDERSON);
-        p.adapt_r = adapt_r;
+        p.adaptive = adaptive.then(AdaptiveParams::default);
         let o = solve(&mut s, &NoComm, &nodes, &p, &mut |_| {}).unwrap();
         (o, s.set_calls)
     }
@@ -1266,7 +1116,8 @@ mod tests {
     fn r_is_lowered_for_a_body_far_softer_than_a_compact_one() {
         // r = 10 and E_eff / h = 100: a compact body would have the stiffness
         // r^2 / 100 = 1 per unit W-length. Springs k on weights w = 0.5 have k / w.
-        for (k, lowered) in [(1e-3, Some(10.0 * (2e-3 / SOFT_BODY).powi(2))), (2.0, None)] {
+        let soft_body = AdaptiveParams::default().soft_body;
+        for (k, lowered) in [(1e-3, Some(10.0 * (2e-3 / soft_body).powi(2))), (2.0, None)] {
             let n = 40;
             let nodes = ContactNodes {
                 w: vec![0.5; n],
@@ -1283,7 +1134,7 @@ mod tests {
                 set_calls: 0,
             };
             let mut p = params(Friction::None, ANDERSON);
-            p.adapt_r = true;
+            p.adaptive = Some(AdaptiveParams::default());
             p.mesh_stiffness = 100.0;
             let o = solve(&mut step, &NoComm, &nodes, &p, &mut |_| {}).unwrap();
             assert!(o.converged);
@@ -1323,8 +1174,9 @@ mod tests {
                 "{friction:?}: {calls}"
             );
             let last = tuned.history.last().unwrap();
-            assert!(last.stiff + last.soft > 0 || tuned.retunes == MAX_RETUNES);
-            assert!(tuned.retunes <= MAX_RETUNES);
+            let max_retunes = AdaptiveParams::default().max_retunes;
+            assert!(last.stiff + last.soft > 0 || tuned.retunes == max_retunes);
+            assert!(tuned.retunes <= max_retunes);
             let scale = fixed.lambda.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             for i in 0..fixed.lambda.len() {
                 assert!((fixed.lambda[i] - tuned.lambda[i]).abs() < 1e-8 * scale);
