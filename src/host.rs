@@ -253,8 +253,8 @@ pub fn on_subdomain_threads<M: Send, R>(
 /// The VTU encoder copies each array through several nested buffers, which made the
 /// output phase mostly page faults. Only the output phase gets this: its buffers are far
 /// smaller than the factorization's, so the peak memory per rank does not move, whereas
-/// the same setting for the whole run (`GLIBC_TUNABLES=glibc.malloc.mmap_max=0`, see the
-/// README) raises it.
+/// the same setting for the whole run (`GLIBC_TUNABLES=glibc.malloc.mmap_max=0`,
+/// docs/performance.md "Memory") raises it.
 pub fn keep_freed_blocks_for_reuse() {
     // SAFETY: mallopt only changes glibc's allocation policy; it may be called at any
     // time, and blocks already mapped are still unmapped correctly when freed. A failed

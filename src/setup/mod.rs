@@ -169,7 +169,7 @@ impl Setup {
             coulomb: solver.coulomb,
             acceleration: solver.acceleration,
             // A given r is the user's: kept as it is.
-            adapt_r: solver.r.is_none(),
+            adaptive: solver.r.is_none().then(contact::AdaptiveParams::default),
             mesh_stiffness: self.mesh_stiffness,
         }
     }
